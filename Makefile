@@ -1,0 +1,35 @@
+# Workspace entry points. `make setup` is idempotent and a quick no-op when nothing changed.
+SHELL := /bin/bash
+.DEFAULT_GOAL := setup
+
+# Extra arguments for the tools, e.g. `make demo ARGS="--duration 5"`.
+ARGS ?=
+# Bag directory for `make report BAG=bags/<run>`.
+BAG ?=
+
+.PHONY: setup test lint clean demo reproduce bench report
+
+setup:
+	bash scripts/setup.sh
+
+test: setup
+	bash scripts/run_tests.sh
+
+lint: setup
+	scripts/with_env.sh ruff check src tests scripts
+
+clean:
+	rm -rf build install log
+
+demo: setup
+	scripts/with_env.sh ros2 run pac_rig demo $(ARGS)
+
+reproduce: setup
+	scripts/with_env.sh ros2 run pac_rig reproduce $(ARGS)
+
+bench: setup
+	scripts/with_env.sh ros2 run pac_rig bench $(ARGS)
+
+report: setup
+	@if [ -z "$(BAG)" ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi
+	scripts/with_env.sh ros2 run pac_rig report $(BAG) $(ARGS)

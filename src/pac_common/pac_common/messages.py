@@ -1,0 +1,166 @@
+"""Core outputs -> pac_interfaces message fields, one definition for every front.
+
+The plant, observer and controller nodes (rclpy message classes) and the offline
+simulator (rosbags message classes) build their messages from these field
+dictionaries, so a lock-step run over DDS and an offline run write the same
+values.  A *factory* turns a field dictionary into a message object of one
+library; nested dictionaries become nested messages.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from collections.abc import Mapping
+from typing import Any, Protocol
+
+import numpy as np
+
+FRAME_MEASUREMENT = "pac_interfaces/msg/FrameMeasurement"
+PLANT_TRUTH = "pac_interfaces/msg/PlantTruth"
+OBSERVER_ESTIMATE = "pac_interfaces/msg/ObserverEstimate"
+ACTUATOR_COMMAND = "pac_interfaces/msg/ActuatorCommand"
+
+#: Relative topic names (a namespace moves the whole rig) and their types.
+TOPICS: dict[str, str] = {
+    "measurement": FRAME_MEASUREMENT,
+    "plant_truth": PLANT_TRUTH,
+    "estimate": OBSERVER_ESTIMATE,
+    "command": ACTUATOR_COMMAND,
+}
+
+MODES = {"active": 0, "passive": 1, "fallback": 2}
+COMMAND_FRESH, COMMAND_HELD, COMMAND_PASSIVE = 0, 1, 2
+STATUS_OK, STATUS_DIVERGED, STATUS_REINITIALISED, STATUS_MEASUREMENT_REJECTED = 0, 1, 2, 3
+
+
+def tick_stamp_ns(tick: int, rate_hz: float) -> int:
+    """Simulated time of a tick in integer nanoseconds (exact for integer-ns periods)."""
+    return tick * int(round(1e9 / rate_hz))
+
+
+def header(stamp_ns: int) -> dict[str, Any]:
+    return {"stamp": time_fields(stamp_ns), "frame_id": ""}
+
+
+def time_fields(stamp_ns: int) -> dict[str, int]:
+    return {"sec": stamp_ns // 1_000_000_000, "nanosec": stamp_ns % 1_000_000_000}
+
+
+def measurement_fields(m: Any, stamp_ns: int) -> dict[str, Any]:
+    """FrameMeasurement from pac_plant.plant.Measurement."""
+    return {
+        "header": header(stamp_ns),
+        "tick": m.tick,
+        "z1": m.z1,
+        "z2": m.z2,
+        "actuator_force": m.actuator_force,
+    }
+
+
+def truth_fields(
+    t: Any,
+    stamp_ns: int,
+    *,
+    applied_command_tick: int,
+    command_source: int = COMMAND_FRESH,
+    command_timeouts: int = 0,
+    round_trip_latency: float = math.nan,
+    wall_stamp_ns: int = 0,
+) -> dict[str, Any]:
+    """PlantTruth from pac_plant.plant.Truth and the plant's command bookkeeping."""
+    return {
+        "header": header(stamp_ns),
+        "tick": t.tick,
+        "z": np.array(t.z, dtype=np.float64),
+        "stiffness": t.stiffness,
+        "contact_force": t.contact_force,
+        "in_contact": bool(t.in_contact),
+        "u_applied": t.u_applied,
+        "applied_command_tick": applied_command_tick,
+        "command_age_ticks": max(0, t.tick - applied_command_tick) if applied_command_tick >= 0 else 0,
+        "command_source": command_source,
+        "command_timeouts": command_timeouts,
+        "round_trip_latency": round_trip_latency,
+        "wall_stamp": time_fields(wall_stamp_ns),
+    }
+
+
+def estimate_fields(
+    e: Any, stamp_ns: int, *, status: int = STATUS_OK, rejected: int = 0, reinitialisations: int = 0
+) -> dict[str, Any]:
+    """ObserverEstimate from pac_observer.observer.Estimate."""
+    return {
+        "header": header(stamp_ns),
+        "tick": e.tick,
+        "z_hat": np.array(e.z_hat, dtype=np.float64),
+        "theta_hat": np.array(e.theta_hat, dtype=np.float64),
+        "stiffness_hat": e.stiffness_hat,
+        "contact_force_hat": e.contact_force_hat,
+        "innovation": np.array(e.innovation, dtype=np.float64),
+        "status": status,
+        "rejected_measurements": rejected,
+        "reinitialisations": reinitialisations,
+    }
+
+
+def command_fields(c: Any, stamp_ns: int, *, estimate_age_ticks: int = 0) -> dict[str, Any]:
+    """ActuatorCommand from pac_controller.backstepping.Command."""
+    return {
+        "header": header(stamp_ns),
+        "tick": c.tick,
+        "u": c.u,
+        "u_unsaturated": c.u_unsaturated,
+        "force_reference": c.force_reference,
+        "tracking_error": np.array(c.tracking_error, dtype=np.float64),
+        "saturated": bool(c.saturated),
+        "mode": MODES[c.mode],
+        "estimate_age_ticks": estimate_age_ticks,
+    }
+
+
+class MessageFactory(Protocol):
+    def make(self, typename: str, fields: Mapping[str, Any]) -> Any: ...
+
+
+class RclpyFactory:
+    """Builds rclpy message objects (needs the sourced workspace)."""
+
+    def __init__(self) -> None:
+        self._classes: dict[str, type] = {}
+
+    def cls(self, typename: str) -> type:
+        if typename not in self._classes:
+            pkg, _, name = typename.split("/")
+            self._classes[typename] = getattr(importlib.import_module(f"{pkg}.msg"), name)
+        return self._classes[typename]
+
+    def make(self, typename: str, fields: Mapping[str, Any]) -> Any:
+        cls = self.cls(typename)
+        types = cls.get_fields_and_field_types()
+        kwargs = {}
+        for key, value in fields.items():
+            if isinstance(value, Mapping):
+                sub = types[key]
+                if "/" in sub and sub.count("/") == 1:
+                    sub = sub.replace("/", "/msg/")
+                value = self.make(sub, value)
+            kwargs[key] = value
+        return cls(**kwargs)
+
+
+class RosbagsFactory:
+    """Builds rosbags message objects from a typestore that knows pac_interfaces."""
+
+    def __init__(self, typestore: Any) -> None:
+        self.typestore = typestore
+
+    def make(self, typename: str, fields: Mapping[str, Any]) -> Any:
+        cls = self.typestore.types[typename]
+        kwargs = {}
+        for name, ftype in self.typestore.fielddefs[typename][1]:
+            value = fields[name]
+            if isinstance(value, Mapping):
+                value = self.make(ftype[1], value)
+            kwargs[name] = value
+        return cls(**kwargs)

@@ -1,0 +1,183 @@
+"""Declarative, validated parameter sets shared by the cores and the nodes.
+
+A parameter set is a frozen dataclass whose fields are declared with
+:func:`parameter`.  The same declaration gives the default, the description,
+the unit and the allowed range, so the pure cores, the ROS 2 nodes (which
+declare one ROS parameter per field) and the command-line tools all validate a
+value by the very same rule and report it the same way.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, TypeVar
+
+Scalar = float | int | str | bool
+
+
+class ParameterError(ValueError):
+    """A parameter value is outside its allowed range.
+
+    The message is one line naming the parameter, the value and the allowed range.
+    """
+
+    def __init__(self, name: str, value: Any, allowed: str) -> None:
+        self.name = name
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f"invalid parameter '{name}' = {value!r}: allowed {allowed}")
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """What one parameter may be: type, bounds or choices, unit, meaning."""
+
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple[str, ...] | None = None
+    length: int | None = None  # fixed-length float array when set
+
+    @property
+    def kind(self) -> type:
+        if self.length is not None:
+            return tuple
+        return type(self.default)
+
+    def allowed(self) -> str:
+        """Human-readable allowed range, e.g. ``(0, inf) kg`` or ``one of linear, unilateral``."""
+        if self.choices is not None:
+            return "one of " + ", ".join(self.choices)
+        lo = "-inf" if self.low is None else _fmt(self.low)
+        hi = "inf" if self.high is None else _fmt(self.high)
+        left = "(" if (self.low is None or self.low_open) else "["
+        right = ")" if (self.high is None or self.high_open) else "]"
+        rng = f"{left}{lo}, {hi}{right}"
+        if self.length is not None:
+            rng = f"{self.length} finite values, each in {rng}"
+        elif self.kind is int:
+            rng = f"an integer in {rng}"
+        elif self.kind is float:
+            rng = f"a finite number in {rng}"
+        return f"{rng} {self.unit}".rstrip()
+
+    def check(self, value: Any) -> Any:
+        """Return ``value`` normalised to the spec's type, or raise :class:`ParameterError`."""
+        if self.choices is not None:
+            if not isinstance(value, str) or value not in self.choices:
+                raise ParameterError(self.name, value, self.allowed())
+            return value
+        if self.kind is bool:
+            if not isinstance(value, bool):
+                raise ParameterError(self.name, value, "true or false")
+            return value
+        if self.length is not None:
+            try:
+                items = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                raise ParameterError(self.name, value, self.allowed()) from None
+            if len(items) != self.length or not all(self._in_range(v) for v in items):
+                raise ParameterError(self.name, value, self.allowed())
+            return items
+        if self.kind is int:
+            if isinstance(value, bool) or not isinstance(value, int):
+                if isinstance(value, float) and value.is_integer():
+                    value = int(value)
+                else:
+                    raise ParameterError(self.name, value, self.allowed())
+            if not self._in_range(value):
+                raise ParameterError(self.name, value, self.allowed())
+            return value
+        if self.kind is float:
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ParameterError(self.name, value, self.allowed())
+            value = float(value)
+            if not self._in_range(value):
+                raise ParameterError(self.name, value, self.allowed())
+            return value
+        if not isinstance(value, self.kind):
+            raise ParameterError(self.name, value, f"a {self.kind.__name__}")
+        return value
+
+    def _in_range(self, v: float) -> bool:
+        if not math.isfinite(v):
+            return False
+        if self.low is not None and (v < self.low or (self.low_open and v == self.low)):
+            return False
+        if self.high is not None and (v > self.high or (self.high_open and v == self.high)):
+            return False
+        return True
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def parameter(
+    default: Any,
+    description: str,
+    unit: str = "",
+    *,
+    low: float | None = None,
+    high: float | None = None,
+    low_open: bool = False,
+    high_open: bool = False,
+    choices: tuple[str, ...] | None = None,
+    length: int | None = None,
+) -> Any:
+    """Declare a dataclass field as a validated parameter (see :class:`ParameterSpec`)."""
+    meta = {
+        "description": description,
+        "unit": unit,
+        "low": low,
+        "high": high,
+        "low_open": low_open,
+        "high_open": high_open,
+        "choices": choices,
+        "length": length,
+    }
+    return field(default=default, metadata={"pac_parameter": meta})
+
+
+P = TypeVar("P", bound="ParameterSet")
+
+
+@dataclass(frozen=True)
+class ParameterSet:
+    """Base of every validated parameter set: fields checked on construction."""
+
+    cross_checks: ClassVar[tuple[str, ...]] = ()
+
+    def __post_init__(self) -> None:
+        for spec in self.specs():
+            object.__setattr__(self, spec.name, spec.check(getattr(self, spec.name)))
+        self.check_consistency()
+
+    def check_consistency(self) -> None:
+        """Checks between fields; override and raise :class:`ParameterError`."""
+
+    @classmethod
+    def specs(cls) -> tuple[ParameterSpec, ...]:
+        out = []
+        for f in dataclasses.fields(cls):
+            meta = f.metadata.get("pac_parameter")
+            if meta is not None:
+                out.append(ParameterSpec(name=f.name, default=f.default, **meta))
+        return tuple(out)
+
+    @classmethod
+    def from_mapping(cls: type[P], values: Mapping[str, Any]) -> P:
+        """Build from a mapping that may hold other keys too (those are ignored)."""
+        names = {s.name for s in cls.specs()}
+        return cls(**{k: v for k, v in values.items() if k in names})
+
+    def as_dict(self) -> dict[str, Any]:
+        return {s.name: getattr(self, s.name) for s in self.specs()}

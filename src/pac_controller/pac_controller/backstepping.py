@@ -1,0 +1,151 @@
+"""Backstepping contact-force controller of Chater et al. (2015), eqs. (23)-(43).
+
+Output feedback with certainty equivalence: the law runs on the observer's z_hat
+and theta_hat.  Choices the paper leaves open (docs/design.md):
+
+* z1r = +F_r / k_hat (eq. (23) with its sign fixed, PAPER_NOTES item 2),
+  k_hat = v(t)^T theta_hat clamped below at ``stiffness_hat_min``.
+* The output injection terms g_ij * (y - C z_hat) of eq. (21) contain the unknown
+  estimation error; they are dropped from alpha_1' and alpha_2' (they vanish as the
+  observer converges). z1 in psi(y) is replaced by z_hat_1, so the law needs the
+  estimate only.
+* alpha_1' and alpha_2' are exact time derivatives along the observer model without
+  injection, with theta_hat frozen (it varies slowly): k_hat' = v'(t)^T theta_hat, etc.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pac_plant.parameters import PantographParameters, TrackParameters
+
+from pac_plant import model
+
+from .parameters import ControllerParameters, ReferenceParameters
+from .reference import ForceReference
+
+
+@dataclass(frozen=True)
+class Command:
+    """The controller's output at one tick."""
+
+    tick: int
+    time: float
+    u: float  # applied (saturated) actuator force [N]
+    u_unsaturated: float  # what the law asked for [N]
+    force_reference: float  # F_r [N]
+    tracking_error: tuple[float, float, float]  # (e1, e2, e3), eqs. (24), (29), (36)
+    saturated: bool
+    mode: str  # "active" or "passive"
+
+
+def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
+    """Derivatives 0..3 of g = 1 / k from those of k (Faa di Bruno)."""
+    k0, k1, k2, k3 = k
+    g0 = 1.0 / k0
+    g1 = -k1 * g0**2
+    g2 = -k2 * g0**2 + 2.0 * k1**2 * g0**3
+    g3 = -k3 * g0**2 + 6.0 * k1 * k2 * g0**3 - 6.0 * k1**3 * g0**4
+    return np.array([g0, g1, g2, g3])
+
+
+def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """Derivatives 0..3 of f g (Leibniz)."""
+    return np.array(
+        [
+            f[0] * g[0],
+            f[1] * g[0] + f[0] * g[1],
+            f[2] * g[0] + 2.0 * f[1] * g[1] + f[0] * g[2],
+            f[3] * g[0] + 3.0 * f[2] * g[1] + 3.0 * f[1] * g[2] + f[0] * g[3],
+        ]
+    )
+
+
+class BacksteppingController:
+    """u = m2 (-c3 e3 + alpha_2' - f2(z_hat) - (b1/m1) e2), eq. (43); explicit (stateless) core."""
+
+    def __init__(
+        self,
+        pantograph: PantographParameters,
+        track: TrackParameters,
+        params: ControllerParameters,
+        reference: ReferenceParameters,
+        sample_period: float,
+    ) -> None:
+        if not (math.isfinite(sample_period) and sample_period > 0.0):
+            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        self.pantograph = pantograph
+        self.omega = track.omega
+        self.params = params
+        self.reference = ForceReference(reference)
+        self.sample_period = sample_period
+
+    def stiffness_hat_derivatives(self, t: float, theta_hat: np.ndarray) -> np.ndarray:
+        """k_hat and its derivatives 1..3 with theta_hat frozen, clamped at stiffness_hat_min."""
+        k = model.stiffness_regressor_derivatives(t, self.omega, 3) @ theta_hat
+        if k[0] < self.params.stiffness_hat_min:
+            return np.array([self.params.stiffness_hat_min, 0.0, 0.0, 0.0])
+        return k
+
+    def compute(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> Command:
+        """The command for ``tick`` from the estimate of that tick."""
+        t = tick * self.sample_period
+        f_r = self.reference.at(t)
+        if self.params.mode == "passive":
+            return self._limited(tick, t, f_r[0], f_r[0], (0.0, 0.0, 0.0))
+        u_law, errors = self.law(t, f_r, np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float))
+        return self._limited(tick, t, u_law, f_r[0], errors)
+
+    def law(
+        self, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+    ) -> tuple[float, tuple[float, float, float]]:
+        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3)."""
+        p = self.pantograph
+        c1, c2, c3 = self.params.c1, self.params.c2, self.params.c3
+        z1, z2, z3, z4 = z_hat
+        k = self.stiffness_hat_derivatives(t, theta_hat)
+        r = product_derivatives(f_r, reciprocal_derivatives(k))  # z1r and derivatives, eq. (23)
+
+        # Observer model (21) without injection; z1 in psi replaced by z_hat_1.
+        f1 = -(p.k1 / p.m1) * z1 + (p.k1 / p.m1) * z2 - (p.b1 / p.m1) * z3  # eq. (22)
+        f2 = (p.k1 / p.m2) * (z1 - z2) + (p.b1 / p.m2) * z3 - ((p.b1 + p.b2) / p.m2) * z4  # eq. (22)
+        force_term = z1 * k[0] / p.m1  # (z1/m1) v^T theta_hat
+        dz1, dz2 = z3, z4
+        dz3 = f1 + (p.b1 / p.m1) * z4 - force_term
+
+        e1 = z1 - r[0]  # eq. (24)
+        alpha1 = r[1] - c1 * e1  # eq. (28)
+        de1 = dz1 - r[1]
+        dalpha1 = r[2] - c1 * de1
+        e2 = z3 - alpha1  # eq. (29)
+        alpha2 = (p.m1 / p.b1) * (-c2 * e2 - e1 - f1 + force_term + dalpha1)  # eq. (35)
+        e3 = z4 - alpha2  # eq. (36)
+
+        # alpha_2' along the model: needs e2', f1', (z1 k_hat)' and alpha_1''.
+        de2 = dz3 - dalpha1
+        df1 = -(p.k1 / p.m1) * dz1 + (p.k1 / p.m1) * dz2 - (p.b1 / p.m1) * dz3
+        dforce_term = (dz1 * k[0] + z1 * k[1]) / p.m1
+        ddalpha1 = r[3] - c1 * (dz3 - r[2])
+        dalpha2 = (p.m1 / p.b1) * (-c2 * de2 - de1 - df1 + dforce_term + ddalpha1)
+
+        u = p.m2 * (-c3 * e3 + dalpha2 - f2 - (p.b1 / p.m1) * e2)  # eq. (43)
+        return u, (e1, e2, e3)
+
+    def _limited(
+        self, tick: int, t: float, u: float, force_reference: float, errors: tuple[float, float, float]
+    ) -> Command:
+        if not math.isfinite(u):
+            raise ValueError(f"control law produced a non-finite force at tick {tick}")
+        u_applied = min(max(u, self.params.u_min), self.params.u_max)
+        return Command(
+            tick=tick,
+            time=t,
+            u=u_applied,
+            u_unsaturated=u,
+            force_reference=force_reference,
+            tracking_error=errors,
+            saturated=u_applied != u,
+            mode=self.params.mode,
+        )

@@ -1,0 +1,54 @@
+"""Parameters of the reference generator and the backstepping controller."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pac_common.parameters import ParameterError, ParameterSet, parameter
+
+
+@dataclass(frozen=True)
+class ReferenceParameters(ParameterSet):
+    """Contact-force reference F_r: a piecewise-constant command through a 4th-order filter.
+
+    Section 6 filters "a square sequence between 0 and F_N = 100 N" without giving
+    the period or the filter; these are our documented choices (docs/design.md).
+    """
+
+    shape: str = parameter(
+        "constant",
+        "command before the filter: 'constant' (0 -> force_amplitude at t = 0), "
+        "'step' (0 -> force_initial at t = 0, -> force_amplitude at step_time), "
+        "'square' (force_amplitude / 0 alternating every period / 2, high first)",
+        choices=("constant", "step", "square"),
+    )
+    force_amplitude: float = parameter(100.0, "F_N, the nominal contact force", "N", low=0.0, high=1000.0)
+    force_initial: float = parameter(50.0, "first level of the 'step' shape", "N", low=0.0, high=1000.0)
+    step_time: float = parameter(5.0, "time of the second level of 'step'", "s", low=0.0)
+    period: float = parameter(4.0, "period of the 'square' shape", "s", low=0.01, high=3600.0)
+    filter_bandwidth: float = parameter(
+        20.0, "pole p of the critically damped filter p^4 / (s + p)^4", "rad/s", low=0.1, high=500.0
+    )
+
+
+@dataclass(frozen=True)
+class ControllerParameters(ParameterSet):
+    """Backstepping gains (eqs. (28), (35), (43)), mode and actuator limits."""
+
+    mode: str = parameter(
+        "active",
+        "'active': backstepping law eq. (43); 'passive': u = F_r (constant uplift, no feedback)",
+        choices=("active", "passive"),
+    )
+    c1: float = parameter(40.0, "backstepping gain c1, eq. (28)", "1/s", low=0.0, low_open=True, high=1e4)
+    c2: float = parameter(40.0, "backstepping gain c2, eq. (35)", "1/s", low=0.0, low_open=True, high=1e4)
+    c3: float = parameter(50.0, "backstepping gain c3, eq. (43)", "1/s", low=0.0, low_open=True, high=1e4)
+    u_min: float = parameter(-500.0, "actuator force lower limit", "N", low=-1e7, high=1e7)
+    u_max: float = parameter(500.0, "actuator force upper limit", "N", low=-1e7, high=1e7)
+    stiffness_hat_min: float = parameter(
+        500.0, "k_hat is clamped below at this value in z1r = F_r / k_hat", "N/m", low=1.0, high=1e6
+    )
+
+    def check_consistency(self) -> None:
+        if self.u_max <= self.u_min:
+            raise ParameterError("u_max", self.u_max, f"greater than u_min = {self.u_min:g} N")

@@ -1,0 +1,30 @@
+import os
+from glob import glob
+
+from setuptools import setup
+
+package_name = "pac_controller"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=[package_name],
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        # Zero matches is fine: the entry then installs nothing.
+        (os.path.join("share", package_name, "config"), glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="PAC maintainers",
+    maintainer_email="pac@example.com",
+    description="Force controller node: computes actuator commands from estimates.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "controller_node = pac_controller.controller_node:main",
+        ],
+    },
+)

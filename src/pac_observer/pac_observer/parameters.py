@@ -1,0 +1,52 @@
+"""Parameters of the Kalman-like adaptive observer, eq. (17) and Section 6."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pac_common.parameters import ParameterSet, parameter
+
+
+@dataclass(frozen=True)
+class ObserverParameters(ParameterSet):
+    """Tuning of eq. (17). Defaults are Section 6's values (Sigma read as 100 I_2)."""
+
+    rho_z: float = parameter(
+        40.0,
+        "forgetting rate of S_z; must exceed 26 (two slowest real parts of A)",
+        "1/s",
+        low=27.0,
+        high=1000.0,
+    )
+    rho_theta: float = parameter(
+        20.0, "forgetting rate of S_theta", "1/s", low=0.0, low_open=True, high=1000.0
+    )
+    sigma: tuple = parameter(
+        (100.0, 100.0), "diagonal of the output weight Sigma (2x2)", "1/m^2", length=2, low=0.0, low_open=True
+    )
+    s_z0: float = parameter(1.0, "S_z(0) = s_z0 * I_4", "", low=0.0, low_open=True)
+    s_theta0: float = parameter(1.0, "S_theta(0) = s_theta0 * I_3", "(m/N)^2", low=0.0, low_open=True)
+    s_theta_floor: float = parameter(
+        1e-16,
+        "lower bound on S_theta's eigenvalues (guards against wind-up without excitation)",
+        "(m/N)^2",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+    )
+    theta_hat0: tuple = parameter(
+        (3000.0, 0.0, 0.0),
+        "initial estimate of theta = (k0, k0 a cos b, k0 a sin b)",
+        "N/m",
+        length=3,
+        low=-1e6,
+        high=1e6,
+    )
+    z_hat0: tuple = parameter(
+        (0.0, 0.0, 0.0, 0.0),
+        "initial state estimate (z1, z2, z1', z2')",
+        "m, m/s",
+        length=4,
+        low=-10.0,
+        high=10.0,
+    )

@@ -1,0 +1,92 @@
+"""The 2-DOF pantograph-catenary model, eqs. (2)-(15) of Chater et al. (2015).
+
+State z = (z1, z2, z1', z2') (eq. 4): head and frame positions [m] and velocities
+[m/s], positive upwards, measured from the unloaded rest position; z1 > 0 presses
+the head into the wire.  Every formula of the model lives here once; the plant,
+the observer and the controller all import it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .parameters import PantographParameters
+
+#: C of eq. (13): the two frame positions are measured.
+OUTPUT_MATRIX = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
+
+
+def stiffness_regressor(t: float, omega: float) -> np.ndarray:
+    """v(t) = (1, cos omega t, sin omega t), eq. (9)."""
+    return np.array([1.0, math.cos(omega * t), math.sin(omega * t)])
+
+
+def stiffness_regressor_derivatives(t: float, omega: float, order: int) -> np.ndarray:
+    """Rows d^n v / dt^n for n = 0..order, v of eq. (9)."""
+    c, s = math.cos(omega * t), math.sin(omega * t)
+    # Each derivative of (cos, sin) rotates the pair by 90 degrees and scales it by omega.
+    cos_cycle, sin_cycle = (c, -s, -c, s), (s, c, -s, -c)
+    out = np.zeros((order + 1, 3))
+    out[0, 0] = 1.0
+    for n in range(order + 1):
+        out[n, 1] = omega**n * cos_cycle[n % 4]
+        out[n, 2] = omega**n * sin_cycle[n % 4]
+    return out
+
+
+def stiffness(t: float, omega: float, theta: np.ndarray) -> float:
+    """k(t) = v(t)^T theta, eq. (8) (equal to eq. (7) for theta of eq. (9)) [N/m]."""
+    wt = omega * t
+    return float(theta[0] + theta[1] * math.cos(wt) + theta[2] * math.sin(wt))
+
+
+def state_matrix(p: PantographParameters) -> np.ndarray:
+    """A of eq. (12): the pantograph without the catenary spring."""
+    return np.array(
+        [
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [-p.k1 / p.m1, p.k1 / p.m1, -p.b1 / p.m1, p.b1 / p.m1],
+            [p.k1 / p.m2, -p.k1 / p.m2, p.b1 / p.m2, -(p.b1 + p.b2) / p.m2],
+        ]
+    )
+
+
+def input_vector(u: float, p: PantographParameters) -> np.ndarray:
+    """phi(u) of eq. (14): the actuator force acts on the lower frame."""
+    return np.array([0.0, 0.0, 0.0, u / p.m2])
+
+
+def output_regressor(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
+    """psi(y) of eq. (15), a 4x3 matrix: psi(y) theta = (0, 0, -k z1 / m1, 0)."""
+    psi = np.zeros((4, 3))
+    psi[2] = (-y1 / p.m1) * stiffness_regressor(t, omega)
+    return psi
+
+
+def contact_force(k: float, z1: float, unilateral: bool) -> float:
+    """F = k z1, eq. (6); with ``unilateral`` the wire can only push (F >= 0)."""
+    f = k * z1
+    return max(f, 0.0) if unilateral else f
+
+
+def dynamics(z: np.ndarray, u: float, force: float, a: np.ndarray, p: PantographParameters) -> np.ndarray:
+    """z' of eqs. (3)/(5) written as A z + phi(u) - F e3 / m1.
+
+    With F = k z1 this is exactly eq. (5) and eq. (11): A z + phi(u) + psi(y) theta.
+    """
+    dz = a @ z
+    dz[2] -= force / p.m1
+    dz[3] += u / p.m2
+    return dz
+
+
+def static_equilibrium(u: float, k: float, p: PantographParameters) -> np.ndarray:
+    """Rest state under a constant uplift u and constant stiffness k.
+
+    From eq. (3) with all derivatives zero: F = k z1 = u and k1 (z2 - z1) = u.
+    """
+    z1 = u / k
+    return np.array([z1, z1 + u / p.k1, 0.0, 0.0])

@@ -1,0 +1,112 @@
+"""The simulated pantograph-catenary plant: explicit state, one sample period per call."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from pac_common.integrate import rk4_integrate
+
+from . import model
+from .parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """What the rig's sensors give at one tick: y = (z1, z2) of eq. (10), and the actuator force."""
+
+    tick: int
+    time: float
+    z1: float
+    z2: float
+    #: Force the actuator applied over the sample period that ends at this tick [N].
+    actuator_force: float
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The simulator's ground truth at one tick (never available on a real rig)."""
+
+    tick: int
+    time: float
+    z: tuple[float, float, float, float]
+    stiffness: float
+    contact_force: float
+    in_contact: bool
+    u_applied: float
+
+
+class Plant:
+    """Eqs. (3)-(7) stepped between sample instants with the actuator force held (ZOH).
+
+    ``advance(u)`` integrates one sample period with ``options.substeps`` RK4
+    steps; the error against an adaptive high-accuracy solver is measured in
+    ``tests/test_plant.py`` and documented in ``docs/numerics.md``.
+    """
+
+    def __init__(
+        self,
+        pantograph: PantographParameters,
+        track: TrackParameters,
+        catenary: CatenaryParameters,
+        options: PlantOptions,
+        sample_period: float,
+        z0: np.ndarray | None = None,
+    ) -> None:
+        if not (math.isfinite(sample_period) and sample_period > 0.0):
+            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        self.pantograph = pantograph
+        self.track = track
+        self.catenary = catenary
+        self.options = options
+        self.sample_period = sample_period
+        self._a = model.state_matrix(pantograph)
+        self._theta = catenary.theta
+        self._omega = track.omega
+        self._unilateral = options.contact_model == "unilateral"
+        self.tick = 0
+        self.z = np.zeros(4) if z0 is None else np.array(z0, dtype=float)
+        self.u_applied = 0.0
+
+    @property
+    def time(self) -> float:
+        return self.tick * self.sample_period
+
+    def stiffness_at(self, t: float) -> float:
+        return model.stiffness(t, self._omega, self._theta)
+
+    def force_at(self, t: float, z1: float) -> float:
+        return model.contact_force(self.stiffness_at(t), z1, self._unilateral)
+
+    def derivative(self, t: float, z: np.ndarray, u: float) -> np.ndarray:
+        """f(t, z) with the actuator force u held: eq. (5) (or its unilateral variant)."""
+        return model.dynamics(z, u, self.force_at(t, z[0]), self._a, self.pantograph)
+
+    def measurement(self) -> Measurement:
+        return Measurement(self.tick, self.time, float(self.z[0]), float(self.z[1]), self.u_applied)
+
+    def truth(self) -> Truth:
+        t = self.time
+        k = self.stiffness_at(t)
+        force = model.contact_force(k, float(self.z[0]), self._unilateral)
+        return Truth(
+            tick=self.tick,
+            time=t,
+            z=tuple(float(v) for v in self.z),
+            stiffness=k,
+            contact_force=force,
+            in_contact=force > 0.0,
+            u_applied=self.u_applied,
+        )
+
+    def advance(self, u: float) -> None:
+        """Apply ``u`` [N] over [t_k, t_{k+1}] and move to tick k + 1."""
+        if not math.isfinite(u):
+            raise ValueError(f"actuator force must be finite, got {u!r}")
+        t0 = self.time
+        self.z = rk4_integrate(
+            lambda t, z: self.derivative(t, z, u), t0, self.z, self.sample_period, self.options.substeps
+        )
+        self.tick += 1
+        self.u_applied = float(u)
