@@ -3,11 +3,10 @@
 import math
 
 import pytest
-from pac_common.parameters import ParameterError
+from pac_common.parameters import LoopParameters, ParameterError
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
-from pac_rig.closed_loop import LoopParameters
 
 ALL_SETS = [
     PantographParameters,

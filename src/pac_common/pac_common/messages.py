@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib
 import math
+import struct
 from collections.abc import Mapping
 from typing import Any, Protocol
 
@@ -117,6 +118,19 @@ def command_fields(c: Any, stamp_ns: int, *, estimate_age_ticks: int = 0) -> dic
         "mode": MODES[c.mode],
         "estimate_age_ticks": estimate_age_ticks,
     }
+
+
+def cdr_tick(data: bytes | memoryview) -> int:
+    """The ``tick`` of a serialised pac message without deserialising it.
+
+    Every pac message starts with std_msgs/Header (int32 sec, uint32 nanosec,
+    string frame_id) followed by uint64 tick, 8-aligned from the start of the CDR
+    body (after the 4-byte encapsulation header).
+    """
+    little = data[1] == 1
+    (length,) = struct.unpack_from("<I" if little else ">I", data, 4 + 8)
+    offset = (8 + 4 + length + 7) & ~7
+    return struct.unpack_from("<Q" if little else ">Q", data, 4 + offset)[0]
 
 
 class MessageFactory(Protocol):

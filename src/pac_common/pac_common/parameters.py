@@ -181,3 +181,33 @@ class ParameterSet:
 
     def as_dict(self) -> dict[str, Any]:
         return {s.name: getattr(self, s.name) for s in self.specs()}
+
+
+@dataclass(frozen=True)
+class LoopParameters(ParameterSet):
+    """Timing of the loop shared by all nodes."""
+
+    rate_hz: float = parameter(1000.0, "loop rate (sample frequency)", "Hz", low=1.0, high=20000.0)
+    command_delay_ticks: int = parameter(
+        1, "lock step and offline: u_k is applied over [t_(k+d), t_(k+d+1)]", "ticks", low=0, high=100
+    )
+    duration: float = parameter(
+        10.0, "run length in simulated time; 0 runs until stopped (nodes only)", "s", low=0.0, high=86400.0
+    )
+
+    @property
+    def sample_period(self) -> float:
+        return 1.0 / self.rate_hz
+
+    @property
+    def ticks(self) -> int:
+        return int(round(self.duration * self.rate_hz))
+
+
+@dataclass(frozen=True)
+class NodeOptions(ParameterSet):
+    """Start-up behaviour shared by the loop nodes."""
+
+    wait_for_recorder: bool = parameter(
+        False, "do not start the loop until a recorder is subscribed to this node's outputs too"
+    )

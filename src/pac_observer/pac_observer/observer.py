@@ -125,21 +125,60 @@ class AdaptiveObserver:
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
         """Process the sample y_k = (z1, z2) of ``tick`` and the force applied over (t_{k-1}, t_k].
 
-        Ticks must increase by one.  The first call initialises and returns the
-        initial estimate.  Raises :class:`ObserverDivergedError` and leaves the
-        state untouched if the update is not finite or S_theta is not positive definite.
+        The first call initialises and returns the initial estimate.  Ticks must
+        increase; a gap (lost samples) is bridged period by period with y
+        interpolated linearly across it and the force held.  Raises
+        :class:`ObserverDivergedError` and leaves the state untouched if the update
+        is not finite or S_theta is not positive definite.
         """
-        with np.errstate(all="ignore"):  # non-finite results are checked and reported below
-            return self._update(tick, y, actuator_force)
-
-    def _update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
         y_now = np.array(y, dtype=float)
         if self.tick < 0:
             self.tick = tick
             self._y_prev = y_now
             return self._estimate(y_now, y_now - self.z_hat[:2])
-        if tick != self.tick + 1:
-            raise ValueError(f"observer expects tick {self.tick + 1}, got {tick}")
+        gap = tick - self.tick
+        if gap < 1:
+            raise ValueError(f"observer expects a tick after {self.tick}, got {tick}")
+        saved = self._snapshot()
+        y_start = self._y_prev
+        try:
+            with np.errstate(all="ignore"):  # non-finite results are checked and reported
+                for j in range(1, gap + 1):
+                    innovation = self._step(y_start + (j / gap) * (y_now - y_start), actuator_force)
+        except ObserverDivergedError:
+            self._restore(saved)
+            raise
+        return self._estimate(y_now, innovation)
+
+    def _snapshot(self) -> tuple:
+        return (
+            self.tick,
+            self.xi,
+            self.lam,
+            self.s_z,
+            self.s_theta,
+            self.theta_hat,
+            self._gain_now,
+            self._s_z_settled,
+            self._y_prev,
+        )
+
+    def _restore(self, saved: tuple) -> None:
+        (
+            self.tick,
+            self.xi,
+            self.lam,
+            self.s_z,
+            self.s_theta,
+            self.theta_hat,
+            self._gain_now,
+            self._s_z_settled,
+            self._y_prev,
+        ) = saved
+
+    def _step(self, y_now: np.ndarray, actuator_force: float) -> np.ndarray:
+        """One sample period to tick + 1; returns the a priori innovation."""
+        tick = self.tick + 1
         dt = self.sample_period
         t0 = self.tick * dt
 
@@ -197,7 +236,7 @@ class AdaptiveObserver:
         self.xi, self.lam, self.s_theta, self.theta_hat = xi, lam, s_theta, theta_hat
         self.tick = tick
         self._y_prev = y_now
-        return self._estimate(y_now, innovation)
+        return innovation
 
     def _estimate(self, y_now: np.ndarray, innovation: np.ndarray) -> Estimate:
         t = self.tick * self.sample_period

@@ -14,32 +14,13 @@ from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
-from pac_common.parameters import ParameterSet, parameter
+from pac_common.parameters import LoopParameters
 from pac_controller.backstepping import BacksteppingController, Command
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
 from pac_plant.plant import Measurement, Plant, Truth
-
-
-@dataclass(frozen=True)
-class LoopParameters(ParameterSet):
-    """Timing of the loop shared by all nodes."""
-
-    rate_hz: float = parameter(1000.0, "loop rate (sample frequency)", "Hz", low=1.0, high=20000.0)
-    command_delay_ticks: int = parameter(
-        1, "ticks between computing u_k and the plant applying it", "ticks", low=0, high=100
-    )
-    duration: float = parameter(10.0, "simulated run length", "s", low=0.0, low_open=True, high=86400.0)
-
-    @property
-    def sample_period(self) -> float:
-        return 1.0 / self.rate_hz
-
-    @property
-    def ticks(self) -> int:
-        return int(round(self.duration * self.rate_hz))
 
 
 @dataclass(frozen=True)

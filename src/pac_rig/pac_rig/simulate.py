@@ -72,7 +72,7 @@ def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -
                 bag.write("measurement", messages.measurement_fields(rec.measurement, stamp), stamp)
                 bag.write(
                     "plant_truth",
-                    messages.truth_fields(rec.truth, stamp, applied_command_tick=k - 1 - delay),
+                    messages.truth_fields(rec.truth, stamp, applied_command_tick=max(-1, k - 1 - delay)),
                     stamp,
                 )
                 bag.write("estimate", messages.estimate_fields(rec.estimate, stamp), stamp)
@@ -118,6 +118,9 @@ def main(argv: list[str] | None = None) -> int:
         scenario = scenario_from_flat(values)
     except ParameterError as exc:
         print(f"simulate: {exc}", file=sys.stderr)
+        return 2
+    if scenario.loop.duration <= 0.0:
+        print("simulate: invalid parameter 'duration' = 0.0: allowed (0, 86400] s offline", file=sys.stderr)
         return 2
     result = simulate_to_bag(scenario, args.bag, label=args.bag.name)
     speed = result.simulated_seconds / result.wall_seconds

@@ -1,0 +1,223 @@
+"""``ros2 run pac_plant plant_node``: the simulated pantograph-catenary on the ROS graph.
+
+Publishes ``measurement`` (FrameMeasurement: z1, z2 and the actuator force) and
+``plant_truth`` (PlantTruth) each tick, applies the newest ``command``
+(ActuatorCommand).  Two timing modes:
+
+* ``realtime``: a wall-clock timer at ``rate_hz``.  The actuator is updated at the
+  sample instants only (a DAC clocked with the loop): the force applied over
+  [t_k, t_(k+1)] is the newest command received before the tick-k timer fires, so
+  a command computed from y_(k-1) that arrives within one period is applied with
+  exactly one tick of delay, and a later one waits for the next instant.  The
+  round trip y_k -> u_k is measured on this node's clock.
+* ``lockstep``: tick k+1 is taken only once the command for tick k is in; the
+  force applied over [t_k, t_(k+1)] is the command of tick k - d
+  (d = ``command_delay_ticks``), exactly as the offline simulator does.  A lost
+  sample is recovered by re-sending the measurement after ``resend_timeout``.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass
+
+from pac_common.node import LOOP_QOS, Node, declare_parameter_sets, refuse_runtime_changes, run_node
+from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
+
+from pac_common import messages
+
+from .parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from .plant import Plant
+
+
+@dataclass(frozen=True)
+class PlantNodeOptions(ParameterSet):
+    timing_mode: str = parameter(
+        "realtime",
+        "'realtime': wall-clock loop at rate_hz; 'lockstep': advance when the command arrives",
+        choices=("realtime", "lockstep"),
+    )
+    resend_timeout: float = parameter(
+        0.05,
+        "lockstep: re-send the measurement when no command came within this time",
+        "s",
+        low=0.001,
+        high=10.0,
+    )
+    realtime_priority: int = parameter(
+        0,
+        "SCHED_FIFO priority for the process (0 = normal scheduling; needs CAP_SYS_NICE)",
+        low=0,
+        high=99,
+    )
+
+
+class PlantNode(Node):
+    def __init__(self) -> None:
+        super().__init__("plant_node")
+        panto, track, catenary, options, loop, node_opts, opts = declare_parameter_sets(
+            self,
+            [
+                PantographParameters,
+                TrackParameters,
+                CatenaryParameters,
+                PlantOptions,
+                LoopParameters,
+                NodeOptions,
+                PlantNodeOptions,
+            ],
+        )
+        refuse_runtime_changes(
+            self,
+            [n for n in self._parameters if n != "use_sim_time"],
+            "the plant's model and timing are fixed for a run: restart the node to change them",
+        )
+        self.loop: LoopParameters = loop
+        self.options: PlantNodeOptions = opts
+        self.node_options: NodeOptions = node_opts
+        self.plant = Plant(panto, track, catenary, options, loop.sample_period)
+        self.factory = messages.RclpyFactory()
+        self.measurement_pub = self.create_publisher(
+            self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", LOOP_QOS
+        )
+        self.truth_pub = self.create_publisher(
+            self.factory.cls(messages.PLANT_TRUTH), "plant_truth", LOOP_QOS
+        )
+        self.command_sub = self.create_subscription(
+            self.factory.cls(messages.ACTUATOR_COMMAND), "command", self.on_command, LOOP_QOS
+        )
+        self.finished = False
+        self.ticks_total = loop.ticks if loop.duration > 0 else math.inf
+        # Command bookkeeping.
+        self.latest: tuple[int, float] | None = None  # (tick, u) of the newest command received
+        self.pending: deque[tuple[int, float]] = deque([(-1, 0.0)] * loop.command_delay_ticks)
+        self.applied_tick = -1  # command applied over the period that ends at the current tick
+        self.applied_source = messages.COMMAND_PASSIVE
+        self.sent_wall: dict[int, int] = {}  # tick -> wall ns of publishing its measurement
+        self.latency: dict[int, float] = {}  # command tick -> round trip [s]
+        self.last_sent = 0.0
+        self.resends = 0
+        self._set_priority(opts.realtime_priority)
+        self.start_timer = self.create_timer(0.01, self.try_start)
+        self.get_logger().info(
+            f"{opts.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
+            f"({'until stopped' if loop.duration == 0 else f'{loop.ticks} ticks'}); waiting for the loop"
+        )
+
+    def _set_priority(self, priority: int) -> None:
+        if priority <= 0:
+            return
+        try:
+            import os
+
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            self.get_logger().info(f"SCHED_FIFO priority {priority}")
+        except (PermissionError, OSError, AttributeError) as exc:
+            self.get_logger().warning(f"realtime_priority {priority} not granted ({exc}); normal scheduling")
+
+    # -- start-up: wait for the loop (and the recorder) to be matched, never a blind sleep ----------
+    def ready(self) -> bool:
+        recorder = int(self.node_options.wait_for_recorder)
+        return (
+            self.measurement_pub.get_subscription_count() >= 1 + recorder
+            and self.truth_pub.get_subscription_count() >= recorder
+            and self.command_sub.get_publisher_count() >= 1
+        )
+
+    def try_start(self) -> None:
+        if not self.ready():
+            return
+        self.destroy_timer(self.start_timer)
+        self.get_logger().info("loop matched: starting")
+        if self.options.timing_mode == "realtime":
+            self.tick_timer = self.create_timer(self.loop.sample_period, self.on_realtime_tick)
+        else:
+            self.publish_tick()
+            self.resend_timer = self.create_timer(self.options.resend_timeout / 2, self.on_resend_check)
+
+    # -- publishing ----------------------------------------------------------------------------------
+    def publish_tick(self) -> None:
+        k = self.plant.tick
+        stamp = messages.tick_stamp_ns(k, self.loop.rate_hz)
+        now = time.time_ns()
+        self.sent_wall[k] = now
+        self.sent_wall.pop(k - 1000, None)
+        self.measurement_pub.publish(
+            self.factory.make(
+                messages.FRAME_MEASUREMENT, messages.measurement_fields(self.plant.measurement(), stamp)
+            )
+        )
+        self.last_sent = time.monotonic()
+        self.truth_pub.publish(
+            self.factory.make(
+                messages.PLANT_TRUTH,
+                messages.truth_fields(
+                    self.plant.truth(),
+                    stamp,
+                    applied_command_tick=self.applied_tick,
+                    command_source=self.applied_source,
+                    round_trip_latency=self.latency.pop(self.applied_tick, math.nan),
+                    wall_stamp_ns=now,
+                ),
+            )
+        )
+
+    def on_command(self, msg) -> None:
+        tick, u = int(msg.tick), float(msg.u)
+        if tick in self.sent_wall and tick not in self.latency:
+            self.latency[tick] = (time.time_ns() - self.sent_wall[tick]) * 1e-9
+        if not math.isfinite(u):
+            self.get_logger().error(f"ignored a non-finite command for tick {tick}")
+            return
+        if self.latest is None or tick > self.latest[0]:
+            self.latest = (tick, u)
+        if self.options.timing_mode == "lockstep" and tick == self.plant.tick and not self.finished:
+            self.pending.append((tick, u))
+            applied_tick, applied_u = self.pending.popleft()
+            self.advance(applied_tick, applied_u, messages.COMMAND_FRESH)
+            if not self.finished:
+                self.publish_tick()
+
+    def advance(self, command_tick: int, u: float, source: int) -> None:
+        """Apply u over [t_k, t_(k+1)]; finish after the last tick's command."""
+        if self.plant.tick + 1 >= self.ticks_total:
+            self.finished = True
+            return
+        self.plant.advance(u)
+        self.applied_tick, self.applied_source = command_tick, source
+        self.latency = {t: v for t, v in self.latency.items() if t >= command_tick - 100}
+
+    def on_realtime_tick(self) -> None:
+        if self.latest is None:
+            command_tick, u, source = -1, 0.0, messages.COMMAND_PASSIVE
+        else:
+            command_tick, u = self.latest
+            source = messages.COMMAND_FRESH if command_tick > self.applied_tick else messages.COMMAND_HELD
+        self.publish_tick()
+        self.advance(command_tick, u, source)
+
+    def on_resend_check(self) -> None:
+        if not self.finished and time.monotonic() - self.last_sent > self.options.resend_timeout:
+            self.resends += 1
+            k = self.plant.tick
+            stamp = messages.tick_stamp_ns(k, self.loop.rate_hz)
+            self.measurement_pub.publish(
+                self.factory.make(
+                    messages.FRAME_MEASUREMENT, messages.measurement_fields(self.plant.measurement(), stamp)
+                )
+            )
+            self.last_sent = time.monotonic()
+
+    def close(self) -> None:
+        self.get_logger().info(f"stopped at tick {self.plant.tick} ({self.resends} measurement re-sends)")
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node("plant_node", PlantNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

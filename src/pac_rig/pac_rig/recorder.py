@@ -1,0 +1,112 @@
+"""``ros2 run pac_rig recorder``: record the four pac topics to a rosbag2 directory (MCAP).
+
+Subscriptions take the serialised (CDR) messages as they arrive and put them on
+a queue with the receive time; a writer thread does all file I/O, so nothing
+slow sits on the subscription callbacks' path.  The bag's log time is the wall
+time of reception (the header stamps carry the simulated time).  SIGINT/SIGTERM,
+``stop_after_tick`` or ``idle_timeout`` close the bag cleanly (summary written).
+"""
+
+from __future__ import annotations
+
+import queue
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from pac_common.node import RECORD_QOS, Node, declare_parameter_sets, run_node
+from pac_common.parameters import ParameterError, ParameterSet, parameter
+
+from pac_common import messages
+
+from .bag import BagWriter
+
+
+@dataclass(frozen=True)
+class RecorderParameters(ParameterSet):
+    bag_path: str = parameter("", "output bag directory (must not exist); empty: bags/run_<date>_<time>")
+    stop_after_tick: int = parameter(
+        -1,
+        "close the bag and exit once this tick has been recorded on every topic (-1: never)",
+        low=-1,
+    )
+    idle_timeout: float = parameter(
+        0.0,
+        "close the bag and exit after this long without any message, once recording began (0: never)",
+        "s",
+        low=0.0,
+        high=3600.0,
+    )
+
+
+class RecorderNode(Node):
+    def __init__(self) -> None:
+        super().__init__("recorder")
+        (params,) = declare_parameter_sets(self, [RecorderParameters])
+        path = Path(params.bag_path or f"bags/run_{datetime.now():%Y%m%d_%H%M%S}")
+        if path.exists():
+            raise ParameterError("bag_path", str(path), "a path that does not exist yet")
+        self.params: RecorderParameters = params
+        self.bag = BagWriter(path, {"source": "live", "label": path.name})
+        self.path = path
+        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.last_tick = dict.fromkeys(messages.TOPICS, -1)
+        self.finished = False
+        self.last_message_wall = None
+        factory = messages.RclpyFactory()
+        for topic, typename in messages.TOPICS.items():
+            self.create_subscription(
+                factory.cls(typename), topic, self._callback(topic), RECORD_QOS, raw=True
+            )
+        self.writer = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
+        self.writer.start()
+        if params.idle_timeout > 0:
+            self.create_timer(min(0.1, params.idle_timeout / 2), self._check_idle)
+        self.get_logger().info(f"recording {', '.join(messages.TOPICS)} to {path}")
+
+    def _callback(self, topic: str):
+        put = self.queue.put
+
+        def callback(data: bytes) -> None:
+            put((topic, data, time.time_ns()))
+
+        return callback
+
+    def _write_loop(self) -> None:
+        stop_tick = self.params.stop_after_tick
+        while True:
+            item = self.queue.get()
+            if item is None:
+                return
+            topic, data, stamp = item
+            self.bag.write_raw(topic, data, stamp)
+            self.last_message_wall = time.monotonic()
+            if stop_tick >= 0:
+                self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
+                if min(self.last_tick.values()) >= stop_tick:
+                    self.finished = True
+
+    def _check_idle(self) -> None:
+        last = self.last_message_wall
+        if last is not None and time.monotonic() - last > self.params.idle_timeout:
+            self.get_logger().info(f"no message for {self.params.idle_timeout:g} s: closing")
+            self.finished = True
+
+    def close(self) -> None:
+        """Drain the queue, write the summary and metadata: the bag is complete and indexed."""
+        self.queue.put(None)
+        self.writer.join()
+        self.bag.close()
+        counts = ", ".join(f"{t}={n}" for t, n in self.bag.counts.items())
+        print(f"recorder: closed {self.path} ({counts})", file=sys.stderr, flush=True)
+
+
+def main(args: list[str] | None = None) -> int:
+    return run_node("recorder", RecorderNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
