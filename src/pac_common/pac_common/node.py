@@ -33,9 +33,10 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 
 #: Loop topics (measurement, estimate, command): only the newest sample matters in real time,
 #: a lost sample is better than a late one, and best effort avoids retransmission queues.
-#: Depth 10 on the receiving side keeps a burst (two samples in one wake-up) instead of
-#: overwriting it; docs/design.md gives the measurements behind this choice.
-LOOP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+#: Keep-last 1: a node that falls behind skips to the newest sample (the observer bridges the
+#: gap exactly) instead of working through a backlog; with depth 10 the command age reached
+#: 20-44 ticks under load (docs/design.md).
+LOOP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: The recorder's subscriptions: best effort (matches every publisher) with a deep reader queue.
 RECORD_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=2000, reliability=ReliabilityPolicy.BEST_EFFORT
@@ -104,6 +105,19 @@ def refuse_runtime_changes(node: Node, names: Iterable[str], reason: str) -> Non
         return SetParametersResult(successful=True)
 
     node.add_on_set_parameters_callback(callback)
+
+
+def set_realtime_priority(node: Node, priority: int) -> bool:
+    """SCHED_FIFO at ``priority`` for this process; warn and carry on when it is refused."""
+    if priority <= 0:
+        return False
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    except (PermissionError, OSError) as exc:
+        node.get_logger().warning(f"realtime_priority {priority} refused ({exc}): normal scheduling")
+        return False
+    node.get_logger().info(f"running with SCHED_FIFO priority {priority}")
+    return True
 
 
 def make_executor() -> Any:

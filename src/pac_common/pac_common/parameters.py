@@ -211,3 +211,10 @@ class NodeOptions(ParameterSet):
     wait_for_recorder: bool = parameter(
         False, "do not start the loop until a recorder is subscribed to this node's outputs too"
     )
+    realtime_priority: int = parameter(
+        0,
+        "SCHED_FIFO priority of this process (0: normal scheduling). Needs root or CAP_SYS_NICE; "
+        "when refused the node warns and runs with normal scheduling",
+        low=0,
+        high=99,
+    )

@@ -11,7 +11,14 @@ import math
 import sys
 
 import numpy as np
-from pac_common.node import LOOP_QOS, Node, declare_parameter_sets, refuse_runtime_changes, run_node
+from pac_common.node import (
+    LOOP_QOS,
+    Node,
+    declare_parameter_sets,
+    refuse_runtime_changes,
+    run_node,
+    set_realtime_priority,
+)
 from pac_common.parameters import LoopParameters, NodeOptions
 from pac_plant.parameters import PantographParameters, TrackParameters
 
@@ -42,6 +49,7 @@ class ControllerNode(Node):
         )
         self.loop: LoopParameters = loop
         self.node_options: NodeOptions = node_opts
+        set_realtime_priority(self, node_opts.realtime_priority)
         self.core = BacksteppingController(panto, track, params, reference, loop.sample_period)
         self.factory = messages.RclpyFactory()
         self.command_pub = self.create_publisher(
@@ -52,6 +60,8 @@ class ControllerNode(Node):
         )
         self.last_tick = -1
         self.last_message = None
+        self.sent = 0
+        self.skipped = 0  # estimates that never arrived (tick gaps)
 
     def ready(self) -> bool:
         return self.command_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
@@ -76,10 +86,20 @@ class ControllerNode(Node):
             return
         if not math.isfinite(cmd.u):
             return
+        if self.last_tick >= 0:
+            self.skipped += tick - self.last_tick - 1
         self.last_tick = tick
+        self.sent += 1
         stamp = messages.tick_stamp_ns(tick, self.loop.rate_hz)
         self.last_message = self.factory.make(messages.ACTUATOR_COMMAND, messages.command_fields(cmd, stamp))
         self.command_pub.publish(self.last_message)
+
+    def close(self) -> None:
+        print(
+            f"controller_node: sent {self.sent} commands; {self.skipped} estimates never arrived",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def main(args: list[str] | None = None) -> int:

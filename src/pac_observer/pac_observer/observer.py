@@ -110,12 +110,19 @@ class AdaptiveObserver:
         self.s_z = p.s_z0 * np.eye(4)
         self.s_theta = p.s_theta0 * np.eye(3)
         self._gain_now = self._gain(self.s_z)
+        self._closed_now = self._closed(self._gain_now)
         self._s_z_settled = False
         self._y_prev = np.zeros(2)
 
     @property
     def z_hat(self) -> np.ndarray:
         return self.xi + self.lam @ self.theta_hat
+
+    def _closed(self, gain: np.ndarray) -> np.ndarray:
+        """A - L C: the observer's homogeneous dynamics (eq. (17), Lambda' and xi')."""
+        out = self._a.copy()
+        out[:, :2] -= gain
+        return out
 
     def _gain(self, s_z: np.ndarray) -> np.ndarray:
         """Output injection L = S_z^-1 C^T Sigma (4x2)."""
@@ -150,31 +157,26 @@ class AdaptiveObserver:
             raise
         return self._estimate(y_now, innovation)
 
+    #: Everything an update changes (each is replaced, never mutated in place, so a snapshot is cheap).
+    _STATE = (
+        "tick",
+        "xi",
+        "lam",
+        "s_z",
+        "s_theta",
+        "theta_hat",
+        "_gain_now",
+        "_closed_now",
+        "_s_z_settled",
+        "_y_prev",
+    )
+
     def _snapshot(self) -> tuple:
-        return (
-            self.tick,
-            self.xi,
-            self.lam,
-            self.s_z,
-            self.s_theta,
-            self.theta_hat,
-            self._gain_now,
-            self._s_z_settled,
-            self._y_prev,
-        )
+        return tuple(getattr(self, name) for name in self._STATE)
 
     def _restore(self, saved: tuple) -> None:
-        (
-            self.tick,
-            self.xi,
-            self.lam,
-            self.s_z,
-            self.s_theta,
-            self.theta_hat,
-            self._gain_now,
-            self._s_z_settled,
-            self._y_prev,
-        ) = saved
+        for name, value in zip(self._STATE, saved, strict=True):
+            setattr(self, name, value)
 
     def _step(self, y_now: np.ndarray, actuator_force: float) -> np.ndarray:
         """One sample period to tick + 1; returns the a priori innovation."""
@@ -183,37 +185,40 @@ class AdaptiveObserver:
         t0 = self.tick * dt
 
         # 1. S_z, exact, at the start, middle and end of the period (until it has settled).
-        gain0 = self._gain_now
         if self._s_z_settled:
-            s_z_end, gain_mid, gain_end = self.s_z, gain0, gain0
+            s_z_end = self.s_z
+            m0 = m_mid = m_end = self._closed_now
+            gain0 = gain_mid = gain_end = self._gain_now
         else:
             s_z_mid = self._sz_half_map.T @ self.s_z @ self._sz_half_map + self._sz_half_input
             s_z_end = self._sz_half_map.T @ s_z_mid @ self._sz_half_map + self._sz_half_input
-            gain_mid, gain_end = self._gain(s_z_mid), self._gain(s_z_end)
+            gain0, gain_mid, gain_end = self._gain_now, self._gain(s_z_mid), self._gain(s_z_end)
+            m0, m_mid, m_end = self._closed_now, self._closed(gain_mid), self._closed(gain_end)
 
         # 2. X = [xi | Lambda], one RK4 step of X' = (A - L C) X + [phi(u) + L y, psi(y)].
         y0 = self._y_prev
+        dy = y_now - y0
         phi = model.input_vector(actuator_force, self.pantograph)
         x = np.empty((4, 4))
         x[:, 0] = self.xi
         x[:, 1:] = self.lam
+        omega, panto = self.omega, self.pantograph
 
-        def f(frac: float, gain: np.ndarray, xx: np.ndarray) -> np.ndarray:
-            y_s = y0 + frac * (y_now - y0)
-            out = self._a @ xx - gain @ xx[:2, :]
+        def f(frac: float, closed: np.ndarray, gain: np.ndarray, xx: np.ndarray) -> np.ndarray:
+            y_s = y0 + frac * dy
+            out = closed @ xx
             out[:, 0] += phi + gain @ y_s
-            out[:, 1:] += model.output_regressor(y_s[0], t0 + frac * dt, self.omega, self.pantograph)
+            out[2, 1:] += model.output_regressor_row(y_s[0], t0 + frac * dt, omega, panto)
             return out
 
-        k1 = f(0.0, gain0, x)
-        k2 = f(0.5, gain_mid, x + (0.5 * dt) * k1)
-        k3 = f(0.5, gain_mid, x + (0.5 * dt) * k2)
-        k4 = f(1.0, gain_end, x + dt * k3)
+        k1 = f(0.0, m0, gain0, x)
+        k2 = f(0.5, m_mid, gain_mid, x + (0.5 * dt) * k1)
+        k3 = f(0.5, m_mid, gain_mid, x + (0.5 * dt) * k2)
+        k4 = f(1.0, m_end, gain_end, x + dt * k3)
         x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
-        xi, lam = x[:, 0].copy(), x[:, 1:].copy()
-        for name, value in (("xi", xi), ("Lambda", lam)):
-            if not np.all(np.isfinite(value)):
-                raise ObserverDivergedError(tick, f"{name} is not finite")
+        if not np.isfinite(x).all():
+            raise ObserverDivergedError(tick, "xi or Lambda is not finite")
+        xi, lam = x[:, 0], x[:, 1:]
 
         # 3. RLS: implicit Euler of the theta_hat / S_theta equations.
         phi_reg = lam[:2, :]  # Phi = C Lambda (2x3)
@@ -221,18 +226,18 @@ class AdaptiveObserver:
         s_theta = self._theta_forgetting * self.s_theta + dt * (weighted @ phi_reg) + self._floor_input
         innovation = y_now - xi[:2] - phi_reg @ self.theta_hat  # a priori, y - C z_hat
         try:
-            chol = scipy.linalg.cho_factor(s_theta, check_finite=True)
-            step = scipy.linalg.cho_solve(chol, dt * (weighted @ innovation))
-        except (np.linalg.LinAlgError, ValueError) as exc:
+            np.linalg.cholesky(s_theta)  # positive definiteness check (raises otherwise)
+            step = np.linalg.solve(s_theta, dt * (weighted @ innovation))
+        except np.linalg.LinAlgError as exc:
             raise ObserverDivergedError(tick, f"S_theta not positive definite ({exc})") from None
         theta_hat = self.theta_hat + step
-        if not np.all(np.isfinite(theta_hat)):
+        if not np.isfinite(theta_hat).all():
             raise ObserverDivergedError(tick, "theta_hat is not finite")
 
         # Commit.
         if not self._s_z_settled:
             settled = np.max(np.abs(s_z_end - self.s_z)) <= 1e-13 * np.max(np.abs(s_z_end))
-            self.s_z, self._gain_now, self._s_z_settled = s_z_end, gain_end, settled
+            self.s_z, self._gain_now, self._closed_now, self._s_z_settled = s_z_end, gain_end, m_end, settled
         self.xi, self.lam, self.s_theta, self.theta_hat = xi, lam, s_theta, theta_hat
         self.tick = tick
         self._y_prev = y_now

@@ -10,7 +10,14 @@ from __future__ import annotations
 import math
 import sys
 
-from pac_common.node import LOOP_QOS, Node, declare_parameter_sets, refuse_runtime_changes, run_node
+from pac_common.node import (
+    LOOP_QOS,
+    Node,
+    declare_parameter_sets,
+    refuse_runtime_changes,
+    run_node,
+    set_realtime_priority,
+)
 from pac_common.parameters import LoopParameters, NodeOptions
 from pac_plant.parameters import PantographParameters, TrackParameters
 
@@ -33,6 +40,7 @@ class ObserverNode(Node):
         )
         self.loop: LoopParameters = loop
         self.node_options: NodeOptions = node_opts
+        set_realtime_priority(self, node_opts.realtime_priority)
         self.core = AdaptiveObserver(panto, track, params, loop.sample_period)
         self.factory = messages.RclpyFactory()
         self.estimate_pub = self.create_publisher(
@@ -45,6 +53,8 @@ class ObserverNode(Node):
         self.reinitialisations = 0
         self.rejected = 0
         self.waited = 0
+        self.processed = 0
+        self.bridged = 0  # samples never received, bridged by the core
 
     def ready(self) -> bool:
         return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
@@ -64,6 +74,9 @@ class ObserverNode(Node):
             self.get_logger().warning(f"tick {tick}: non-finite measurement ignored")
             return
         status = messages.STATUS_OK
+        if self.core.tick >= 0:
+            self.bridged += tick - self.core.tick - 1
+        self.processed += 1
         try:
             est = self.core.update(tick, y, float(msg.actuator_force))
         except ObserverDivergedError as exc:
@@ -80,6 +93,15 @@ class ObserverNode(Node):
             ),
         )
         self.estimate_pub.publish(self.last_message)
+
+    def close(self) -> None:
+        print(
+            f"observer_node: processed {self.processed} measurements; {self.bridged} never arrived and were bridged; "
+            f"{self.waited} before the loop was matched; {self.rejected} rejected; "
+            f"{self.reinitialisations} re-initialisations",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def main(args: list[str] | None = None) -> int:

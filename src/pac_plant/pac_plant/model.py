@@ -62,8 +62,15 @@ def input_vector(u: float, p: PantographParameters) -> np.ndarray:
 def output_regressor(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
     """psi(y) of eq. (15), a 4x3 matrix: psi(y) theta = (0, 0, -k z1 / m1, 0)."""
     psi = np.zeros((4, 3))
-    psi[2] = (-y1 / p.m1) * stiffness_regressor(t, omega)
+    psi[2] = output_regressor_row(y1, t, omega, p)
     return psi
+
+
+def output_regressor_row(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
+    """The only non-zero row of psi(y), eq. (15): -(y1 / m1) v(t)^T."""
+    wt = omega * t
+    c = -y1 / p.m1
+    return np.array([c, c * math.cos(wt), c * math.sin(wt)])
 
 
 def contact_force(k: float, z1: float, unilateral: bool) -> float:

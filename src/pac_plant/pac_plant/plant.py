@@ -76,12 +76,11 @@ class Plant:
     def stiffness_at(self, t: float) -> float:
         return model.stiffness(t, self._omega, self._theta)
 
-    def force_at(self, t: float, z1: float) -> float:
-        return model.contact_force(self.stiffness_at(t), z1, self._unilateral)
-
     def derivative(self, t: float, z: np.ndarray, u: float) -> np.ndarray:
         """f(t, z) with the actuator force u held: eq. (5) (or its unilateral variant)."""
-        return model.dynamics(z, u, self.force_at(t, z[0]), self._a, self.pantograph)
+        k = model.stiffness(t, self._omega, self._theta)
+        force = model.contact_force(k, z[0], self._unilateral)
+        return model.dynamics(z, u, force, self._a, self.pantograph)
 
     def measurement(self) -> Measurement:
         return Measurement(self.tick, self.time, float(self.z[0]), float(self.z[1]), self.u_applied)

@@ -24,7 +24,14 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
-from pac_common.node import LOOP_QOS, Node, declare_parameter_sets, refuse_runtime_changes, run_node
+from pac_common.node import (
+    LOOP_QOS,
+    Node,
+    declare_parameter_sets,
+    refuse_runtime_changes,
+    run_node,
+    set_realtime_priority,
+)
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 
 from pac_common import messages
@@ -100,23 +107,16 @@ class PlantNode(Node):
         self.latency: dict[int, float] = {}  # command tick -> round trip [s]
         self.last_sent = 0.0
         self.resends = 0
-        self._set_priority(opts.realtime_priority)
+        self.tick_timer = None
+        self.start_wall, self.start_tick = 0.0, 0
+        self.late_ticks = 0  # ticks taken late, in a catch-up burst
+        self.slips = 0  # times the schedule was reset because the loop fell too far behind
+        set_realtime_priority(self, node_opts.realtime_priority)
         self.start_timer = self.create_timer(0.01, self.try_start)
         self.get_logger().info(
             f"{opts.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
             f"({'until stopped' if loop.duration == 0 else f'{loop.ticks} ticks'}); waiting for the loop"
         )
-
-    def _set_priority(self, priority: int) -> None:
-        if priority <= 0:
-            return
-        try:
-            import os
-
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-            self.get_logger().info(f"SCHED_FIFO priority {priority}")
-        except (PermissionError, OSError, AttributeError) as exc:
-            self.get_logger().warning(f"realtime_priority {priority} not granted ({exc}); normal scheduling")
 
     # -- start-up: wait for the loop (and the recorder) to be matched, never a blind sleep ----------
     def ready(self) -> bool:
@@ -131,12 +131,11 @@ class PlantNode(Node):
         if not self.ready():
             return
         self.destroy_timer(self.start_timer)
-        self.get_logger().info("loop matched: starting")
-        if self.options.timing_mode == "realtime":
-            self.tick_timer = self.create_timer(self.loop.sample_period, self.on_realtime_tick)
-        else:
-            self.publish_tick()
-            self.resend_timer = self.create_timer(self.options.resend_timeout / 2, self.on_resend_check)
+        # Tick 0 is re-sent until its command comes back: that proves the whole loop (and, with
+        # wait_for_recorder, every node's match with the recorder) is up. Then the run starts.
+        self.get_logger().info("loop matched: closing it with tick 0")
+        self.publish_tick()
+        self.resend_timer = self.create_timer(self.options.resend_timeout / 2, self.on_resend_check)
 
     # -- publishing ----------------------------------------------------------------------------------
     def publish_tick(self) -> None:
@@ -174,12 +173,22 @@ class PlantNode(Node):
             return
         if self.latest is None or tick > self.latest[0]:
             self.latest = (tick, u)
-        if self.options.timing_mode == "lockstep" and tick == self.plant.tick and not self.finished:
+        if tick != self.plant.tick or self.finished:
+            return
+        if self.options.timing_mode == "lockstep":
             self.pending.append((tick, u))
             applied_tick, applied_u = self.pending.popleft()
             self.advance(applied_tick, applied_u, messages.COMMAND_FRESH)
             if not self.finished:
                 self.publish_tick()
+        elif tick == 0 and self.tick_timer is None:
+            # Real time starts now: over [t_0, t_1] nothing had arrived before t_0 (delay one tick).
+            self.destroy_timer(self.resend_timer)
+            self.latency.pop(0, None)  # tick 0's round trip includes the start-up handshake
+            self.advance(-1, 0.0, messages.COMMAND_PASSIVE)
+            self.start_wall, self.start_tick = time.monotonic(), self.plant.tick
+            self.tick_timer = self.create_timer(self.loop.sample_period, self.on_realtime_tick)
+            self.get_logger().info("real-time loop running")
 
     def advance(self, command_tick: int, u: float, source: int) -> None:
         """Apply u over [t_k, t_(k+1)]; finish after the last tick's command."""
@@ -191,6 +200,25 @@ class PlantNode(Node):
         self.latency = {t: v for t, v in self.latency.items() if t >= command_tick - 100}
 
     def on_realtime_tick(self) -> None:
+        """Take every tick that is due by the wall clock (a late wake-up catches up, as the
+        physical plant would not have waited), at most MAX_CATCH_UP per wake-up."""
+        now = time.monotonic()
+        due = self.start_wall + (self.plant.tick - self.start_tick) * self.loop.sample_period
+        taken = 0
+        while due <= now and not self.finished and taken < self.MAX_CATCH_UP:
+            self.realtime_step()
+            taken += 1
+            due += self.loop.sample_period
+        if taken > 1:
+            self.late_ticks += taken - 1
+        if taken == self.MAX_CATCH_UP:
+            # Too far behind to catch up: slip the schedule rather than spin.
+            self.start_wall, self.start_tick = time.monotonic(), self.plant.tick
+            self.slips += 1
+
+    MAX_CATCH_UP = 20
+
+    def realtime_step(self) -> None:
         if self.latest is None:
             command_tick, u, source = -1, 0.0, messages.COMMAND_PASSIVE
         else:
@@ -200,6 +228,8 @@ class PlantNode(Node):
         self.advance(command_tick, u, source)
 
     def on_resend_check(self) -> None:
+        if self.tick_timer is not None:
+            return
         if not self.finished and time.monotonic() - self.last_sent > self.options.resend_timeout:
             self.resends += 1
             k = self.plant.tick
@@ -212,7 +242,12 @@ class PlantNode(Node):
             self.last_sent = time.monotonic()
 
     def close(self) -> None:
-        self.get_logger().info(f"stopped at tick {self.plant.tick} ({self.resends} measurement re-sends)")
+        print(
+            f"plant_node: stopped at tick {self.plant.tick} ({self.resends} measurement re-sends, "
+            f"{self.late_ticks} ticks taken late, {self.slips} schedule slips)",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def main(args: list[str] | None = None) -> int:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -135,4 +136,88 @@ def markdown_table(runs: dict[str, Metrics]) -> str:
             value = getattr(runs[name], key)
             cells.append(f"{value:d}" if isinstance(value, int) else f"{value:.4g}")
         lines.append(f"| {label} | {unit} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+@dataclass(frozen=True)
+class LoopTiming:
+    """Wall-clock behaviour of a live run, from PlantTruth's wall stamps and round trips."""
+
+    ticks: int
+    steps_per_second: float
+    period_mean_ms: float
+    period_p99_ms: float
+    period_p999_ms: float
+    period_max_ms: float
+    periods_over_1_5_ms: int
+    periods_under_1_5_ms_percent: float
+    latency_p50_ms: float
+    latency_p99_ms: float
+    latency_max_ms: float
+    commands_on_time_percent: float  # applied at the first instant after their measurement
+    messages_lost: dict[str, int]  # per topic: ticks of the run missing from the bag
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def loop_timing(bag: BagData) -> LoopTiming:
+    truth = bag.topics["plant_truth"]
+    _, first = np.unique(truth["tick"], return_index=True)
+    wall = truth["wall_stamp.sec"][first] + 1e-9 * truth["wall_stamp.nanosec"][first]
+    if wall.size < 2 or not np.all(wall > 0):
+        raise ValueError("plant_truth has no wall stamps: not a live run")
+    period = np.diff(wall) * 1e3
+    latency = truth["round_trip_latency"][first]
+    latency = latency[np.isfinite(latency)] * 1e3
+    age = truth["command_age_ticks"][first]
+    applied = truth["applied_command_tick"][first] >= 0
+    ticks = truth["tick"][first]
+    span = int(ticks.max() - ticks.min() + 1)
+    lost = {}
+    for topic, data in bag.topics.items():
+        lost[topic] = span - int(np.unique(data["tick"]).size) if len(data) else span
+
+    def pct(x: np.ndarray, q: float) -> float:
+        return float(np.percentile(x, q)) if x.size else math.nan
+
+    return LoopTiming(
+        ticks=span,
+        steps_per_second=float((wall.size - 1) / (wall[-1] - wall[0])),
+        period_mean_ms=float(period.mean()),
+        period_p99_ms=pct(period, 99),
+        period_p999_ms=pct(period, 99.9),
+        period_max_ms=float(period.max()),
+        periods_over_1_5_ms=int(np.sum(period > 1.5)),
+        periods_under_1_5_ms_percent=100.0 * float(np.mean(period <= 1.5)),
+        latency_p50_ms=pct(latency, 50),
+        latency_p99_ms=pct(latency, 99),
+        latency_max_ms=float(latency.max()) if latency.size else math.nan,
+        commands_on_time_percent=100.0 * float(np.mean(age[applied] == 2)) if applied.any() else math.nan,
+        messages_lost=lost,
+    )
+
+
+def timing_table(runs: dict[str, LoopTiming]) -> str:
+    names = list(runs)
+    rows = [
+        ("steps_per_second", "steps/s", "{:.0f}"),
+        ("period_mean_ms", "period mean [ms]", "{:.3f}"),
+        ("period_p99_ms", "period p99 [ms]", "{:.3f}"),
+        ("period_p999_ms", "period p99.9 [ms]", "{:.3f}"),
+        ("period_max_ms", "period max [ms]", "{:.2f}"),
+        ("periods_over_1_5_ms", "periods > 1.5 ms", "{:d}"),
+        ("periods_under_1_5_ms_percent", "periods <= 1.5 ms [%]", "{:.2f}"),
+        ("latency_p50_ms", "y -> u latency p50 [ms]", "{:.3f}"),
+        ("latency_p99_ms", "y -> u latency p99 [ms]", "{:.3f}"),
+        ("latency_max_ms", "y -> u latency max [ms]", "{:.2f}"),
+        ("commands_on_time_percent", "u applied one tick after y [%]", "{:.1f}"),
+    ]
+    lines = ["| measure | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
+    for key, label, fmt in rows:
+        lines.append(f"| {label} | " + " | ".join(fmt.format(getattr(runs[n], key)) for n in names) + " |")
+    for topic in runs[names[0]].messages_lost:
+        lines.append(
+            f"| {topic} lost | " + " | ".join(str(runs[n].messages_lost.get(topic, "")) for n in names) + " |"
+        )
     return "\n".join(lines) + "\n"

@@ -9,10 +9,10 @@ time of reception (the header stamps carry the simulated time).  SIGINT/SIGTERM,
 
 from __future__ import annotations
 
-import queue
 import sys
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -52,7 +52,10 @@ class RecorderNode(Node):
         self.params: RecorderParameters = params
         self.bag = BagWriter(path, {"source": "live", "label": path.name})
         self.path = path
-        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        # deque.append/popleft are atomic: the callbacks append, the writer thread drains in
+        # batches every WRITE_PERIOD, which costs far fewer wake-ups than a queue per message.
+        self.pending: deque = deque()
+        self.stopping = threading.Event()
         self.last_tick = dict.fromkeys(messages.TOPICS, -1)
         self.finished = False
         self.last_message_wall = None
@@ -67,27 +70,35 @@ class RecorderNode(Node):
             self.create_timer(min(0.1, params.idle_timeout / 2), self._check_idle)
         self.get_logger().info(f"recording {', '.join(messages.TOPICS)} to {path}")
 
+    WRITE_PERIOD = 0.01  # s
+
     def _callback(self, topic: str):
-        put = self.queue.put
+        append = self.pending.append
 
         def callback(data: bytes) -> None:
-            put((topic, data, time.time_ns()))
+            append((topic, data, time.time_ns()))
 
         return callback
 
     def _write_loop(self) -> None:
+        while not self.stopping.wait(self.WRITE_PERIOD):
+            self._drain()
+        self._drain()
+
+    def _drain(self) -> None:
         stop_tick = self.params.stop_after_tick
-        while True:
-            item = self.queue.get()
-            if item is None:
-                return
-            topic, data, stamp = item
+        pending = self.pending
+        wrote = False
+        while pending:
+            topic, data, stamp = pending.popleft()
             self.bag.write_raw(topic, data, stamp)
-            self.last_message_wall = time.monotonic()
+            wrote = True
             if stop_tick >= 0:
                 self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
-                if min(self.last_tick.values()) >= stop_tick:
-                    self.finished = True
+        if wrote:
+            self.last_message_wall = time.monotonic()
+            if stop_tick >= 0 and min(self.last_tick.values()) >= stop_tick:
+                self.finished = True
 
     def _check_idle(self) -> None:
         last = self.last_message_wall
@@ -97,7 +108,7 @@ class RecorderNode(Node):
 
     def close(self) -> None:
         """Drain the queue, write the summary and metadata: the bag is complete and indexed."""
-        self.queue.put(None)
+        self.stopping.set()
         self.writer.join()
         self.bag.close()
         counts = ", ".join(f"{t}={n}" for t, n in self.bag.counts.items())

@@ -1,0 +1,181 @@
+"""Run the rig as four real processes (``ros2 run``) without launch files.
+
+Used by ``make demo``, ``make bench`` and the integration tests.  Every process
+gets the caller's ROS_DOMAIN_ID and loopback-only discovery; only processes this
+object started are signalled, by PID; :meth:`Rig.stop` (also on ``__exit__``)
+sends SIGINT, then SIGKILL after a grace period, so nothing outlives a failed test.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+NODES = {
+    "recorder": ("pac_rig", "recorder"),
+    "observer": ("pac_observer", "observer_node"),
+    "controller": ("pac_controller", "controller_node"),
+    "plant": ("pac_plant", "plant_node"),
+}
+
+
+def ros_args(params: dict[str, Any]) -> list[str]:
+    out = ["--ros-args"]
+    for name, value in params.items():
+        if isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, list | tuple):
+            text = "[" + ", ".join(repr(float(v)) for v in value) + "]"
+        else:
+            text = str(value)
+        out += ["-p", f"{name}:={text}"]
+    return out
+
+
+def node_env(domain_id: int | None = None) -> dict[str, str]:
+    env = dict(os.environ)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    if domain_id is not None:
+        env["ROS_DOMAIN_ID"] = str(domain_id)
+    env.setdefault("PYTHONUNBUFFERED", "1")
+    return env
+
+
+@dataclass
+class Process:
+    name: str
+    popen: subprocess.Popen
+    log_path: Path
+    cpu_seconds: float | None = None
+    wall_seconds: float | None = None
+    started: float = field(default_factory=time.monotonic)
+
+    @property
+    def returncode(self) -> int | None:
+        return self.popen.returncode
+
+    def poll(self) -> int | None:
+        if self.popen.returncode is None:
+            try:
+                pid, status, usage = os.wait4(self.popen.pid, os.WNOHANG)
+            except ChildProcessError:
+                return self.popen.poll()
+            if pid:
+                self.popen.returncode = os.waitstatus_to_exitcode(status)
+                self.cpu_seconds = usage.ru_utime + usage.ru_stime
+                self.wall_seconds = time.monotonic() - self.started
+        return self.popen.returncode
+
+    def wait(self, timeout: float) -> int | None:
+        deadline = time.monotonic() + timeout
+        while self.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.02)
+        return self.popen.returncode
+
+    def log(self) -> str:
+        try:
+            return self.log_path.read_text(errors="replace")
+        except OSError:
+            return ""
+
+
+class Rig:
+    """The three loop nodes and the recorder, as separate processes."""
+
+    def __init__(
+        self,
+        bag_path: Path | str,
+        *,
+        duration: float,
+        timing_mode: str = "realtime",
+        params: dict[str, dict[str, Any]] | None = None,
+        domain_id: int | None = None,
+        log_dir: Path | str | None = None,
+        record: bool = True,
+    ) -> None:
+        self.bag_path = Path(bag_path)
+        self.duration = duration
+        self.domain_id = domain_id
+        self.log_dir = Path(log_dir) if log_dir else self.bag_path.parent / f"{self.bag_path.name}_logs"
+        self.record = record
+        rate = float((params or {}).get("all", {}).get("rate_hz", 1000.0))
+        last_tick = int(round(duration * rate)) - 1
+        common = {"wait_for_recorder": record, **(params or {}).get("all", {})}
+        self.params: dict[str, dict[str, Any]] = {
+            "recorder": {"bag_path": str(self.bag_path), "stop_after_tick": last_tick, "idle_timeout": 2.0},
+            "observer": dict(common),
+            "controller": dict(common),
+            "plant": {**common, "timing_mode": timing_mode, "duration": duration},
+        }
+        for name, extra in (params or {}).items():
+            if name != "all":
+                self.params[name].update(extra)
+        self.processes: dict[str, Process] = {}
+
+    def start_node(self, name: str) -> Process:
+        pkg, exe = NODES[name]
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        log_path = self.log_dir / f"{name}.log"
+        with open(log_path, "wb") as log:
+            popen = subprocess.Popen(
+                ["ros2", "run", pkg, exe, *ros_args(self.params[name])],
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                env=node_env(self.domain_id),
+            )
+        proc = self.processes[name] = Process(name, popen, log_path)
+        return proc
+
+    def start(self) -> Rig:
+        names = (
+            ["recorder", "observer", "controller", "plant"]
+            if self.record
+            else ["observer", "controller", "plant"]
+        )
+        for name in names:
+            self.start_node(name)
+        return self
+
+    def wait_finished(self, timeout: float) -> None:
+        """Wait for the plant to end its run and the recorder to close the bag, then stop the rest."""
+        deadline = time.monotonic() + timeout
+        for name in ("plant", "recorder"):
+            proc = self.processes.get(name)
+            if proc is not None:
+                proc.wait(max(0.0, deadline - time.monotonic()))
+                if proc.returncode is None:
+                    raise TimeoutError(f"{name} did not finish within {timeout:g} s:\n{proc.log()[-2000:]}")
+        self.stop()
+
+    def signal(self, name: str, sig: int = signal.SIGINT) -> None:
+        proc = self.processes[name]
+        if proc.poll() is None:
+            os.kill(proc.popen.pid, sig)
+
+    def stop(self, grace: float = 10.0) -> dict[str, int | None]:
+        """SIGINT every process still running, SIGKILL after ``grace`` seconds; their exit codes."""
+        for name in self.processes:
+            self.signal(name, signal.SIGINT)
+        deadline = time.monotonic() + grace
+        for proc in self.processes.values():
+            proc.wait(max(0.0, deadline - time.monotonic()))
+        for proc in self.processes.values():
+            if proc.poll() is None:
+                os.kill(proc.popen.pid, signal.SIGKILL)
+                proc.wait(5.0)
+        return {name: proc.returncode for name, proc in self.processes.items()}
+
+    def exit_codes(self) -> dict[str, int | None]:
+        return {name: proc.poll() for name, proc in self.processes.items()}
+
+    def __enter__(self) -> Rig:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
