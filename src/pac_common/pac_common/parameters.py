@@ -56,6 +56,10 @@ class ParameterSpec:
         """Human-readable allowed range, e.g. ``(0, inf) kg`` or ``one of linear, unilateral``."""
         if self.choices is not None:
             return "one of " + ", ".join(self.choices)
+        if self.kind is bool:
+            return "true or false"
+        if self.kind is str:
+            return "a string"
         lo = "-inf" if self.low is None else _fmt(self.low)
         hi = "inf" if self.high is None else _fmt(self.high)
         left = "(" if (self.low is None or self.low_open) else "["
@@ -184,20 +188,26 @@ class ParameterSet:
 
 
 @dataclass(frozen=True)
-class LoopParameters(ParameterSet):
-    """Timing of the loop shared by all nodes."""
+class RateParameters(ParameterSet):
+    """The loop's sample rate: every node needs it (tick <-> simulated time)."""
 
     rate_hz: float = parameter(1000.0, "loop rate (sample frequency)", "Hz", low=1.0, high=20000.0)
+
+    @property
+    def sample_period(self) -> float:
+        return 1.0 / self.rate_hz
+
+
+@dataclass(frozen=True)
+class LoopParameters(RateParameters):
+    """Timing of a run: the plant node and the offline simulator."""
+
     command_delay_ticks: int = parameter(
         1, "lock step and offline: u_k is applied over [t_(k+d), t_(k+d+1)]", "ticks", low=0, high=100
     )
     duration: float = parameter(
         10.0, "run length in simulated time; 0 runs until stopped (nodes only)", "s", low=0.0, high=86400.0
     )
-
-    @property
-    def sample_period(self) -> float:
-        return 1.0 / self.rate_hz
 
     @property
     def ticks(self) -> int:

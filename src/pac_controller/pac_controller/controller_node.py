@@ -19,7 +19,7 @@ from pac_common.node import (
     run_node,
     set_realtime_priority,
 )
-from pac_common.parameters import LoopParameters, NodeOptions
+from pac_common.parameters import NodeOptions, RateParameters
 from pac_plant.parameters import PantographParameters, TrackParameters
 
 from pac_common import messages
@@ -27,27 +27,26 @@ from pac_common import messages
 from .backstepping import BacksteppingController
 from .parameters import ControllerParameters, ReferenceParameters
 
+PARAMETER_SETS = [
+    PantographParameters,
+    TrackParameters,
+    ControllerParameters,
+    ReferenceParameters,
+    RateParameters,
+    NodeOptions,
+]
+
 
 class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__("controller_node")
-        panto, track, params, reference, loop, node_opts = declare_parameter_sets(
-            self,
-            [
-                PantographParameters,
-                TrackParameters,
-                ControllerParameters,
-                ReferenceParameters,
-                LoopParameters,
-                NodeOptions,
-            ],
-        )
+        panto, track, params, reference, loop, node_opts = declare_parameter_sets(self, PARAMETER_SETS)
         refuse_runtime_changes(
             self,
             [n for n in self._parameters if n != "use_sim_time"],
             "runtime changes are not supported yet: restart the node to change them",
         )
-        self.loop: LoopParameters = loop
+        self.loop: RateParameters = loop
         self.node_options: NodeOptions = node_opts
         set_realtime_priority(self, node_opts.realtime_priority)
         self.core = BacksteppingController(panto, track, params, reference, loop.sample_period)

@@ -18,7 +18,7 @@ from pac_common.node import (
     run_node,
     set_realtime_priority,
 )
-from pac_common.parameters import LoopParameters, NodeOptions
+from pac_common.parameters import NodeOptions, RateParameters
 from pac_plant.parameters import PantographParameters, TrackParameters
 
 from pac_common import messages
@@ -26,19 +26,19 @@ from pac_common import messages
 from .observer import AdaptiveObserver, ObserverDivergedError
 from .parameters import ObserverParameters
 
+PARAMETER_SETS = [PantographParameters, TrackParameters, ObserverParameters, RateParameters, NodeOptions]
+
 
 class ObserverNode(Node):
     def __init__(self) -> None:
         super().__init__("observer_node")
-        panto, track, params, loop, node_opts = declare_parameter_sets(
-            self, [PantographParameters, TrackParameters, ObserverParameters, LoopParameters, NodeOptions]
-        )
+        panto, track, params, loop, node_opts = declare_parameter_sets(self, PARAMETER_SETS)
         refuse_runtime_changes(
             self,
             [n for n in self._parameters if n != "use_sim_time"],
             "the observer's model and tuning are fixed for a run: restart the node to change them",
         )
-        self.loop: LoopParameters = loop
+        self.loop: RateParameters = loop
         self.node_options: NodeOptions = node_opts
         set_realtime_priority(self, node_opts.realtime_priority)
         self.core = AdaptiveObserver(panto, track, params, loop.sample_period)
@@ -96,7 +96,8 @@ class ObserverNode(Node):
 
     def close(self) -> None:
         print(
-            f"observer_node: processed {self.processed} measurements; {self.bridged} never arrived and were bridged; "
+            f"observer_node: processed {self.processed} measurements; "
+            f"{self.bridged} never arrived and were bridged; "
             f"{self.waited} before the loop was matched; {self.rejected} rejected; "
             f"{self.reinitialisations} re-initialisations",
             file=sys.stderr,

@@ -62,21 +62,21 @@ class PlantNodeOptions(ParameterSet):
     )
 
 
+PARAMETER_SETS = [
+    PantographParameters,
+    TrackParameters,
+    CatenaryParameters,
+    PlantOptions,
+    LoopParameters,
+    NodeOptions,
+    PlantNodeOptions,
+]
+
+
 class PlantNode(Node):
     def __init__(self) -> None:
         super().__init__("plant_node")
-        panto, track, catenary, options, loop, node_opts, opts = declare_parameter_sets(
-            self,
-            [
-                PantographParameters,
-                TrackParameters,
-                CatenaryParameters,
-                PlantOptions,
-                LoopParameters,
-                NodeOptions,
-                PlantNodeOptions,
-            ],
-        )
+        panto, track, catenary, options, loop, node_opts, opts = declare_parameter_sets(self, PARAMETER_SETS)
         refuse_runtime_changes(
             self,
             [n for n in self._parameters if n != "use_sim_time"],

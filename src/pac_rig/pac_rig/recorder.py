@@ -42,10 +42,13 @@ class RecorderParameters(ParameterSet):
     )
 
 
+PARAMETER_SETS = [RecorderParameters]
+
+
 class RecorderNode(Node):
     def __init__(self) -> None:
         super().__init__("recorder")
-        (params,) = declare_parameter_sets(self, [RecorderParameters])
+        (params,) = declare_parameter_sets(self, PARAMETER_SETS)
         path = Path(params.bag_path or f"bags/run_{datetime.now():%Y%m%d_%H%M%S}")
         if path.exists():
             raise ParameterError("bag_path", str(path), "a path that does not exist yet")

@@ -1,0 +1,74 @@
+"""The default parameter files shipped in each package's ``config/`` (share/<pkg>/config/).
+
+They are generated from the parameter declarations, so they cannot drift:
+``python -m pac_rig.configs --write`` rewrites them, the tests check them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+import yaml
+
+#: node executable -> (package, module with PARAMETER_SETS)
+NODE_MODULES = {
+    "plant_node": ("pac_plant", "pac_plant.plant_node"),
+    "observer_node": ("pac_observer", "pac_observer.observer_node"),
+    "controller_node": ("pac_controller", "pac_controller.controller_node"),
+    "recorder": ("pac_rig", "pac_rig.recorder"),
+}
+
+
+def defaults_yaml(node: str) -> str:
+    package, module = NODE_MODULES[node]
+    sets = importlib.import_module(module).PARAMETER_SETS
+    lines = [
+        f"# Defaults of {package}/{node} (Table 1, 360 km/h, the shipped gains).",
+        "# Generated from the parameter declarations: python -m pac_rig.configs --write",
+        f"# Use: ros2 run {package} {node} --ros-args --params-file <this file>",
+        "/**:",
+        "  ros__parameters:",
+    ]
+    for cls in sets:
+        lines.append(f"    # {cls.__name__}")
+        for spec in cls.specs():
+            value = list(spec.default) if isinstance(spec.default, tuple) else spec.default
+            text = yaml.safe_dump(value, default_flow_style=True).strip().removesuffix("\n...").strip()
+            unit = f" [{spec.unit}]" if spec.unit else ""
+            lines.append(f"    {spec.name}: {text}  # {spec.description}{unit}; allowed {spec.allowed()}")
+    return "\n".join(lines) + "\n"
+
+
+def config_path(node: str, src: Path) -> Path:
+    """The file in a source tree (``src`` is the workspace's src/ folder)."""
+    package, _ = NODE_MODULES[node]
+    return src / package / "config" / f"{node}.yaml"
+
+
+def installed_config_path(node: str) -> Path:
+    from ament_index_python.packages import get_package_share_directory
+
+    package, _ = NODE_MODULES[node]
+    return Path(get_package_share_directory(package)) / "config" / f"{node}.yaml"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="configs", description=__doc__)
+    parser.add_argument("--write", action="store_true", help="rewrite <src>/<pkg>/config/<node>.yaml")
+    parser.add_argument("--src", type=Path, default=Path("src"), help="the workspace's src/ folder")
+    args = parser.parse_args(argv)
+    for node in NODE_MODULES:
+        text = defaults_yaml(node)
+        if args.write:
+            config_path(node, args.src).write_text(text)
+            print(f"wrote {config_path(node, args.src)}")
+        else:
+            print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
