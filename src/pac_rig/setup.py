@@ -31,6 +31,7 @@ setup(
             "info = pac_rig.info:main",
             "bench = pac_rig.bench:main",
             "demo = pac_rig.demo:main",
+            "sweep = pac_rig.sweep:main",
         ],
     },
 )

@@ -155,7 +155,9 @@ class LoopTiming:
     latency_p99_ms: float
     latency_max_ms: float
     commands_on_time_percent: float  # applied at the first instant after their measurement
-    messages_lost: dict[str, int]  # per topic: ticks of the run missing from the bag
+    #: per topic: ticks of the run with no message in the bag.  In real time the loop topics
+    #: keep only the newest sample, so a node that falls behind skips ticks by design.
+    messages_lost: dict[str, int]
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -165,15 +167,17 @@ def loop_timing(bag: BagData) -> LoopTiming:
     truth = bag.topics["plant_truth"]
     _, first = np.unique(truth["tick"], return_index=True)
     wall = truth["wall_stamp.sec"][first] + 1e-9 * truth["wall_stamp.nanosec"][first]
-    if wall.size < 2 or not np.all(wall > 0):
+    if wall.size < 3 or not np.all(wall > 0):
         raise ValueError("plant_truth has no wall stamps: not a live run")
+    # Tick 0 is re-sent until the loop is closed (start-up handshake): periods start at tick 1.
+    wall = wall[1:]
     period = np.diff(wall) * 1e3
     latency = truth["round_trip_latency"][first]
     latency = latency[np.isfinite(latency)] * 1e3
     age = truth["command_age_ticks"][first]
     applied = truth["applied_command_tick"][first] >= 0
-    ticks = truth["tick"][first]
-    span = int(ticks.max() - ticks.min() + 1)
+    every = np.concatenate([data["tick"] for data in bag.topics.values() if len(data)])
+    span = int(every.max() - every.min() + 1)  # the run's ticks, whichever topic saw them
     lost = {}
     for topic, data in bag.topics.items():
         lost[topic] = span - int(np.unique(data["tick"]).size) if len(data) else span
@@ -218,6 +222,8 @@ def timing_table(runs: dict[str, LoopTiming]) -> str:
         lines.append(f"| {label} | " + " | ".join(fmt.format(getattr(runs[n], key)) for n in names) + " |")
     for topic in runs[names[0]].messages_lost:
         lines.append(
-            f"| {topic} lost | " + " | ".join(str(runs[n].messages_lost.get(topic, "")) for n in names) + " |"
+            f"| ticks without {topic} | "
+            + " | ".join(str(runs[n].messages_lost.get(topic, "")) for n in names)
+            + " |"
         )
     return "\n".join(lines) + "\n"
