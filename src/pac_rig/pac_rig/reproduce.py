@@ -75,7 +75,12 @@ def main(argv: list[str] | None = None) -> int:
         window=(0.0, 4.0),
     )
     table = markdown_table(metrics)
-    text = "# make reproduce: metrics\n\n" + table + ("\n" + "\n".join(notes) + "\n" if notes else "")
+    notes.insert(
+        0,
+        "- **paper_square**: the reference itself is a 0/100 N square wave, so Fm and sigma "
+        "describe the wave; tracking RMS (F - F_r) is the measure of the controller.",
+    )
+    text = "# make reproduce: metrics\n\n" + table + "\n" + "\n".join(notes) + "\n"
     (args.reports / "metrics.md").write_text(text)
     payload = {name: m.as_dict() for name, m in metrics.items()}
     payload.update(
