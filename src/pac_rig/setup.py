@@ -32,6 +32,9 @@ setup(
             "bench = pac_rig.bench:main",
             "demo = pac_rig.demo:main",
             "sweep = pac_rig.sweep:main",
+            "replay = pac_rig.replay:main",
+            "re_estimate = pac_rig.re_estimate:main",
+            "recover = pac_rig.recover:main",
         ],
     },
 )

@@ -150,8 +150,10 @@ def run_node(program: str, factory: Callable[[], Node], args: list[str] | None =
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # noqa: BLE001 - report, then exit non-zero with a clean shutdown
-        print(f"{program}: fatal: {exc!r}", file=sys.stderr)
-        status = 1
+        if rclpy.ok():
+            print(f"{program}: fatal: {exc!r}", file=sys.stderr)
+            status = 1
+        # else: SIGINT/SIGTERM shut the context down while a callback was publishing: a clean stop
     finally:
         if node is not None:
             close = getattr(node, "close", None)

@@ -8,6 +8,7 @@ also reads a file without a summary section (what a crash leaves behind).
 from __future__ import annotations
 
 import json
+import struct
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -153,40 +154,110 @@ def read_custom_metadata(path: Path) -> dict[str, Any]:
         return {}
 
 
-def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
-    """Read a pac bag into columns.  Raises :class:`BagError` when nothing is readable.
-
-    A truncated MCAP (no summary) is read as far as it goes and a warning is added.
-    Column names flatten nested messages: ``header.stamp.sec``, ``z``, ``theta_hat``.
-    """
+def _rosbags_records(path: Path, warnings: list[str]) -> Iterator[tuple[str, str, int, bytes]]:
+    """(topic, type, log time, CDR) of a closed rosbag2 directory, through rosbags."""
     from rosbags.highlevel import AnyReader
+
+    with AnyReader([path], default_typestore=typestore()) as reader:
+        for conn, log_time, raw in reader.messages():
+            yield conn.topic.lstrip("/"), conn.msgtype, log_time, raw
+
+
+def _stream_records(files: list[Path], warnings: list[str]) -> Iterator[tuple[str, str, int, bytes]]:
+    """The same from the MCAP record stream: works without summary, index or metadata.yaml."""
+    from mcap.exceptions import McapError
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+
+    for file in files:
+        schemas: dict[int, str] = {}
+        channels: dict[int, tuple[str, str]] = {}
+        count = 0
+        with open(file, "rb") as stream:
+            try:
+                for record in StreamReader(stream, skip_magic=False, validate_crcs=False).records:
+                    if isinstance(record, Schema):
+                        schemas[record.id] = record.name
+                    elif isinstance(record, Channel):
+                        channels[record.id] = (record.topic.lstrip("/"), schemas.get(record.schema_id, "?"))
+                    elif isinstance(record, Message) and record.channel_id in channels:
+                        topic, typename = channels[record.channel_id]
+                        count += 1
+                        yield topic, typename, record.log_time, record.data
+            except (McapError, EOFError, ValueError, struct.error) as exc:
+                warnings.append(
+                    f"{file.name}: truncated after {count} messages ({type(exc).__name__}); "
+                    "kept what was readable"
+                )
+
+
+def iter_records(path: Path, warnings: list[str]) -> Iterator[tuple[str, str, int, bytes]]:
+    """(topic, type, log time [ns], CDR) of every message: through rosbags for a closed bag,
+    else (no metadata.yaml, or an index rosbags cannot read) from the MCAP record stream."""
     from rosbags.rosbag2.errors import ReaderError
 
+    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    if path.is_dir() and (path / "metadata.yaml").is_file():
+        produced = 0
+        try:
+            for item in _rosbags_records(path, warnings):
+                produced += 1
+                yield item
+            return
+        except (ReaderError, OSError, ValueError, KeyError) as exc:
+            if produced:
+                warnings.append(f"rosbags stopped after {produced} messages ({exc})")
+                return
+            warnings.append(f"rosbags could not read the bag ({exc}); read the MCAP record stream instead")
+    elif path.is_dir():
+        warnings.append(
+            "no metadata.yaml (the recorder did not close the bag?): read from the MCAP record stream"
+        )
+    yield from _stream_records(files, warnings)
+
+
+def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
+    """Read a pac bag (rosbag2 directory or a bare .mcap) into columns.
+
+    A closed bag is read through rosbags; a bag without metadata.yaml or whose index
+    cannot be read (a crashed recorder) is read from the MCAP record stream as far as
+    it goes, with a warning.  Unknown message types are skipped with a warning.
+    Raises :class:`BagError` (one line) when there is no bag or no readable message.
+    Column names flatten nested messages: ``header.stamp.sec``, ``z``, ``theta_hat``.
+    """
     path = Path(path)
-    if not (path / "metadata.yaml").is_file() and not list(path.glob("*.mcap")):
-        raise BagError(f"{path}: not a rosbag2 directory (no metadata.yaml, no .mcap)")
+    wanted = None if topics is None else set(topics)
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    if not files:
+        raise BagError(f"{path}: not a bag (no .mcap file)")
     store = typestore()
     warnings: list[str] = []
     rows: dict[str, list[tuple[int, Any]]] = {}
     typenames: dict[str, str] = {}
-    try:
-        with AnyReader([path], default_typestore=store) as reader:
-            wanted = [c for c in reader.connections if topics is None or c.topic.lstrip("/") in topics]
-            for conn in reader.connections:
-                typenames[conn.topic.lstrip("/")] = conn.msgtype
+    unknown: set[str] = set()
+
+    def consume(records: Iterator[tuple[str, str, int, bytes]]) -> None:
+        for topic, typename, log_time, raw in records:
+            typenames.setdefault(topic, typename)
+            if wanted is not None and topic not in wanted:
+                continue
+            if typename not in store.types:
+                if topic not in unknown:
+                    unknown.add(topic)
+                    warnings.append(f"topic '{topic}': unknown message type {typename}, skipped")
+                continue
             try:
-                for conn, log_time, raw in reader.messages(connections=wanted):
-                    try:
-                        msg = reader.deserialize(raw, conn.msgtype)
-                    except Exception as exc:  # noqa: BLE001 - a corrupt record must not lose the rest
-                        warnings.append(f"{conn.topic}: undecodable message at {log_time} ns ({exc})")
-                        continue
-                    rows.setdefault(conn.topic.lstrip("/"), []).append((log_time, msg))
-            except (ReaderError, OSError, EOFError, ValueError) as exc:
-                warnings.append(f"read stopped early: {exc}")
-    except (ReaderError, OSError) as exc:
-        raise BagError(f"{path}: {exc}") from None
-    metadata = read_custom_metadata(path)
+                msg = store.deserialize_cdr(raw, typename)
+            except Exception as exc:  # noqa: BLE001 - one corrupt record must not lose the rest
+                warnings.append(f"{topic}: undecodable message at {log_time} ns ({exc})")
+                continue
+            rows.setdefault(topic, []).append((log_time, msg))
+
+    consume(iter_records(path, warnings))
+    if not rows:
+        raise BagError(f"{path}: no readable message" + (f" ({'; '.join(warnings)})" if warnings else ""))
     result: dict[str, TopicData] = {}
     for topic, items in rows.items():
         items.sort(key=lambda item: item[0])
@@ -195,7 +266,4 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
         for key in flat[0]:
             data.columns[key] = np.array([f[key] for f in flat])
         result[topic] = data
-    for topic in typenames:
-        if topic not in result and (topics is None or topic in topics):
-            result[topic] = TopicData(typenames[topic], np.zeros(0, dtype=np.int64))
-    return BagData(path, result, metadata, warnings)
+    return BagData(path, result, read_custom_metadata(path) if path.is_dir() else {}, warnings)

@@ -51,35 +51,40 @@ def _rms(x: np.ndarray) -> float:
 
 
 def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | None = None) -> Metrics:
-    """Quality measures of a run; NaN where a topic the measure needs is missing."""
-    truth = bag.topics.get("plant_truth")
-    if truth is None or len(truth) == 0:
-        raise ValueError("bag has no plant_truth messages: contact-force metrics need them")
-    t = stamp_seconds(truth)
+    """Quality measures of a run over the window; NaN (and an entry in ``missing_inputs(bag)``)
+    for what a missing topic prevents. Raises ValueError when the bag has no tick at all."""
+    truth, command, estimate = (bag.topics.get(n) for n in ("plant_truth", "command", "estimate"))
+    present = [t for t in bag.topics.values() if len(t) and "tick" in t.columns]
+    if not present:
+        raise ValueError("no pac topic with ticks in the bag")
+    clock = truth if truth is not None and len(truth) else present[0]
+    t = stamp_seconds(clock)
     end = float(t.max()) if window_to is None else window_to
-    win = (t >= window_from - 1e-12) & (t <= end + 1e-12)
-    force = truth["contact_force"][win]
-    if force.size == 0:
-        raise ValueError(f"no plant_truth samples in the window [{window_from}, {end}] s")
-    mean, std = float(force.mean()), float(force.std())
-    tracking = stiff = math.nan
-    u_max = u_rms = math.nan
-    command = bag.topics.get("command")
+    nan = math.nan
+    mean = std = fmin = fmax = loss = tracking = stiff = u_max = u_rms = nan
+    if truth is not None and len(truth):
+        win = (t >= window_from - 1e-12) & (t <= end + 1e-12)
+        force = truth["contact_force"][win]
+        if force.size == 0:
+            raise ValueError(f"no plant_truth samples in the window [{window_from}, {end}] s")
+        mean, std = float(force.mean()), float(force.std())
+        fmin, fmax = float(force.min()), float(force.max())
+        loss = 100.0 * float(np.mean(force <= 0.0))
+        if command is not None and len(command):
+            ic, it = _by_tick(command, truth)
+            keep = win[it]
+            tracking = _rms(truth["contact_force"][it][keep] - command["force_reference"][ic][keep])
+        if estimate is not None and len(estimate):
+            ie, it = _by_tick(estimate, truth)
+            keep = win[it]
+            k = truth["stiffness"][it][keep]
+            stiff = 100.0 * _rms((estimate["stiffness_hat"][ie][keep] - k) / k)
     if command is not None and len(command):
-        ic, it = _by_tick(command, truth)
-        keep = win[it]
-        tracking = _rms(truth["contact_force"][it][keep] - command["force_reference"][ic][keep])
-        u = command["u"][
-            (stamp_seconds(command) >= window_from - 1e-12) & (stamp_seconds(command) <= end + 1e-12)
-        ]
-        u_max, u_rms = float(np.max(np.abs(u))) if u.size else math.nan, _rms(u)
-    estimate = bag.topics.get("estimate")
-    if estimate is not None and len(estimate):
-        ie, it = _by_tick(estimate, truth)
-        keep = win[it]
-        k = truth["stiffness"][it][keep]
-        stiff = 100.0 * _rms((estimate["stiffness_hat"][ie][keep] - k) / k)
-    ticks = truth["tick"]
+        tc = stamp_seconds(command)
+        u = command["u"][(tc >= window_from - 1e-12) & (tc <= end + 1e-12)]
+        if u.size:
+            u_max, u_rms = float(np.max(np.abs(u))), _rms(u)
+    ticks = clock["tick"]
     expected = int(ticks.max() - ticks.min() + 1)
     recorded = int(np.unique(ticks).size)
     return Metrics(
@@ -87,11 +92,11 @@ def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | N
         window_to=end,
         contact_force_mean=mean,
         contact_force_std=std,
-        contact_force_min=float(force.min()),
-        contact_force_max=float(force.max()),
+        contact_force_min=fmin,
+        contact_force_max=fmax,
         statistical_min=mean - 3.0 * std,
         statistical_max=mean + 3.0 * std,
-        contact_loss_percent=100.0 * float(np.mean(force <= 0.0)),
+        contact_loss_percent=loss,
         tracking_rms=tracking,
         stiffness_rel_rms_percent=stiff,
         u_max_abs=u_max,
@@ -100,6 +105,23 @@ def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | N
         ticks_recorded=recorded,
         ticks_missing=expected - recorded,
     )
+
+
+#: Which measures each topic feeds (for saying what a missing topic costs).
+NEEDS = {
+    "plant_truth": "contact-force measures, k_hat error, tracking RMS",
+    "command": "tracking RMS, u measures",
+    "estimate": "k_hat error",
+}
+
+
+def missing_inputs(bag: BagData) -> list[str]:
+    """One line per pac topic the bag lacks, naming the measures it prevents."""
+    return [
+        f"no '{topic}' messages: {what} not computed"
+        for topic, what in NEEDS.items()
+        if topic not in bag.topics or not len(bag.topics[topic])
+    ]
 
 
 _ROWS = (

@@ -28,6 +28,9 @@ from .bag import BagWriter
 @dataclass(frozen=True)
 class RecorderParameters(ParameterSet):
     bag_path: str = parameter("", "output bag directory (must not exist); empty: bags/run_<date>_<time>")
+    topics: str = parameter(
+        "measurement,plant_truth,estimate,command", "comma-separated topics to record (of these four)"
+    )
     stop_after_tick: int = parameter(
         -1,
         "close the bag and exit once this tick has been recorded on every topic (-1: never)",
@@ -52,18 +55,24 @@ class RecorderNode(Node):
         path = Path(params.bag_path or f"bags/run_{datetime.now():%Y%m%d_%H%M%S}")
         if path.exists():
             raise ParameterError("bag_path", str(path), "a path that does not exist yet")
+        names = [t.strip() for t in params.topics.split(",") if t.strip()]
+        if not names or any(t not in messages.TOPICS for t in names):
+            raise ParameterError(
+                "topics", params.topics, "a comma-separated subset of " + ",".join(messages.TOPICS)
+            )
+        topics = {t: messages.TOPICS[t] for t in names}
         self.params: RecorderParameters = params
-        self.bag = BagWriter(path, {"source": "live", "label": path.name})
+        self.bag = BagWriter(path, {"source": "live", "label": path.name}, topics)
         self.path = path
         # deque.append/popleft are atomic: the callbacks append, the writer thread drains in
         # batches every WRITE_PERIOD, which costs far fewer wake-ups than a queue per message.
         self.pending: deque = deque()
         self.stopping = threading.Event()
-        self.last_tick = dict.fromkeys(messages.TOPICS, -1)
+        self.last_tick = dict.fromkeys(topics, -1)
         self.finished = False
         self.last_message_wall = None
         factory = messages.RclpyFactory()
-        for topic, typename in messages.TOPICS.items():
+        for topic, typename in topics.items():
             self.create_subscription(
                 factory.cls(typename), topic, self._callback(topic), RECORD_QOS, raw=True
             )
@@ -71,7 +80,7 @@ class RecorderNode(Node):
         self.writer.start()
         if params.idle_timeout > 0:
             self.create_timer(min(0.1, params.idle_timeout / 2), self._check_idle)
-        self.get_logger().info(f"recording {', '.join(messages.TOPICS)} to {path}")
+        self.get_logger().info(f"recording {', '.join(topics)} to {path}")
 
     WRITE_PERIOD = 0.01  # s
 

@@ -1,0 +1,55 @@
+"""``ros2 run pac_rig recover <bag> [--out DIR]``: make a crashed recording a closed, indexed bag.
+
+Reads whatever the MCAP record stream of ``<bag>`` holds (a recorder killed with
+SIGKILL leaves no summary, index or metadata.yaml) and writes it to a new bag
+(default ``<bag>_recovered``) with the rosbags writer; the original is left alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pac_common import messages
+
+from .bag import BagError, BagWriter, iter_records
+
+
+def recover(path: Path, out: Path) -> tuple[dict[str, int], list[str]]:
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    warnings: list[str] = []
+    records = list(iter_records(path, warnings))
+    if not records:
+        raise BagError(f"{path}: no readable message")
+    topics = {t: ty for t, ty, _, _ in records if t in messages.TOPICS}
+    with BagWriter(
+        out, {"source": "recovered", "label": out.name, "recovered_from": str(path)}, topics
+    ) as bag:
+        for topic, _, log_time, data in records:
+            if topic in topics:
+                bag.write_raw(topic, data, log_time)
+        counts = dict(bag.counts)
+    return counts, warnings
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="recover", description=__doc__)
+    parser.add_argument("bag", type=Path)
+    parser.add_argument("--out", type=Path, default=None)
+    args = parser.parse_args(argv)
+    out = args.out or args.bag.with_name(args.bag.name + "_recovered")
+    try:
+        counts, warnings = recover(args.bag, out)
+    except BagError as exc:
+        print(f"recover: {exc}", file=sys.stderr)
+        return 1
+    for warning in warnings:
+        print(f"recover: {warning}", file=sys.stderr)
+    print(f"recover: wrote {out} ({', '.join(f'{t}={n}' for t, n in counts.items())})")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
