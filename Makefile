@@ -7,7 +7,7 @@ ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
 
-.PHONY: setup test lint clean demo reproduce bench report
+.PHONY: setup test lint clean demo reproduce bench report info replay re-estimate recover sweep
 
 setup:
 	bash scripts/setup.sh
@@ -33,3 +33,10 @@ bench: setup
 report: setup
 	@if [ -z "$(BAG)" ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi
 	scripts/with_env.sh ros2 run pac_rig report $(BAG) $(ARGS)
+
+info replay re-estimate recover: setup
+	@if [ -z "$(BAG)" ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
+	scripts/with_env.sh ros2 run pac_rig $(subst -,_,$@) $(BAG) $(ARGS)
+
+sweep: setup
+	scripts/with_env.sh ros2 run pac_rig sweep $(ARGS)
