@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from pac_common.parameters import ParameterError
 from pac_controller.backstepping import BacksteppingController, product_derivatives, reciprocal_derivatives
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference, filtered_step
@@ -103,7 +104,7 @@ def test_backstepping_lyapunov_decrease():
     """With the exact state the errors obey e' = H_c e (eq. (47) with y_tilde = 0), so
     V_c = |e|^2 / 2 satisfies V_c' = -sum c_i e_i^2 <= -2 min(c) V_c (eq. (44)).
     A wrong alpha_1' or alpha_2' breaks this."""
-    params = ControllerParameters(c1=30.0, c2=40.0, c3=50.0, u_min=-1e5, u_max=1e5)
+    params = ControllerParameters(c1=30.0, c2=40.0, c3=50.0, u_min=-1e5, u_max=1e5, slew_rate_max=1e12)
     z0 = np.array([0.03, 0.035, 0.0, 0.0])  # at rest, ~120 N of contact force; F_r rises from 0
     v = []
     closed_loop_true_state(
@@ -131,12 +132,32 @@ def test_passive_mode_is_the_filtered_reference():
 
 
 def test_saturation_and_non_finite():
-    params = ControllerParameters(u_min=-10.0, u_max=10.0)
+    params = ControllerParameters(u_min=-10.0, u_max=10.0, fallback_force=0.0)
     ctrl = BacksteppingController(PANTO, TRACK, params, ReferenceParameters(), DT)
     cmd = ctrl.compute(1000, np.zeros(4), CAT.theta)
     assert cmd.saturated and cmd.u == 10.0 and cmd.u_unsaturated > 10.0
-    with pytest.raises(ValueError, match="non-finite"):
-        ctrl.compute(1000, np.array([math.nan, 0, 0, 0]), CAT.theta)
+    fallback = ctrl.compute(1001, np.array([math.nan, 0, 0, 0]), CAT.theta)
+    assert fallback.mode == "fallback" and fallback.u == 0.0
+    assert ctrl.compute(1002, np.zeros(4), np.array([math.inf, 0, 0])).mode == "fallback"
+
+
+def test_slew_rate_limit():
+    params = ControllerParameters(slew_rate_max=1000.0, u_min=-1e5, u_max=1e5)  # 1 N per tick
+    ctrl = BacksteppingController(PANTO, TRACK, params, ReferenceParameters(shape="constant"), DT)
+    from pac_plant.model import static_equilibrium
+
+    k = CAT.k0 * (1 + CAT.alpha * math.cos(TRACK.omega * 3.0 - CAT.beta))
+    first = ctrl.compute(3000, static_equilibrium(100.0, k, PANTO), CAT.theta)  # about 100 N
+    second = ctrl.compute(3001, np.zeros(4), CAT.theta)  # the law now asks for far more
+    assert abs(second.u_unsaturated - first.u) > 100.0
+    assert second.u - first.u == pytest.approx(1.0) and second.saturated
+    later = ctrl.compute(3011, np.zeros(4), CAT.theta)  # 10 ticks later: at most 10 N more
+    assert later.u - second.u == pytest.approx(10.0)
+
+
+def test_fallback_force_must_be_within_limits():
+    with pytest.raises(ParameterError, match="fallback_force"):
+        ControllerParameters(u_min=0.0, u_max=50.0, fallback_force=100.0)
 
 
 def test_stiffness_hat_is_clamped():

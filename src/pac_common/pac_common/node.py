@@ -94,17 +94,39 @@ def validate_changes(
     return updated, ""
 
 
-def refuse_runtime_changes(node: Node, names: Iterable[str], reason: str) -> None:
-    """Refuse set_parameters on ``names`` with ``reason`` (the node stays as it was)."""
-    frozen = set(names)
+def handle_parameter_changes(
+    node: Node,
+    frozen: Iterable[str],
+    frozen_reason: str,
+    live: Callable[[], list[ParameterSet]] | None = None,
+    apply: Callable[[list[ParameterSet]], None] | None = None,
+) -> None:
+    """Validate ``set_parameters`` with the start-up rules; a refused change leaves the node as it was.
+
+    Names in ``frozen`` are refused with ``frozen_reason``.  Changes to the sets returned by
+    ``live()`` are validated together (cross-field checks included) and, when all are valid,
+    handed to ``apply`` with the updated sets before they take effect.
+    """
+    frozen = set(frozen)
 
     def callback(params: list[Parameter]) -> SetParametersResult:
         hit = [p.name for p in params if p.name in frozen]
         if hit:
-            return SetParametersResult(successful=False, reason=f"{', '.join(hit)}: {reason}")
+            return SetParametersResult(successful=False, reason=f"{', '.join(hit)}: {frozen_reason}")
+        if live is not None:
+            current = live()
+            updated, error = validate_changes(current, params)
+            if error:
+                return SetParametersResult(successful=False, reason=error)
+            if apply is not None and updated != current:
+                apply(updated)
         return SetParametersResult(successful=True)
 
     node.add_on_set_parameters_callback(callback)
+
+
+def parameter_names(sets: Iterable[type[ParameterSet]]) -> list[str]:
+    return [spec.name for cls in sets for spec in cls.specs()]
 
 
 def set_realtime_priority(node: Node, priority: int) -> bool:
@@ -159,6 +181,7 @@ def run_node(program: str, factory: Callable[[], Node], args: list[str] | None =
             close = getattr(node, "close", None)
             if close is not None:
                 close()
+            status = status or getattr(node, "exit_status", 0)
             node.destroy_node()
         rclpy.try_shutdown()
     return status

@@ -38,7 +38,7 @@ class Command:
     force_reference: float  # F_r [N]
     tracking_error: tuple[float, float, float]  # (e1, e2, e3), eqs. (24), (29), (36)
     saturated: bool
-    mode: str  # "active" or "passive"
+    mode: str  # "active", "passive" or "fallback"
 
 
 def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
@@ -64,7 +64,11 @@ def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
 
 
 class BacksteppingController:
-    """u = m2 (-c3 e3 + alpha_2' - f2(z_hat) - (b1/m1) e2), eq. (43); explicit (stateless) core."""
+    """u = m2 (-c3 e3 + alpha_2' - f2(z_hat) - (b1/m1) e2), eq. (43), then the actuator limits.
+
+    Explicit state: the last commanded force and its tick (for the slew-rate limit).
+    The law itself is stateless; F_r is a pure function of time.
+    """
 
     def __init__(
         self,
@@ -81,6 +85,8 @@ class BacksteppingController:
         self.params = params
         self.reference = ForceReference(reference)
         self.sample_period = sample_period
+        self.last_u: float | None = None  # None: no command yet (no rate limit on the first)
+        self.last_tick = -1
 
     def stiffness_hat_derivatives(self, t: float, theta_hat: np.ndarray) -> np.ndarray:
         """k_hat and its derivatives 1..3 with theta_hat frozen, clamped at stiffness_hat_min."""
@@ -94,9 +100,20 @@ class BacksteppingController:
         t = tick * self.sample_period
         f_r = self.reference.at(t)
         if self.params.mode == "passive":
-            return self._limited(tick, t, f_r[0], f_r[0], (0.0, 0.0, 0.0))
-        u_law, errors = self.law(t, f_r, np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float))
-        return self._limited(tick, t, u_law, f_r[0], errors)
+            return self._limited(tick, t, f_r[0], f_r[0], (0.0, 0.0, 0.0), "passive")
+        z_hat, theta_hat = np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float)
+        if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
+            return self.fallback(tick)
+        u_law, errors = self.law(t, f_r, z_hat, theta_hat)
+        if not math.isfinite(u_law):
+            return self.fallback(tick)
+        return self._limited(tick, t, u_law, f_r[0], errors, "active")
+
+    def fallback(self, tick: int) -> Command:
+        """The safe command: the static uplift ``fallback_force``, reached within the slew limit."""
+        t = tick * self.sample_period
+        force = self.params.fallback_force
+        return self._limited(tick, t, force, self.reference.at(t)[0], (0.0, 0.0, 0.0), "fallback")
 
     def law(
         self, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
@@ -134,18 +151,31 @@ class BacksteppingController:
         return u, (e1, e2, e3)
 
     def _limited(
-        self, tick: int, t: float, u: float, force_reference: float, errors: tuple[float, float, float]
+        self,
+        tick: int,
+        t: float,
+        u: float,
+        force_reference: float,
+        errors: tuple[float, float, float],
+        mode: str,
     ) -> Command:
-        if not math.isfinite(u):
-            raise ValueError(f"control law produced a non-finite force at tick {tick}")
-        u_applied = min(max(u, self.params.u_min), self.params.u_max)
+        """Slew-rate limit from the last command, then saturation; updates the actuator state."""
+        p = self.params
+        applied = u
+        if self.last_u is not None:
+            # At least one period: a command whose tick is not after the last one (a fallback
+            # tick extrapolated ahead of a returning estimate) is still rate limited.
+            step = p.slew_rate_max * self.sample_period * max(1, tick - self.last_tick)
+            applied = min(max(applied, self.last_u - step), self.last_u + step)
+        applied = min(max(applied, p.u_min), p.u_max)
+        self.last_u, self.last_tick = applied, tick
         return Command(
             tick=tick,
             time=t,
-            u=u_applied,
+            u=applied,
             u_unsaturated=u,
             force_reference=force_reference,
             tracking_error=errors,
-            saturated=u_applied != u,
-            mode=self.params.mode,
+            saturated=applied != u,
+            mode=mode,
         )

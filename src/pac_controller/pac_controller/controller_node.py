@@ -1,21 +1,26 @@
 """``ros2 run pac_controller controller_node``: backstepping (eq. (43)) on the ROS graph.
 
 Subscribes ``estimate`` (ObserverEstimate), publishes ``command`` (ActuatorCommand)
-for the same tick.  A repeated tick (a lock-step re-send) re-publishes the last
-command; an estimate that is not finite never reaches the actuator.
+for the same tick.  Safety: a non-finite estimate never reaches the actuator (the
+core answers it with the fallback command), and a watchdog publishes the fallback
+command (the static uplift ``fallback_force``, within the slew limit; mode
+FALLBACK) when no fresh estimate came for ``watchdog_ticks`` ticks; the first
+fresh estimate returns the loop to active control.  Gains, reference, limits and
+mode may be changed at run time (validated like at start).
 """
 
 from __future__ import annotations
 
-import math
 import sys
+import time
 
 import numpy as np
 from pac_common.node import (
     LOOP_QOS,
     Node,
     declare_parameter_sets,
-    refuse_runtime_changes,
+    handle_parameter_changes,
+    parameter_names,
     run_node,
     set_realtime_priority,
 )
@@ -35,21 +40,25 @@ PARAMETER_SETS = [
     RateParameters,
     NodeOptions,
 ]
+RUNTIME_SETS = [ControllerParameters, ReferenceParameters]
 
 
 class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__("controller_node")
-        panto, track, params, reference, loop, node_opts = declare_parameter_sets(self, PARAMETER_SETS)
-        refuse_runtime_changes(
-            self,
-            [n for n in self._parameters if n != "use_sim_time"],
-            "runtime changes are not supported yet: restart the node to change them",
-        )
-        self.loop: RateParameters = loop
+        panto, track, params, reference, rate, node_opts = declare_parameter_sets(self, PARAMETER_SETS)
+        self.loop: RateParameters = rate
         self.node_options: NodeOptions = node_opts
         set_realtime_priority(self, node_opts.realtime_priority)
-        self.core = BacksteppingController(panto, track, params, reference, loop.sample_period)
+        self.pantograph, self.track = panto, track
+        self.core = BacksteppingController(panto, track, params, reference, rate.sample_period)
+        handle_parameter_changes(
+            self,
+            frozen=[n for n in parameter_names(PARAMETER_SETS) if n not in parameter_names(RUNTIME_SETS)],
+            frozen_reason="fixed for a run (model, speed, rate): restart the node to change it",
+            live=lambda: [self.core.params, self.core.reference.params],
+            apply=self.apply_parameters,
+        )
         self.factory = messages.RclpyFactory()
         self.command_pub = self.create_publisher(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", LOOP_QOS
@@ -57,45 +66,96 @@ class ControllerNode(Node):
         self.create_subscription(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", self.on_estimate, LOOP_QOS
         )
-        self.last_tick = -1
+        self.last_estimate_tick = -1
+        self.last_estimate_wall: float | None = None
         self.last_message = None
+        self.in_fallback = False
         self.sent = 0
         self.skipped = 0  # estimates that never arrived (tick gaps)
+        self.fallback_commands = 0
+        self.fallback_episodes = 0
+        self.nonfinite = 0
+        period = rate.sample_period * max(1, params.watchdog_ticks // 4)
+        self.create_timer(period, self.on_watchdog)
+
+    def apply_parameters(self, sets: list) -> None:
+        params, reference = sets
+        state = (self.core.last_u, self.core.last_tick)
+        self.core = BacksteppingController(
+            self.pantograph, self.track, params, reference, self.loop.sample_period
+        )
+        self.core.last_u, self.core.last_tick = state  # the actuator does not jump on a retune
+        self.get_logger().info(
+            f"parameters changed: mode {params.mode}, c = ({params.c1:g}, {params.c2:g}, "
+            f"{params.c3:g}), reference {reference.shape} {reference.force_amplitude:g} N"
+        )
 
     def ready(self) -> bool:
         return self.command_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
 
+    def publish(self, cmd, estimate_age_ticks: int) -> None:
+        stamp = messages.tick_stamp_ns(cmd.tick, self.loop.rate_hz)
+        self.last_message = self.factory.make(
+            messages.ACTUATOR_COMMAND,
+            messages.command_fields(cmd, stamp, estimate_age_ticks=estimate_age_ticks),
+        )
+        self.command_pub.publish(self.last_message)
+
     def on_estimate(self, msg) -> None:
         tick = int(msg.tick)
-        if tick <= self.last_tick:
-            if tick == self.last_tick and self.last_message is not None:
+        z_hat, theta_hat = np.asarray(msg.z_hat, dtype=float), np.asarray(msg.theta_hat, dtype=float)
+        if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
+            # Never reaches the law; answered with the fallback command. Not a fresh estimate:
+            # it moves neither the tick tracking nor the watchdog.
+            self.nonfinite += 1
+            self.get_logger().error(
+                f"tick {tick}: non-finite estimate: fallback command", throttle_duration_sec=1.0
+            )
+            self.publish(self.core.fallback(max(tick, self.core.last_tick + 1)), 0)
+            return
+        if tick == 0 and self.last_estimate_tick > 0:
+            self.get_logger().warning(f"estimate tick went back from {self.last_estimate_tick} to 0: new run")
+            self.last_estimate_tick, self.last_message = -1, None
+        if tick <= self.last_estimate_tick:
+            if tick == self.last_estimate_tick and self.last_message is not None:
                 self.command_pub.publish(self.last_message)  # lock-step re-send
             return
         if not self.ready():
             return
-        z_hat = np.asarray(msg.z_hat, dtype=float)
-        theta_hat = np.asarray(msg.theta_hat, dtype=float)
-        if not (np.all(np.isfinite(z_hat)) and np.all(np.isfinite(theta_hat))):
-            self.get_logger().error(f"tick {tick}: non-finite estimate, no command sent")
-            return
-        try:
-            cmd = self.core.compute(tick, z_hat, theta_hat)
-        except ValueError as exc:
-            self.get_logger().error(f"tick {tick}: {exc}; no command sent")
-            return
-        if not math.isfinite(cmd.u):
-            return
-        if self.last_tick >= 0:
-            self.skipped += tick - self.last_tick - 1
-        self.last_tick = tick
+        if self.last_estimate_tick >= 0:
+            self.skipped += tick - self.last_estimate_tick - 1
+        self.last_estimate_tick = tick
+        self.last_estimate_wall = time.monotonic()
+        cmd = self.core.compute(tick, z_hat, theta_hat)
+        if self.in_fallback:
+            self.in_fallback = False
+            self.get_logger().info(f"tick {tick}: fresh estimates again: back to {cmd.mode} control")
         self.sent += 1
-        stamp = messages.tick_stamp_ns(tick, self.loop.rate_hz)
-        self.last_message = self.factory.make(messages.ACTUATOR_COMMAND, messages.command_fields(cmd, stamp))
-        self.command_pub.publish(self.last_message)
+        self.publish(cmd, 0)
+
+    def on_watchdog(self) -> None:
+        if self.last_estimate_wall is None or self.core.params.watchdog_ticks == 0:
+            return  # the loop has not started yet, or the watchdog is off
+        age = int((time.monotonic() - self.last_estimate_wall) / self.loop.sample_period)
+        if age < self.core.params.watchdog_ticks:
+            return
+        if not self.in_fallback:
+            self.in_fallback = True
+            self.fallback_episodes += 1
+            self.get_logger().warning(
+                f"no fresh estimate for {age} ticks: fallback to "
+                f"{self.core.params.fallback_force:g} N static uplift"
+            )
+        # The tick the loop would be at, extrapolated by the wall clock.
+        tick = max(self.last_estimate_tick + age, self.core.last_tick + 1)
+        self.fallback_commands += 1
+        self.publish(self.core.fallback(tick), age)
 
     def close(self) -> None:
         print(
-            f"controller_node: sent {self.sent} commands; {self.skipped} estimates never arrived",
+            f"controller_node: sent {self.sent} commands; {self.skipped} estimates never arrived; "
+            f"{self.fallback_commands} fallback commands in {self.fallback_episodes} episodes; "
+            f"{self.nonfinite} non-finite estimates refused",
             file=sys.stderr,
             flush=True,
         )

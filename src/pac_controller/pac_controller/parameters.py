@@ -45,6 +45,28 @@ class ControllerParameters(ParameterSet):
     c3: float = parameter(50.0, "backstepping gain c3, eq. (43)", "1/s", low=0.0, low_open=True, high=1e4)
     u_min: float = parameter(-500.0, "actuator force lower limit", "N", low=-1e7, high=1e7)
     u_max: float = parameter(500.0, "actuator force upper limit", "N", low=-1e7, high=1e7)
+    slew_rate_max: float = parameter(
+        10000.0,
+        "actuator force rate limit (the shipped loop needs <= 4.6 kN/s)",
+        "N/s",
+        low=0.0,
+        low_open=True,
+        high=1e12,
+    )
+    fallback_force: float = parameter(
+        100.0,
+        "static uplift commanded in fallback (no fresh or no finite estimate)",
+        "N",
+        low=0.0,
+        high=1000.0,
+    )
+    watchdog_ticks: int = parameter(
+        20,
+        "fallback after this many ticks without a fresh estimate (0: off, for lock-step runs)",
+        "ticks",
+        low=0,
+        high=100000,
+    )
     stiffness_hat_min: float = parameter(
         500.0, "k_hat is clamped below at this value in z1r = F_r / k_hat", "N/m", low=1.0, high=1e6
     )
@@ -52,3 +74,9 @@ class ControllerParameters(ParameterSet):
     def check_consistency(self) -> None:
         if self.u_max <= self.u_min:
             raise ParameterError("u_max", self.u_max, f"greater than u_min = {self.u_min:g} N")
+        if not self.u_min <= self.fallback_force <= self.u_max:
+            raise ParameterError(
+                "fallback_force",
+                self.fallback_force,
+                f"within [u_min, u_max] = [{self.u_min:g}, {self.u_max:g}] N",
+            )

@@ -3,22 +3,27 @@
 Subscribes ``measurement`` (FrameMeasurement), publishes ``estimate``
 (ObserverEstimate) for the same tick.  A repeated tick (a lock-step re-send)
 re-publishes the last estimate; a gap (lost samples) is bridged by the core.
+A non-finite or physically absurd measurement is refused (counted, flagged in
+the next estimate's status, and bridged over like a lost sample); a diverged
+update re-initialises the observer with a logged error and a status flag.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+from dataclasses import dataclass
 
 from pac_common.node import (
     LOOP_QOS,
     Node,
     declare_parameter_sets,
-    refuse_runtime_changes,
+    handle_parameter_changes,
+    parameter_names,
     run_node,
     set_realtime_priority,
 )
-from pac_common.parameters import NodeOptions, RateParameters
+from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
 from pac_plant.parameters import PantographParameters, TrackParameters
 
 from pac_common import messages
@@ -26,17 +31,47 @@ from pac_common import messages
 from .observer import AdaptiveObserver, ObserverDivergedError
 from .parameters import ObserverParameters
 
-PARAMETER_SETS = [PantographParameters, TrackParameters, ObserverParameters, RateParameters, NodeOptions]
+
+@dataclass(frozen=True)
+class MeasurementLimits(ParameterSet):
+    """What the observer accepts as a measurement at all."""
+
+    position_limit: float = parameter(
+        0.5,
+        "a |z1| or |z2| beyond this is refused as physically absurd",
+        "m",
+        low=0.0,
+        low_open=True,
+        high=10.0,
+    )
+    force_limit: float = parameter(
+        1e5, "an |actuator force| beyond this is refused as physically absurd", "N", low=0.0, low_open=True
+    )
+
+
+PARAMETER_SETS = [
+    PantographParameters,
+    TrackParameters,
+    ObserverParameters,
+    RateParameters,
+    NodeOptions,
+    MeasurementLimits,
+]
 
 
 class ObserverNode(Node):
     def __init__(self) -> None:
         super().__init__("observer_node")
-        panto, track, params, loop, node_opts = declare_parameter_sets(self, PARAMETER_SETS)
-        refuse_runtime_changes(
+        panto, track, params, loop, node_opts, limits = declare_parameter_sets(self, PARAMETER_SETS)
+        self.limits: MeasurementLimits = limits
+        handle_parameter_changes(
             self,
-            [n for n in self._parameters if n != "use_sim_time"],
-            "the observer's model and tuning are fixed for a run: restart the node to change them",
+            frozen=[
+                n for n in parameter_names(PARAMETER_SETS) if n not in parameter_names([MeasurementLimits])
+            ],
+            frozen_reason="the observer's model and tuning are fixed for a run: restart the node",
+            live=lambda: [self.limits],
+            apply=self.apply_limits,
         )
         self.loop: RateParameters = loop
         self.node_options: NodeOptions = node_opts
@@ -50,41 +85,70 @@ class ObserverNode(Node):
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS
         )
         self.last_message = None
+        self.last_seen_tick = -1
         self.reinitialisations = 0
         self.rejected = 0
+        self.rejected_since_estimate = False
         self.waited = 0
         self.processed = 0
-        self.bridged = 0  # samples never received, bridged by the core
+        self.bridged = 0  # samples never received (or refused), bridged by the core
+
+    def apply_limits(self, sets: list) -> None:
+        (self.limits,) = sets
 
     def ready(self) -> bool:
         return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
 
+    def acceptable(self, z1: float, z2: float, force: float) -> bool:
+        finite = math.isfinite(z1) and math.isfinite(z2) and math.isfinite(force)
+        return (
+            finite
+            and abs(z1) <= self.limits.position_limit
+            and abs(z2) <= self.limits.position_limit
+            and abs(force) <= self.limits.force_limit
+        )
+
     def on_measurement(self, msg) -> None:
         tick = int(msg.tick)
-        if self.last_message is not None and tick <= self.core.tick:
-            if tick == self.core.tick:
+        z1, z2, force = float(msg.z1), float(msg.z2), float(msg.actuator_force)
+        if not self.acceptable(z1, z2, force):
+            # Refused before its tick is trusted: a garbage sample cannot move the tick tracking.
+            self.rejected += 1
+            self.rejected_since_estimate = True
+            self.get_logger().warning(
+                f"tick {tick}: measurement refused (z1={z1!r}, z2={z2!r}, force={force!r})",
+                throttle_duration_sec=1.0,
+            )
+            return
+        if tick == 0 and self.last_seen_tick > 0:
+            self.get_logger().warning(
+                f"tick went back from {self.last_seen_tick} to 0: plant restarted, "
+                "re-initialising the observer"
+            )
+            self.core.reset()
+            self.reinitialisations += 1
+            self.last_seen_tick, self.last_message = -1, None
+        if tick <= self.last_seen_tick:
+            if tick == self.core.tick and self.last_message is not None:
                 self.estimate_pub.publish(self.last_message)  # lock-step re-send
             return
         if not self.ready():
             self.waited += 1  # nobody to tell yet; lock step re-sends, real time moves on
             return
-        y = (float(msg.z1), float(msg.z2))
-        if not all(math.isfinite(v) for v in (*y, float(msg.actuator_force))):
-            self.rejected += 1
-            self.get_logger().warning(f"tick {tick}: non-finite measurement ignored")
-            return
-        status = messages.STATUS_OK
+        self.last_seen_tick = tick
+        status = messages.STATUS_MEASUREMENT_REJECTED if self.rejected_since_estimate else messages.STATUS_OK
         if self.core.tick >= 0:
             self.bridged += tick - self.core.tick - 1
         self.processed += 1
         try:
-            est = self.core.update(tick, y, float(msg.actuator_force))
+            est = self.core.update(tick, (z1, z2), force)
         except ObserverDivergedError as exc:
             self.reinitialisations += 1
             self.get_logger().error(f"{exc}; re-initialising")
             self.core.reset()
-            est = self.core.update(tick, y, float(msg.actuator_force))
+            est = self.core.update(tick, (z1, z2), force)
             status = messages.STATUS_REINITIALISED
+        self.rejected_since_estimate = False
         stamp = messages.tick_stamp_ns(tick, self.loop.rate_hz)
         self.last_message = self.factory.make(
             messages.OBSERVER_ESTIMATE,
@@ -97,8 +161,8 @@ class ObserverNode(Node):
     def close(self) -> None:
         print(
             f"observer_node: processed {self.processed} measurements; "
-            f"{self.bridged} never arrived and were bridged; "
-            f"{self.waited} before the loop was matched; {self.rejected} rejected; "
+            f"{self.bridged} never arrived or were refused and were bridged; "
+            f"{self.waited} before the loop was matched; {self.rejected} refused; "
             f"{self.reinitialisations} re-initialisations",
             file=sys.stderr,
             flush=True,

@@ -71,6 +71,20 @@ class PlantOptions(ParameterSet):
         "'unilateral' F = max(k z1, 0) (the head leaves the wire)",
         choices=("linear", "unilateral"),
     )
+    noise_std: tuple = parameter(
+        (0.0, 0.0),
+        "standard deviation of the measurement noise on (z1, z2)",
+        "m",
+        length=2,
+        low=0.0,
+        high=0.1,
+    )
+    noise_seed: int = parameter(
+        0, "seed of the measurement noise (the same seed gives the same noise)", low=0
+    )
+    quantisation: float = parameter(
+        0.0, "position sensor resolution, 0 for none (measurements rounded to it)", "m", low=0.0, high=0.01
+    )
     substeps: int = parameter(
         2, "RK4 steps per sample period (accuracy: see docs/numerics.md)", low=1, high=1000
     )

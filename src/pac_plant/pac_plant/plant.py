@@ -68,6 +68,9 @@ class Plant:
         self.tick = 0
         self.z = np.zeros(4) if z0 is None else np.array(z0, dtype=float)
         self.u_applied = 0.0
+        self._noisy = any(s > 0.0 for s in options.noise_std)
+        self._noise_block_index = -1
+        self._noise_block = np.zeros((0, 2))
 
     @property
     def time(self) -> float:
@@ -83,7 +86,27 @@ class Plant:
         return model.dynamics(z, u, force, self._a, self.pantograph)
 
     def measurement(self) -> Measurement:
-        return Measurement(self.tick, self.time, float(self.z[0]), float(self.z[1]), self.u_applied)
+        """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
+        z1, z2 = float(self.z[0]), float(self.z[1])
+        if self._noisy:
+            n1, n2 = self._noise(self.tick)
+            z1, z2 = z1 + n1, z2 + n2
+        q = self.options.quantisation
+        if q > 0.0:
+            z1, z2 = q * round(z1 / q), q * round(z2 / q)
+        return Measurement(self.tick, self.time, z1, z2, self.u_applied)
+
+    _NOISE_BLOCK = 4096
+
+    def _noise(self, tick: int) -> tuple[float, float]:
+        """Noise of ``tick``: a pure function of (seed, tick), so a re-sent sample is the same sample."""
+        block = tick // self._NOISE_BLOCK
+        if block != self._noise_block_index:
+            rng = np.random.default_rng([self.options.noise_seed, block])
+            self._noise_block = rng.standard_normal((self._NOISE_BLOCK, 2)) * np.array(self.options.noise_std)
+            self._noise_block_index = block
+        n1, n2 = self._noise_block[tick % self._NOISE_BLOCK]
+        return float(n1), float(n2)
 
     def truth(self) -> Truth:
         t = self.time

@@ -28,7 +28,8 @@ from pac_common.node import (
     LOOP_QOS,
     Node,
     declare_parameter_sets,
-    refuse_runtime_changes,
+    handle_parameter_changes,
+    parameter_names,
     run_node,
     set_realtime_priority,
 )
@@ -48,17 +49,25 @@ class PlantNodeOptions(ParameterSet):
         choices=("realtime", "lockstep"),
     )
     resend_timeout: float = parameter(
-        0.05,
+        0.01,
         "lockstep: re-send the measurement when no command came within this time",
         "s",
         low=0.001,
         high=10.0,
     )
-    realtime_priority: int = parameter(
-        0,
-        "SCHED_FIFO priority for the process (0 = normal scheduling; needs CAP_SYS_NICE)",
-        low=0,
-        high=99,
+    command_timeout_ticks: int = parameter(
+        50,
+        "realtime: hold the last command this many ticks, then apply passive_uplift",
+        "ticks",
+        low=1,
+        high=1000000,
+    )
+    passive_uplift: float = parameter(
+        100.0,
+        "force applied after a command timeout (the static uplift of a passive pantograph)",
+        "N",
+        low=0.0,
+        high=1000.0,
     )
 
 
@@ -77,10 +86,13 @@ class PlantNode(Node):
     def __init__(self) -> None:
         super().__init__("plant_node")
         panto, track, catenary, options, loop, node_opts, opts = declare_parameter_sets(self, PARAMETER_SETS)
-        refuse_runtime_changes(
+        runtime = ["command_timeout_ticks", "passive_uplift"]
+        handle_parameter_changes(
             self,
-            [n for n in self._parameters if n != "use_sim_time"],
-            "the plant's model and timing are fixed for a run: restart the node to change them",
+            frozen=[n for n in parameter_names(PARAMETER_SETS) if n not in runtime],
+            frozen_reason="the plant's model and timing are fixed for a run: restart the node to change it",
+            live=lambda: [self.options],
+            apply=self.apply_options,
         )
         self.loop: LoopParameters = loop
         self.options: PlantNodeOptions = opts
@@ -99,7 +111,10 @@ class PlantNode(Node):
         self.finished = False
         self.ticks_total = loop.ticks if loop.duration > 0 else math.inf
         # Command bookkeeping.
-        self.latest: tuple[int, float] | None = None  # (tick, u) of the newest command received
+        self.latest: tuple[int, float] | None = None  # (tick, u) of the command received last
+        self.latest_received_at = -1  # plant tick at which it arrived
+        self.timeouts = 0
+        self.timed_out = False
         self.pending: deque[tuple[int, float]] = deque([(-1, 0.0)] * loop.command_delay_ticks)
         self.applied_tick = -1  # command applied over the period that ends at the current tick
         self.applied_source = messages.COMMAND_PASSIVE
@@ -116,6 +131,13 @@ class PlantNode(Node):
         self.get_logger().info(
             f"{opts.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
             f"({'until stopped' if loop.duration == 0 else f'{loop.ticks} ticks'}); waiting for the loop"
+        )
+
+    def apply_options(self, sets: list) -> None:
+        (self.options,) = sets
+        self.get_logger().info(
+            f"command timeout {self.options.command_timeout_ticks} ticks, "
+            f"passive uplift {self.options.passive_uplift:g} N"
         )
 
     # -- start-up: wait for the loop (and the recorder) to be matched, never a blind sleep ----------
@@ -158,6 +180,7 @@ class PlantNode(Node):
                     stamp,
                     applied_command_tick=self.applied_tick,
                     command_source=self.applied_source,
+                    command_timeouts=self.timeouts,
                     round_trip_latency=self.latency.pop(self.applied_tick, math.nan),
                     wall_stamp_ns=now,
                 ),
@@ -171,8 +194,9 @@ class PlantNode(Node):
         if not math.isfinite(u):
             self.get_logger().error(f"ignored a non-finite command for tick {tick}")
             return
-        if self.latest is None or tick > self.latest[0]:
-            self.latest = (tick, u)
+        # The actuator applies what arrived last (fallback commands carry extrapolated ticks).
+        self.latest = (tick, u)
+        self.latest_received_at = self.plant.tick
         if tick != self.plant.tick or self.finished:
             return
         if self.options.timing_mode == "lockstep":
@@ -219,11 +243,26 @@ class PlantNode(Node):
     MAX_CATCH_UP = 20
 
     def realtime_step(self) -> None:
+        k = self.plant.tick
         if self.latest is None:
             command_tick, u, source = -1, 0.0, messages.COMMAND_PASSIVE
+        elif k - self.latest_received_at > self.options.command_timeout_ticks:
+            # Hold the last command for command_timeout_ticks, then the passive uplift.
+            if not self.timed_out:
+                self.timed_out = True
+                self.timeouts += 1
+                self.get_logger().warning(
+                    f"tick {k}: no command for {k - self.latest_received_at} ticks: passive uplift "
+                    f"{self.options.passive_uplift:g} N"
+                )
+            command_tick, u, source = -1, self.options.passive_uplift, messages.COMMAND_PASSIVE
         else:
+            if self.timed_out:
+                self.timed_out = False
+                self.get_logger().info(f"tick {k}: commands again")
             command_tick, u = self.latest
-            source = messages.COMMAND_FRESH if command_tick > self.applied_tick else messages.COMMAND_HELD
+            fresh = self.latest_received_at >= k - 1
+            source = messages.COMMAND_FRESH if fresh else messages.COMMAND_HELD
         self.publish_tick()
         self.advance(command_tick, u, source)
 
@@ -244,7 +283,8 @@ class PlantNode(Node):
     def close(self) -> None:
         print(
             f"plant_node: stopped at tick {self.plant.tick} ({self.resends} measurement re-sends, "
-            f"{self.late_ticks} ticks taken late, {self.slips} schedule slips)",
+            f"{self.late_ticks} ticks taken late, {self.slips} schedule slips, "
+            f"{self.timeouts} command timeouts)",
             file=sys.stderr,
             flush=True,
         )

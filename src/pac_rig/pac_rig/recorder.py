@@ -68,6 +68,8 @@ class RecorderNode(Node):
         # batches every WRITE_PERIOD, which costs far fewer wake-ups than a queue per message.
         self.pending: deque = deque()
         self.stopping = threading.Event()
+        self.failed = False
+        self.exit_status = 0
         self.last_tick = dict.fromkeys(topics, -1)
         self.finished = False
         self.last_message_wall = None
@@ -82,7 +84,8 @@ class RecorderNode(Node):
             self.create_timer(min(0.1, params.idle_timeout / 2), self._check_idle)
         self.get_logger().info(f"recording {', '.join(topics)} to {path}")
 
-    WRITE_PERIOD = 0.01  # s
+    WRITE_PERIOD = 0.01  # s: how often the writer thread drains the callbacks' queue
+    FLUSH_PERIOD = 0.5  # s: how often a chunk is closed and flushed (bounds the loss on SIGKILL)
 
     def _callback(self, topic: str):
         append = self.pending.append
@@ -93,17 +96,40 @@ class RecorderNode(Node):
         return callback
 
     def _write_loop(self) -> None:
+        last_flush = time.monotonic()
         while not self.stopping.wait(self.WRITE_PERIOD):
             self._drain()
+            if time.monotonic() - last_flush >= self.FLUSH_PERIOD and not self.failed:
+                self._guard(self.bag.flush)
+                last_flush = time.monotonic()
         self._drain()
+
+    def _guard(self, action) -> bool:
+        """Run a file operation; a full disk (or any OS error) stops recording with one clear line."""
+        try:
+            action()
+            return True
+        except OSError as exc:
+            self.failed = True
+            self.exit_status = 1
+            self.finished = True
+            self.pending.clear()
+            print(
+                f"recorder: recording stopped: {exc.strerror or exc} ({self.path}); "
+                f"what was written before stays readable (ros2 run pac_rig recover {self.path})",
+                file=sys.stderr,
+                flush=True,
+            )
+            return False
 
     def _drain(self) -> None:
         stop_tick = self.params.stop_after_tick
         pending = self.pending
         wrote = False
-        while pending:
+        while pending and not self.failed:
             topic, data, stamp = pending.popleft()
-            self.bag.write_raw(topic, data, stamp)
+            if not self._guard(lambda t=topic, d=data, st=stamp: self.bag.write_raw(t, d, st)):
+                return
             wrote = True
             if stop_tick >= 0:
                 self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
@@ -122,7 +148,8 @@ class RecorderNode(Node):
         """Drain the queue, write the summary and metadata: the bag is complete and indexed."""
         self.stopping.set()
         self.writer.join()
-        self.bag.close()
+        if self.failed or not self._guard(self.bag.close):
+            return
         counts = ", ".join(f"{t}={n}" for t, n in self.bag.counts.items())
         print(f"recorder: closed {self.path} ({counts})", file=sys.stderr, flush=True)
 

@@ -22,7 +22,7 @@ from .plots import overlay_figure, run_figure
 from .simulate import RunResult, scenario_from_flat, simulate_to_bag
 
 #: Section 6's gains, run with an actuator without limits as in the paper's continuous simulation.
-PAPER_GAINS = {"c1": 400.0, "c2": 400.0, "c3": 50.0, "u_min": -1e7, "u_max": 1e7}
+PAPER_GAINS = {"c1": 400.0, "c2": 400.0, "c3": 50.0, "u_min": -1e7, "u_max": 1e7, "slew_rate_max": 1e12}
 
 RUNS: dict[str, dict[str, Any]] = {
     "paper_square": {"shape": "square"},

@@ -112,6 +112,10 @@ class Rig:
             "controller": dict(common),
             "plant": {**common, "timing_mode": timing_mode, "duration": duration},
         }
+        if timing_mode == "lockstep":
+            # The plant waits for every command: a wall-clock watchdog has nothing to guard
+            # and would perturb an exact run when a sample is re-sent.
+            self.params["controller"]["watchdog_ticks"] = 0
         for name, extra in (params or {}).items():
             if name != "all":
                 self.params[name].update(extra)
