@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 from mcap_ros2.reader import read_ros2_messages
+from pac_controller.parameters import ControllerParameters
 from pac_rig.bag import read_bag
 from pac_rig.metrics import compute_metrics
 from pac_rig.reproduce import COMMON, PAPER_GAINS
@@ -85,3 +86,33 @@ def test_runs_are_deterministic(tmp_path):
         for col in ta[topic].columns:
             np.testing.assert_array_equal(ta[topic][col], tb[topic][col], err_msg=f"{topic}.{col}")
     assert math.isnan(ta["plant_truth"]["round_trip_latency"][0])
+
+
+def restart_transient(slew_rate_max: float) -> list[float]:
+    """The loop after an observer restart: the head already presses with 100 N, the observer starts
+    from z_hat0 = 0 and theta_hat0 at tick 3000. Contact-force std per second of the 6 s after."""
+    from pac_plant.model import static_equilibrium
+    from pac_rig.closed_loop import build_cores
+
+    scenario = scenario_from_flat({**COMMON, "slew_rate_max": slew_rate_max, "duration": 6.0})
+    plant, observer, controller = build_cores(scenario)
+    plant.tick = 3000
+    plant.z = static_equilibrium(100.0, plant.stiffness_at(3.0), scenario.pantograph)
+    pending, errors = [0.0], []
+    for _ in range(scenario.loop.ticks):
+        y, truth = plant.measurement(), plant.truth()
+        est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force)
+        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat)
+        errors.append(truth.contact_force - cmd.force_reference)
+        pending.append(cmd.u)
+        plant.advance(pending.pop(0))
+    return [float(np.std(errors[j * 1000 : (j + 1) * 1000])) for j in range(6)]
+
+
+def test_restart_transient_and_rate_limit():
+    """The shipped rate limit (100 kN/s) lets the loop recover from a restart within 2 s; a slow
+    actuator (10 kN/s) would lock it in a rate-limit cycle (why the default is not lower)."""
+    shipped = restart_transient(ControllerParameters().slew_rate_max)
+    assert max(shipped[2:]) < 0.1
+    slow = restart_transient(1e4)
+    assert min(slow[2:]) > 10.0

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
 
@@ -172,10 +173,14 @@ def run_node(program: str, factory: Callable[[], Node], args: list[str] | None =
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception as exc:  # noqa: BLE001 - report, then exit non-zero with a clean shutdown
+        # SIGINT/SIGTERM shut the context down asynchronously: an error raised by a callback (or by
+        # the executor) in that instant is part of a clean stop. Give the shutdown a moment to show.
+        deadline = time.monotonic() + 0.5
+        while rclpy.ok() and time.monotonic() < deadline:
+            time.sleep(0.01)
         if rclpy.ok():
             print(f"{program}: fatal: {exc!r}", file=sys.stderr)
             status = 1
-        # else: SIGINT/SIGTERM shut the context down while a callback was publishing: a clean stop
     finally:
         if node is not None:
             close = getattr(node, "close", None)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 from pac_common.node import (
@@ -24,13 +25,32 @@ from pac_common.node import (
     run_node,
     set_realtime_priority,
 )
-from pac_common.parameters import NodeOptions, RateParameters
+from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
 from pac_plant.parameters import PantographParameters, TrackParameters
 
 from pac_common import messages
 
 from .backstepping import BacksteppingController
 from .parameters import ControllerParameters, ReferenceParameters
+
+
+@dataclass(frozen=True)
+class EstimateLimits(ParameterSet):
+    """What the controller accepts as an estimate at all (else: the fallback command)."""
+
+    estimate_position_limit: float = parameter(
+        0.5, "|z_hat_1|, |z_hat_2| beyond this is implausible", "m", low=0.0, low_open=True, high=10.0
+    )
+    estimate_velocity_limit: float = parameter(
+        20.0, "|z_hat_3|, |z_hat_4| beyond this is implausible", "m/s", low=0.0, low_open=True, high=1000.0
+    )
+    estimate_stiffness_limit: float = parameter(
+        1e6, "|theta_hat_i| beyond this is implausible", "N/m", low=0.0, low_open=True
+    )
+    max_tick_jump: int = parameter(
+        10000, "an estimate more than this many ticks ahead of the last one is implausible", "ticks", low=1
+    )
+
 
 PARAMETER_SETS = [
     PantographParameters,
@@ -39,14 +59,18 @@ PARAMETER_SETS = [
     ReferenceParameters,
     RateParameters,
     NodeOptions,
+    EstimateLimits,
 ]
-RUNTIME_SETS = [ControllerParameters, ReferenceParameters]
+RUNTIME_SETS = [ControllerParameters, ReferenceParameters, EstimateLimits]
 
 
 class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__("controller_node")
-        panto, track, params, reference, rate, node_opts = declare_parameter_sets(self, PARAMETER_SETS)
+        panto, track, params, reference, rate, node_opts, limits = declare_parameter_sets(
+            self, PARAMETER_SETS
+        )
+        self.limits: EstimateLimits = limits
         self.loop: RateParameters = rate
         self.node_options: NodeOptions = node_opts
         set_realtime_priority(self, node_opts.realtime_priority)
@@ -56,7 +80,7 @@ class ControllerNode(Node):
             self,
             frozen=[n for n in parameter_names(PARAMETER_SETS) if n not in parameter_names(RUNTIME_SETS)],
             frozen_reason="fixed for a run (model, speed, rate): restart the node to change it",
-            live=lambda: [self.core.params, self.core.reference.params],
+            live=lambda: [self.core.params, self.core.reference.params, self.limits],
             apply=self.apply_parameters,
         )
         self.factory = messages.RclpyFactory()
@@ -68,7 +92,7 @@ class ControllerNode(Node):
         )
         self.last_estimate_tick = -1
         self.last_estimate_wall: float | None = None
-        self.last_message = None
+        self.last_answer = None  # the command that answered the last fresh estimate
         self.in_fallback = False
         self.sent = 0
         self.skipped = 0  # estimates that never arrived (tick gaps)
@@ -79,7 +103,7 @@ class ControllerNode(Node):
         self.create_timer(period, self.on_watchdog)
 
     def apply_parameters(self, sets: list) -> None:
-        params, reference = sets
+        params, reference, self.limits = sets
         state = (self.core.last_u, self.core.last_tick)
         self.core = BacksteppingController(
             self.pantograph, self.track, params, reference, self.loop.sample_period
@@ -95,30 +119,45 @@ class ControllerNode(Node):
 
     def publish(self, cmd, estimate_age_ticks: int) -> None:
         stamp = messages.tick_stamp_ns(cmd.tick, self.loop.rate_hz)
-        self.last_message = self.factory.make(
-            messages.ACTUATOR_COMMAND,
-            messages.command_fields(cmd, stamp, estimate_age_ticks=estimate_age_ticks),
+        # The factory refills one message object per type: never keep it, re-make it.
+        self.command_pub.publish(
+            self.factory.make(
+                messages.ACTUATOR_COMMAND,
+                messages.command_fields(cmd, stamp, estimate_age_ticks=estimate_age_ticks),
+            )
         )
-        self.command_pub.publish(self.last_message)
+
+    def plausible(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> bool:
+        lim = self.limits
+        if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
+            return False
+        if self.last_estimate_tick >= 0 and tick > self.last_estimate_tick + lim.max_tick_jump:
+            return False
+        return bool(
+            np.all(np.abs(z_hat[:2]) <= lim.estimate_position_limit)
+            and np.all(np.abs(z_hat[2:]) <= lim.estimate_velocity_limit)
+            and np.all(np.abs(theta_hat) <= lim.estimate_stiffness_limit)
+        )
 
     def on_estimate(self, msg) -> None:
         tick = int(msg.tick)
         z_hat, theta_hat = np.asarray(msg.z_hat, dtype=float), np.asarray(msg.theta_hat, dtype=float)
-        if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
+        if not self.plausible(tick, z_hat, theta_hat):
             # Never reaches the law; answered with the fallback command. Not a fresh estimate:
             # it moves neither the tick tracking nor the watchdog.
             self.nonfinite += 1
             self.get_logger().error(
-                f"tick {tick}: non-finite estimate: fallback command", throttle_duration_sec=1.0
+                f"tick {tick}: non-finite or implausible estimate: fallback command",
+                throttle_duration_sec=1.0,
             )
             self.publish(self.core.fallback(max(tick, self.core.last_tick + 1)), 0)
             return
         if tick == 0 and self.last_estimate_tick > 0:
             self.get_logger().warning(f"estimate tick went back from {self.last_estimate_tick} to 0: new run")
-            self.last_estimate_tick, self.last_message = -1, None
+            self.last_estimate_tick, self.last_answer = -1, None
         if tick <= self.last_estimate_tick:
-            if tick == self.last_estimate_tick and self.last_message is not None:
-                self.command_pub.publish(self.last_message)  # lock-step re-send
+            if tick == self.last_estimate_tick and self.last_answer is not None:
+                self.publish(self.last_answer, 0)  # the answer to a re-sent sample, again
             return
         if not self.ready():
             return
@@ -131,6 +170,7 @@ class ControllerNode(Node):
             self.in_fallback = False
             self.get_logger().info(f"tick {tick}: fresh estimates again: back to {cmd.mode} control")
         self.sent += 1
+        self.last_answer = cmd
         self.publish(cmd, 0)
 
     def on_watchdog(self) -> None:
@@ -155,7 +195,7 @@ class ControllerNode(Node):
         print(
             f"controller_node: sent {self.sent} commands; {self.skipped} estimates never arrived; "
             f"{self.fallback_commands} fallback commands in {self.fallback_episodes} episodes; "
-            f"{self.nonfinite} non-finite estimates refused",
+            f"{self.nonfinite} non-finite or implausible estimates refused",
             file=sys.stderr,
             flush=True,
         )

@@ -44,6 +44,9 @@ class MeasurementLimits(ParameterSet):
         low_open=True,
         high=10.0,
     )
+    max_tick_jump: int = parameter(
+        10000, "a sample more than this many ticks ahead of the last one is refused", "ticks", low=1
+    )
     force_limit: float = parameter(
         1e5, "an |actuator force| beyond this is refused as physically absurd", "N", low=0.0, low_open=True
     )
@@ -84,7 +87,7 @@ class ObserverNode(Node):
         self.create_subscription(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS
         )
-        self.last_message = None
+        self.last_estimate = None  # (estimate, status, rejected, reinitialisations) last published
         self.last_seen_tick = -1
         self.reinitialisations = 0
         self.rejected = 0
@@ -111,7 +114,8 @@ class ObserverNode(Node):
     def on_measurement(self, msg) -> None:
         tick = int(msg.tick)
         z1, z2, force = float(msg.z1), float(msg.z2), float(msg.actuator_force)
-        if not self.acceptable(z1, z2, force):
+        jump = self.last_seen_tick >= 0 and tick > self.last_seen_tick + self.limits.max_tick_jump
+        if jump or not self.acceptable(z1, z2, force):
             # Refused before its tick is trusted: a garbage sample cannot move the tick tracking.
             self.rejected += 1
             self.rejected_since_estimate = True
@@ -127,10 +131,10 @@ class ObserverNode(Node):
             )
             self.core.reset()
             self.reinitialisations += 1
-            self.last_seen_tick, self.last_message = -1, None
+            self.last_seen_tick, self.last_estimate = -1, None
         if tick <= self.last_seen_tick:
-            if tick == self.core.tick and self.last_message is not None:
-                self.estimate_pub.publish(self.last_message)  # lock-step re-send
+            if tick == self.core.tick and self.last_estimate is not None:
+                self.publish(*self.last_estimate)  # the answer to a re-sent sample, again
             return
         if not self.ready():
             self.waited += 1  # nobody to tell yet; lock step re-sends, real time moves on
@@ -149,14 +153,16 @@ class ObserverNode(Node):
             est = self.core.update(tick, (z1, z2), force)
             status = messages.STATUS_REINITIALISED
         self.rejected_since_estimate = False
-        stamp = messages.tick_stamp_ns(tick, self.loop.rate_hz)
-        self.last_message = self.factory.make(
-            messages.OBSERVER_ESTIMATE,
-            messages.estimate_fields(
-                est, stamp, status=status, rejected=self.rejected, reinitialisations=self.reinitialisations
-            ),
+        self.last_estimate = (est, status, self.rejected, self.reinitialisations)
+        self.publish(*self.last_estimate)
+
+    def publish(self, est, status: int, rejected: int, reinitialisations: int) -> None:
+        # The factory refills one message object per type: never keep it, re-make it.
+        stamp = messages.tick_stamp_ns(est.tick, self.loop.rate_hz)
+        fields = messages.estimate_fields(
+            est, stamp, status=status, rejected=rejected, reinitialisations=reinitialisations
         )
-        self.estimate_pub.publish(self.last_message)
+        self.estimate_pub.publish(self.factory.make(messages.OBSERVER_ESTIMATE, fields))
 
     def close(self) -> None:
         print(

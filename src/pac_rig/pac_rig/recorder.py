@@ -17,7 +17,14 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from pac_common.node import RECORD_QOS, Node, declare_parameter_sets, run_node
+from pac_common.node import (
+    RECORD_QOS,
+    Node,
+    declare_parameter_sets,
+    handle_parameter_changes,
+    parameter_names,
+    run_node,
+)
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
 from pac_common import messages
@@ -52,6 +59,9 @@ class RecorderNode(Node):
     def __init__(self) -> None:
         super().__init__("recorder")
         (params,) = declare_parameter_sets(self, PARAMETER_SETS)
+        handle_parameter_changes(
+            self, parameter_names(PARAMETER_SETS), "fixed for a recording: start another recorder"
+        )
         path = Path(params.bag_path or f"bags/run_{datetime.now():%Y%m%d_%H%M%S}")
         if path.exists():
             raise ParameterError("bag_path", str(path), "a path that does not exist yet")

@@ -121,10 +121,11 @@ class Rig:
                 self.params[name].update(extra)
         self.processes: dict[str, Process] = {}
 
-    def start_node(self, name: str) -> Process:
+    def start_node(self, name: str, life: int = 1) -> Process:
+        """Start one node; ``life`` > 1 names the log of a restart (name.2.log, ...)."""
         pkg, exe = NODES[name]
         self.log_dir.mkdir(parents=True, exist_ok=True)
-        log_path = self.log_dir / f"{name}.log"
+        log_path = self.log_dir / (f"{name}.log" if life == 1 else f"{name}.{life}.log")
         with open(log_path, "wb") as log:
             popen = subprocess.Popen(
                 ["ros2", "run", pkg, exe, *ros_args(self.params[name])],
@@ -174,6 +175,19 @@ class Rig:
                 os.kill(proc.popen.pid, signal.SIGKILL)
                 proc.wait(5.0)
         return {name: proc.returncode for name, proc in self.processes.items()}
+
+    def kill(self, name: str) -> int | None:
+        """SIGKILL one node (a crash) and reap it; its exit code."""
+        proc = self.processes[name]
+        if proc.poll() is None:
+            os.kill(proc.popen.pid, signal.SIGKILL)
+        return proc.wait(10.0)
+
+    def restart(self, name: str) -> Process:
+        lives = getattr(self, "_lives", {})
+        lives[name] = lives.get(name, 1) + 1
+        self._lives = lives
+        return self.start_node(name, lives[name])
 
     def exit_codes(self) -> dict[str, int | None]:
         return {name: proc.poll() for name, proc in self.processes.items()}
