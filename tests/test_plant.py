@@ -99,3 +99,26 @@ def test_stiffness_regressor_derivatives_match_finite_differences():
 def test_non_finite_force_is_refused():
     with pytest.raises(ValueError, match="finite"):
         make_plant().advance(math.nan)
+
+
+def test_measurement_noise_is_seeded_per_tick_and_quantised():
+    opts = {"noise_std": (1e-4, 2e-4), "noise_seed": 3}
+    a, b = make_plant(**opts), make_plant(**opts)
+    other_seed = make_plant(noise_std=(1e-4, 2e-4), noise_seed=4)
+    noise = []
+    for _ in range(6000):
+        ya, yb = a.measurement(), b.measurement()
+        assert ya == yb and a.measurement() == ya  # same seed, same tick: the same sample, also re-sent
+        noise.append((ya.z1 - a.z[0], ya.z2 - a.z[1]))
+        for plant in (a, b, other_seed):
+            plant.advance(100.0)
+    noise = np.array(noise)
+    np.testing.assert_allclose(noise.std(axis=0), (1e-4, 2e-4), rtol=0.05)
+    assert abs(noise.mean(axis=0)).max() < 1e-5
+    assert other_seed.measurement().z1 != a.measurement().z1
+    assert a.truth().z[0] == a.z[0]  # the truth is never noisy
+    q = make_plant(quantisation=1e-4)
+    for _ in range(300):
+        q.advance(100.0)
+    y = q.measurement()
+    assert y.z1 == pytest.approx(round(q.z[0] / 1e-4) * 1e-4, abs=1e-15) and y.z1 != q.z[0]
