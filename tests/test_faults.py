@@ -61,6 +61,17 @@ def tracking_error_after(bag, t_from):
     return truth.log_time_ns[keep], np.abs(truth["contact_force"][keep] - ref)
 
 
+def recovery_after(bag, first_new, restarted_at, what):
+    """Seconds from ``first_new`` (the restarted node's first message) until |F - F_r| < 0.5 N for good."""
+    times, errors = tracking_error_after(bag, first_new)
+    recovery = recovery_seconds(times, errors)
+    print(
+        f"{what} {(first_new - restarted_at) * 1e-9:.2f} s after the restart; "
+        f"|F - F_r| < 0.5 N for good {recovery:.2f} s after that"
+    )
+    return recovery
+
+
 def recovery_seconds(times, errors, threshold=0.5):
     """Time from the first sample until the error stays below ``threshold``."""
     above = np.nonzero(errors >= threshold)[0]
@@ -95,12 +106,7 @@ def test_observer_crash_fallback_and_restart(rigs):
     print(f"\nobserver killed: fallback after {delay_ticks} ticks (watchdog {WATCHDOG})")
     assert WATCHDOG <= delay_ticks <= WATCHDOG + WATCHDOG // 4 + 15
     first_new = bag.topics["estimate"].log_time_ns[bag.topics["estimate"].log_time_ns > restarted_at].min()
-    times, errors = tracking_error_after(bag, first_new)
-    recovery = recovery_seconds(times, errors)
-    print(
-        f"observer restarted: first estimate {(first_new - restarted_at) * 1e-9:.2f} s after the restart; "
-        f"|F - F_r| < 0.5 N for good {recovery:.2f} s after that"
-    )
+    recovery = recovery_after(bag, first_new, restarted_at, "observer restarted: first estimate")
     # theta_hat re-converges from theta_hat0 (S_theta(0) = I, ~1.5 s) with the loop transient:
     # 2 s offline (test_offline.py::test_restart_transient_and_rate_limit)
     assert recovery < 4.0
@@ -134,12 +140,7 @@ def test_controller_crash_plant_holds_then_goes_passive_and_recovers(rigs):
     assert truth["command_timeouts"][-1] >= 1 and last_fresh.size > 0
     cmd = bag.topics["command"]
     first_new = cmd.log_time_ns[cmd.log_time_ns > restarted_at].min()
-    times, errors = tracking_error_after(bag, first_new)
-    recovery = recovery_seconds(times, errors)
-    print(
-        f"controller restarted: first command {(first_new - restarted_at) * 1e-9:.2f} s after the restart; "
-        f"|F - F_r| < 0.5 N for good {recovery:.2f} s after that"
-    )
+    recovery = recovery_after(bag, first_new, restarted_at, "controller restarted: first command")
     assert recovery < 2.0  # only the loop transient: the observer kept its estimate
 
 
@@ -158,12 +159,7 @@ def test_plant_crash_and_restart_starts_a_new_run(rigs):
     assert_commands_safe(bag)
     truth = bag.topics["plant_truth"]
     first_new = truth.log_time_ns[(truth.log_time_ns > restarted_at) & (truth["tick"] == 0)].min()
-    times, errors = tracking_error_after(bag, first_new)
-    recovery = recovery_seconds(times, errors)
-    print(
-        f"\nplant restarted: new run {(first_new - restarted_at) * 1e-9:.2f} s after the restart; "
-        f"|F - F_r| < 0.5 N for good {recovery:.2f} s after that"
-    )
+    recovery = recovery_after(bag, first_new, restarted_at, "\nplant restarted: new run")
     assert recovery < 4.0  # a new run: the observer re-converges from theta_hat0 as at any start
 
 

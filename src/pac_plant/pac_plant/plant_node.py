@@ -221,7 +221,8 @@ class PlantNode(Node):
             return
         self.plant.advance(u)
         self.applied_tick, self.applied_source = command_tick, source
-        self.latency = {t: v for t, v in self.latency.items() if t >= command_tick - 100}
+        if len(self.latency) > 2000:  # round trips of commands never applied (overwritten)
+            self.latency = {t: v for t, v in self.latency.items() if t >= command_tick - 100}
 
     def on_realtime_tick(self) -> None:
         """Take every tick that is due by the wall clock (a late wake-up catches up, as the

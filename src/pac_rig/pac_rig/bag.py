@@ -167,7 +167,7 @@ def read_custom_metadata(path: Path) -> dict[str, Any]:
         return {}
 
 
-def _rosbags_records(path: Path, warnings: list[str]) -> Iterator[tuple[str, str, int, bytes]]:
+def _rosbags_records(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
     """(topic, type, log time, CDR) of a closed rosbag2 directory, through rosbags."""
     from rosbags.highlevel import AnyReader
 
@@ -213,7 +213,7 @@ def iter_records(path: Path, warnings: list[str]) -> Iterator[tuple[str, str, in
     if path.is_dir() and (path / "metadata.yaml").is_file():
         produced = 0
         try:
-            for item in _rosbags_records(path, warnings):
+            for item in _rosbags_records(path):
                 produced += 1
                 yield item
             return
