@@ -96,12 +96,13 @@ def test_re_estimate_detects_different_tuning(offline_bags):
 
 
 def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_path, domain_id):
-    """Replay measurement at half speed into observer_node, record its new estimates.
+    """Replay measurement at half speed into observer_node and record what it sees and says.
 
-    Tolerance: identical at every tick when the observer processed every sample from tick 0.
-    When it skipped samples (keep-last-1 under load) it bridges them, and when it matched its
-    recorder a few ticks late it started from there; theta_hat then agrees to 1e-3 relative
-    once converged (tests/test_observer.py::test_lost_samples_are_bridged)."""
+    Exact: the live observer's estimates equal the observer core fed with exactly the samples it
+    processed (re_estimate on the new bag), bit for bit, whatever the load.
+    Against the original run: identical when it processed every sample from tick 0; when it
+    skipped samples under load (keep-last-1) it bridges them by interpolating y, and k_hat then
+    stays within 0.5 % of the original once converged (the bridging error grows with the gap)."""
     env = node_env(domain_id)
     rec_bag = tmp_path / "new_estimates"
     procs = []
@@ -116,7 +117,7 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
                 "-p",
                 f"bag_path:={rec_bag}",
                 "-p",
-                "topics:=estimate",
+                "topics:=measurement,estimate",
                 "-p",
                 "stop_after_tick:=4999",
                 "-p",
@@ -140,7 +141,7 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
                 "--rate",
                 "0.5",
                 "--wait-for",
-                "1",
+                "2",
             ],
             env=env,
             capture_output=True,
@@ -153,22 +154,27 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
         for p in procs:
             if p.poll() is None:
                 p.send_signal(2)
-        observer_log = procs[1].communicate(timeout=30)[0]
         for p in procs:
-            if p.poll() is None:
+            try:
+                p.communicate(timeout=30)
+            except subprocess.TimeoutExpired:
                 p.kill()
+                p.communicate()
+    same_samples = re_estimate(rec_bag, {})
+    assert same_samples["compared"] > 2500
+    assert all(f["identical"] for f in same_samples["fields"].values())
     new = read_bag(rec_bag).topics["estimate"]
     old = read_bag(offline_bags / "active").topics["estimate"]
     ticks, idx = np.unique(new["tick"], return_index=True)
-    assert ticks.size > 2500
-    old_theta = old["theta_hat"][ticks]
-    bridged = int(observer_log.split("processed")[1].split(";")[1].split("never")[0])
-    if bridged == 0 and ticks[0] == 0:
-        np.testing.assert_array_equal(new["theta_hat"][idx], old_theta)
-        np.testing.assert_array_equal(new["z_hat"][idx], old["z_hat"][ticks])
+    print(f"\nreplay: the live observer processed {ticks.size} of 5000 samples")
+    if ticks.size == 5000:
+        np.testing.assert_array_equal(new["theta_hat"][idx], old["theta_hat"])
+        np.testing.assert_array_equal(new["z_hat"][idx], old["z_hat"])
     else:
         late = ticks >= 2000  # after convergence
-        np.testing.assert_allclose(new["theta_hat"][idx][late], old_theta[late], rtol=1e-3)
+        np.testing.assert_allclose(
+            new["stiffness_hat"][idx][late], old["stiffness_hat"][ticks][late], rtol=5e-3
+        )
 
 
 # -- bad bags ---------------------------------------------------------------------------------

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import Any, TypeVar
@@ -159,6 +160,7 @@ def run_node(program: str, factory: Callable[[], Node], args: list[str] | None =
     """
     rclpy.init(args=args)
     node = None
+    executor = None
     status = 0
     try:
         try:
@@ -185,8 +187,16 @@ def run_node(program: str, factory: Callable[[], Node], args: list[str] | None =
         if node is not None:
             close = getattr(node, "close", None)
             if close is not None:
-                close()
+                close()  # the node's own results (bag, counters) are final from here on
             status = status or getattr(node, "exit_status", 0)
+            # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
+            # stops; everything that matters is done, so a stuck teardown ends the process.
+            final = status
+            guard = threading.Timer(5.0, lambda: os._exit(final))
+            guard.daemon = True
+            guard.start()
+            if executor is not None:
+                executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
         rclpy.try_shutdown()
     return status
