@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 import rclpy
+from pac_common.node import PUBLISH_QOS
 from pac_common.parameters import ParameterError
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference
@@ -188,8 +189,9 @@ def test_non_finite_data_never_reaches_the_actuator(rigs, domain_id):
     try:
         node = rclpy.create_node("injector", context=context)
         factory = messages.RclpyFactory()
-        meas_pub = node.create_publisher(factory.cls(messages.FRAME_MEASUREMENT), "measurement", 10)
-        est_pub = node.create_publisher(factory.cls(messages.OBSERVER_ESTIMATE), "estimate", 10)
+        # pac's publisher QoS: the recorder (reliable, transient local) records the injection too
+        meas_pub = node.create_publisher(factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS)
+        est_pub = node.create_publisher(factory.cls(messages.OBSERVER_ESTIMATE), "estimate", PUBLISH_QOS)
         deadline = time.monotonic() + 20
         while meas_pub.get_subscription_count() < 2 or est_pub.get_subscription_count() < 2:
             assert time.monotonic() < deadline
@@ -214,6 +216,7 @@ def test_non_finite_data_never_reaches_the_actuator(rigs, domain_id):
     assert rig.stop() == dict.fromkeys(NODES, 0)
     bag = read_bag(rig.bag_path)
     assert_commands_safe(bag)
+    assert np.sum(bag.topics["measurement"]["tick"] >= 10**9) > 0  # the bag shows the injection
     observer_log, controller_log = rig.processes["observer"].log(), rig.processes["controller"].log()
     refused = int(observer_log.split(" refused;")[0].split(";")[-1])
     nonfinite = int(controller_log.split(" non-finite or implausible estimates refused")[0].split(";")[-1])

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from pac_common.node import (
     LOOP_QOS,
+    PUBLISH_QOS,
     Node,
     declare_parameter_sets,
     handle_parameter_changes,
@@ -85,7 +86,7 @@ class ControllerNode(Node):
         )
         self.factory = messages.RclpyFactory()
         self.command_pub = self.create_publisher(
-            self.factory.cls(messages.ACTUATOR_COMMAND), "command", LOOP_QOS
+            self.factory.cls(messages.ACTUATOR_COMMAND), "command", PUBLISH_QOS
         )
         self.create_subscription(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", self.on_estimate, LOOP_QOS

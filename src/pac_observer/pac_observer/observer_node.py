@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 from pac_common.node import (
     LOOP_QOS,
+    PUBLISH_QOS,
     Node,
     declare_parameter_sets,
     handle_parameter_changes,
@@ -82,7 +83,7 @@ class ObserverNode(Node):
         self.core = AdaptiveObserver(panto, track, params, loop.sample_period)
         self.factory = messages.RclpyFactory()
         self.estimate_pub = self.create_publisher(
-            self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", LOOP_QOS
+            self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", PUBLISH_QOS
         )
         self.create_subscription(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 from pac_common.node import (
     LOOP_QOS,
+    PUBLISH_QOS,
     Node,
     declare_parameter_sets,
     handle_parameter_changes,
@@ -100,10 +101,10 @@ class PlantNode(Node):
         self.plant = Plant(panto, track, catenary, options, loop.sample_period)
         self.factory = messages.RclpyFactory()
         self.measurement_pub = self.create_publisher(
-            self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", LOOP_QOS
+            self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS
         )
         self.truth_pub = self.create_publisher(
-            self.factory.cls(messages.PLANT_TRUTH), "plant_truth", LOOP_QOS
+            self.factory.cls(messages.PLANT_TRUTH), "plant_truth", PUBLISH_QOS
         )
         self.command_sub = self.create_subscription(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", self.on_command, LOOP_QOS

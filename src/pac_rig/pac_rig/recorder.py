@@ -19,6 +19,7 @@ from pathlib import Path
 
 from pac_common.node import (
     RECORD_QOS,
+    RECORD_QOS_COMPATIBLE,
     Node,
     declare_parameter_sets,
     handle_parameter_changes,
@@ -26,6 +27,7 @@ from pac_common.node import (
     run_node,
 )
 from pac_common.parameters import ParameterError, ParameterSet, parameter
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 from pac_common import messages
 
@@ -83,11 +85,9 @@ class RecorderNode(Node):
         self.last_tick = dict.fromkeys(topics, -1)
         self.finished = False
         self.last_message_wall = None
-        factory = messages.RclpyFactory()
-        for topic, typename in topics.items():
-            self.create_subscription(
-                factory.cls(typename), topic, self._callback(topic), RECORD_QOS, raw=True
-            )
+        self.factory = messages.RclpyFactory()
+        self.unsubscribed = dict(topics)
+        self.subscribe_timer = self.create_timer(0.01, self._subscribe_when_published)
         self.writer = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self.writer.start()
         if params.idle_timeout > 0:
@@ -96,6 +96,29 @@ class RecorderNode(Node):
 
     WRITE_PERIOD = 0.01  # s: how often the writer thread drains the callbacks' queue
     FLUSH_PERIOD = 0.5  # s: how often a chunk is closed and flushed (bounds the loss on SIGKILL)
+
+    def _subscribe_when_published(self) -> None:
+        """Subscribe each topic once it has publishers, with the QoS they offer (as ros2 bag does):
+        reliable and transient-local when all of them offer it (pac's own nodes: nothing sent
+        before the match completes is lost), else best effort, so that any publisher is recorded."""
+        for topic, typename in list(self.unsubscribed.items()):
+            offered = self.get_publishers_info_by_topic(topic)
+            if not offered:
+                continue
+            durable = all(
+                info.qos_profile.reliability == ReliabilityPolicy.RELIABLE
+                and info.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                for info in offered
+            )
+            qos = RECORD_QOS if durable else RECORD_QOS_COMPATIBLE
+            self.create_subscription(self.factory.cls(typename), topic, self._callback(topic), qos, raw=True)
+            del self.unsubscribed[topic]
+            self.get_logger().info(
+                f"recording '{topic}' ({len(offered)} publisher(s), "
+                f"{'reliable, transient local' if durable else 'best effort'})"
+            )
+        if not self.unsubscribed:
+            self.destroy_timer(self.subscribe_timer)
 
     def _callback(self, topic: str):
         append = self.pending.append

@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from pac_common.node import LOOP_QOS
+from pac_common.node import PUBLISH_QOS
 
 from pac_common import messages
 
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init()
     node = Node("replay")
     factory = messages.RclpyFactory()
-    pubs = {t: node.create_publisher(factory.cls(messages.TOPICS[t]), t, LOOP_QOS) for t in args.topics}
+    pubs = {t: node.create_publisher(factory.cls(messages.TOPICS[t]), t, PUBLISH_QOS) for t in args.topics}
     try:
         deadline = time.monotonic() + args.timeout
         while any(p.get_subscription_count() < args.wait_for for p in pubs.values()):
