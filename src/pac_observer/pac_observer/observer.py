@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from pac_common.integrate import rk4_step
 from pac_plant.parameters import PantographParameters, TrackParameters
 
 from pac_plant import model
@@ -204,18 +205,19 @@ class AdaptiveObserver:
         x[:, 1:] = self.lam
         omega, panto = self.omega, self.pantograph
 
-        def f(frac: float, closed: np.ndarray, gain: np.ndarray, xx: np.ndarray) -> np.ndarray:
+        # S_z is known exactly at the stage times of RK4 (start, middle, end of the period).
+        stage_gains = {0: (m0, gain0), 1: (m_mid, gain_mid), 2: (m_end, gain_end)}
+
+        def f(t: float, xx: np.ndarray) -> np.ndarray:
+            frac = (t - t0) / dt
+            closed, gain = stage_gains[round(2.0 * frac)]
             y_s = y0 + frac * dy
             out = closed @ xx
             out[:, 0] += phi + gain @ y_s
-            out[2, 1:] += model.output_regressor_row(y_s[0], t0 + frac * dt, omega, panto)
+            out[2, 1:] += model.output_regressor_row(y_s[0], t, omega, panto)
             return out
 
-        k1 = f(0.0, m0, gain0, x)
-        k2 = f(0.5, m_mid, gain_mid, x + (0.5 * dt) * k1)
-        k3 = f(0.5, m_mid, gain_mid, x + (0.5 * dt) * k2)
-        k4 = f(1.0, m_end, gain_end, x + dt * k3)
-        x = x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+        x = rk4_step(f, t0, x, dt)
         if not np.isfinite(x).all():
             raise ObserverDivergedError(tick, "xi or Lambda is not finite")
         xi, lam = x[:, 0], x[:, 1:]
