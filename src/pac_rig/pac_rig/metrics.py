@@ -198,11 +198,14 @@ def loop_timing(bag: BagData) -> LoopTiming:
     latency = latency[np.isfinite(latency)] * 1e3
     age = truth["command_age_ticks"][first]
     applied = truth["applied_command_tick"][first] >= 0
-    every = np.concatenate([data["tick"] for data in bag.topics.values() if len(data)])
-    span = int(every.max() - every.min() + 1)  # the run's ticks, whichever topic saw them
+    # The run is the plant's ticks (fallback commands after its end carry extrapolated ticks).
+    first_tick, last_tick = int(truth["tick"].min()), int(truth["tick"].max())
+    span = last_tick - first_tick + 1
     lost = {}
     for topic, data in bag.topics.items():
-        lost[topic] = span - int(np.unique(data["tick"]).size) if len(data) else span
+        ticks = data["tick"] if len(data) else np.zeros(0, dtype=np.int64)
+        in_run = ticks[(ticks >= first_tick) & (ticks <= last_tick)]
+        lost[topic] = span - int(np.unique(in_run).size)
 
     def pct(x: np.ndarray, q: float) -> float:
         return float(np.percentile(x, q)) if x.size else math.nan
