@@ -190,7 +190,33 @@ def test_ros2_shim(domain_id):
     out = subprocess.run(["ros2", "pkg", "executables", "pac_rig"], capture_output=True, text=True, env=env)
     assert "pac_rig recorder" in out.stdout
     bad = subprocess.run(["ros2", "topic", "list"], capture_output=True, text=True, env=env)
-    assert bad.returncode == 2 and "only 'run' and 'pkg'" in bad.stderr
+    assert bad.returncode == 2 and "only 'run', 'pkg' and 'param'" in bad.stderr
+
+
+def test_ros2_param_set_and_get_on_a_live_node(domain_id):
+    env = node_env(domain_id)
+    node = subprocess.Popen(
+        ["ros2", "run", "pac_controller", "controller_node"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+
+        def ros2(*args):
+            return subprocess.run(["ros2", *args], capture_output=True, text=True, env=env, timeout=60)
+
+        assert ros2("param", "get", "controller_node", "c1").stdout.strip() == "40.0"
+        assert ros2("param", "set", "controller_node", "c1", "30.5").returncode == 0
+        assert ros2("param", "get", "/controller_node", "c1").stdout.strip() == "30.5"
+        bad = ros2("param", "set", "controller_node", "c1", "-5.0")
+        assert bad.returncode == 1 and "invalid parameter 'c1' = -5.0" in bad.stderr
+        frozen = ros2("param", "set", "controller_node", "speed_kmh", "300.0")
+        assert frozen.returncode == 1 and "restart the node" in frozen.stderr
+        assert ros2("param", "get", "controller_node", "c1").stdout.strip() == "30.5"
+    finally:
+        node.send_signal(signal.SIGINT)
+        assert node.wait(timeout=20) == 0
 
 
 def test_ros_args_rendering():
