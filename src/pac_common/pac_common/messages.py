@@ -13,7 +13,7 @@ import importlib
 import math
 import struct
 from collections.abc import Mapping
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -131,10 +131,6 @@ def cdr_tick(data: bytes | memoryview) -> int:
     (length,) = struct.unpack_from("<I" if little else ">I", data, 4 + 8)
     offset = (8 + 4 + length + 7) & ~7
     return struct.unpack_from("<Q" if little else ">Q", data, 4 + offset)[0]
-
-
-class MessageFactory(Protocol):
-    def make(self, typename: str, fields: Mapping[str, Any]) -> Any: ...
 
 
 class RclpyFactory:

@@ -9,6 +9,7 @@ SIGTERM into a clean shutdown with exit status 0.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 import threading
@@ -100,8 +101,6 @@ def validate_changes(
     current: Iterable[ParameterSet], changes: Sequence[Parameter]
 ) -> tuple[list[ParameterSet], str]:
     """Apply parameter changes to copies of ``current``; return the new sets, or an error string."""
-    import dataclasses
-
     updated = []
     by_name = {p.name: p.value for p in changes}
     try:
