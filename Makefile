@@ -22,21 +22,25 @@ clean:
 	rm -rf build install log
 
 demo: setup
-	scripts/with_env.sh ros2 run pac_rig demo $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments demo $(ARGS)
 
 reproduce: setup
-	scripts/with_env.sh ros2 run pac_rig reproduce $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments reproduce $(ARGS)
 
 bench: setup
-	scripts/with_env.sh ros2 run pac_rig bench $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments bench $(ARGS)
 
 report: setup
 	@if [ -z "$(BAG)" ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi
-	scripts/with_env.sh ros2 run pac_rig report $(BAG) $(ARGS)
+	scripts/with_env.sh ros2 run pac_analysis report $(BAG) $(ARGS)
 
-info replay re-estimate recover: setup
+info re-estimate recover: setup
 	@if [ -z "$(BAG)" ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
-	scripts/with_env.sh ros2 run pac_rig $(subst -,_,$@) $(BAG) $(ARGS)
+	scripts/with_env.sh ros2 run pac_analysis $(subst -,_,$@) $(BAG) $(ARGS)
+
+replay: setup
+	@if [ -z "$(BAG)" ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
+	scripts/with_env.sh ros2 run pac_rig replay $(BAG) $(ARGS)
 
 sweep: setup
-	scripts/with_env.sh ros2 run pac_rig sweep $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments sweep $(ARGS)

@@ -19,7 +19,7 @@ def domain_id():
 @pytest.fixture
 def rigs(domain_id, tmp_path):
     """Factory of rigs in this test's domain; every process is stopped at teardown, pass or fail."""
-    from pac_rig.rig import Rig
+    from pac_rig.launcher import Rig
 
     made = []
 

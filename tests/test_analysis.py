@@ -7,17 +7,17 @@ import subprocess
 import numpy as np
 import pytest
 from mcap_ros2.reader import read_ros2_messages
-from pac_rig.bag import BagError, BagWriter, read_bag
-from pac_rig.info import describe
-from pac_rig.re_estimate import re_estimate
-from pac_rig.recover import recover
-from pac_rig.report import report
-from pac_rig.rig import node_env
-from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from pac_analysis.info import describe
+from pac_analysis.re_estimate import re_estimate
+from pac_analysis.recover import recover
+from pac_analysis.report import report
 from pac_common import messages
+from pac_rig.bag import BagError, BagWriter, read_bag
+from pac_rig.launcher import node_env
+from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -252,7 +252,7 @@ def test_empty_bag_and_no_bag(tmp_path):
     with pytest.raises(BagError, match="no such bag"):
         read_bag(tmp_path / "nothing")
     proc = subprocess.run(
-        ["ros2", "run", "pac_rig", "report", str(empty), "--out", str(tmp_path / "r")],
+        ["ros2", "run", "pac_analysis", "report", str(empty), "--out", str(tmp_path / "r")],
         capture_output=True,
         text=True,
     )

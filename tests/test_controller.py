@@ -4,11 +4,13 @@ import math
 
 import numpy as np
 import pytest
+
 from pac_common.parameters import ParameterError
 from pac_controller.backstepping import BacksteppingController, product_derivatives, reciprocal_derivatives
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference, filtered_step
-from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
 DT = 1e-3
@@ -144,7 +146,7 @@ def test_saturation_and_non_finite():
 def test_slew_rate_limit():
     params = ControllerParameters(slew_rate_max=1000.0, u_min=-1e5, u_max=1e5)  # 1 N per tick
     ctrl = BacksteppingController(PANTO, TRACK, params, ReferenceParameters(shape="constant"), DT)
-    from pac_plant.model import static_equilibrium
+    from pac_model.model import static_equilibrium
 
     k = CAT.k0 * (1 + CAT.alpha * math.cos(TRACK.omega * 3.0 - CAT.beta))
     first = ctrl.compute(3000, static_equilibrium(100.0, k, PANTO), CAT.theta)  # about 100 N

@@ -12,19 +12,19 @@ import time
 import numpy as np
 import pytest
 import rclpy
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+
+from pac_analysis.recover import recover
+from pac_common import messages
 from pac_common.node import PUBLISH_QOS
 from pac_common.parameters import ParameterError
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference
 from pac_rig.bag import read_bag
 from pac_rig.configs import NODE_MODULES
-from pac_rig.recover import recover
-from pac_rig.rig import NODES
+from pac_rig.launcher import NODES
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
-from rclpy.parameter import Parameter
-from rclpy.parameter_client import AsyncParameterClient
-
-from pac_common import messages
 
 U_MIN, U_MAX = ControllerParameters().u_min, ControllerParameters().u_max
 WATCHDOG = ControllerParameters().watchdog_ticks

@@ -4,9 +4,11 @@ import math
 
 import numpy as np
 import pytest
+
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
-from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
 DT = 1e-3

@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 from mcap_ros2.reader import read_ros2_messages
+
+from pac_analysis.metrics import compute_metrics
 from pac_controller.parameters import ControllerParameters
+from pac_experiments.reproduce import COMMON, PAPER_GAINS
 from pac_rig.bag import read_bag
-from pac_rig.metrics import compute_metrics
-from pac_rig.reproduce import COMMON, PAPER_GAINS
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 
@@ -91,7 +92,7 @@ def test_runs_are_deterministic(tmp_path):
 def restart_transient(slew_rate_max: float) -> list[float]:
     """The loop after an observer restart: the head already presses with 100 N, the observer starts
     from z_hat0 = 0 and theta_hat0 at tick 3000. Contact-force std per second of the 6 s after."""
-    from pac_plant.model import static_equilibrium
+    from pac_model.model import static_equilibrium
     from pac_rig.closed_loop import build_cores
 
     scenario = scenario_from_flat({**COMMON, "slew_rate_max": slew_rate_max, "duration": 6.0})

@@ -3,10 +3,12 @@
 import math
 
 import pytest
+
 from pac_common.parameters import LoopParameters, ParameterError
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.parameters import ObserverParameters
-from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from pac_plant.parameters import PlantOptions
 
 ALL_SETS = [
     PantographParameters,

@@ -4,11 +4,12 @@ import math
 
 import numpy as np
 import pytest
-from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
-from pac_plant.plant import Plant
 from scipy.integrate import solve_ivp
 
-from pac_plant import model
+from pac_model import model
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_plant.parameters import PlantOptions
+from pac_plant.plant import Plant
 
 DT = 1e-3
 SCALE = np.array([0.03, 0.03, 0.5, 0.5])  # typical magnitudes of z at 100 N

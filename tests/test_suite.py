@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+
+from pac_analysis.metrics import compute_metrics
+from pac_analysis.re_estimate import re_estimate
 from pac_rig.bag import read_bag
 from pac_rig.configs import NODE_MODULES, config_path, defaults_yaml, installed_config_path
-from pac_rig.metrics import compute_metrics
-from pac_rig.re_estimate import re_estimate
-from pac_rig.rig import NODES, node_env, ros_args
+from pac_rig.launcher import NODES, node_env, ros_args
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 PHYSICS = {

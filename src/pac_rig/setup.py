@@ -19,22 +19,14 @@ setup(
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Rig tools: recording, simulation runs, reproduction, reports, benchmarks, demo.",
+    description="Running the rig: recorder, launcher, offline closed loop and simulate, bag I/O, replay.",
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [
             "recorder = pac_rig.recorder:main",
             "simulate = pac_rig.simulate:main",
-            "reproduce = pac_rig.reproduce:main",
-            "report = pac_rig.report:main",
-            "info = pac_rig.info:main",
-            "bench = pac_rig.bench:main",
-            "demo = pac_rig.demo:main",
-            "sweep = pac_rig.sweep:main",
             "replay = pac_rig.replay:main",
-            "re_estimate = pac_rig.re_estimate:main",
-            "recover = pac_rig.recover:main",
         ],
     },
 )

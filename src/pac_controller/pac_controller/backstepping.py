@@ -19,9 +19,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pac_plant.parameters import PantographParameters, TrackParameters
 
-from pac_plant import model
+from pac_model import model
+from pac_model.parameters import PantographParameters, TrackParameters
 
 from .parameters import ControllerParameters, ReferenceParameters
 from .reference import ForceReference

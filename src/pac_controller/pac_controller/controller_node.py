@@ -16,6 +16,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+
+from pac_common import messages
 from pac_common.node import (
     LOOP_QOS,
     PUBLISH_QOS,
@@ -27,9 +29,7 @@ from pac_common.node import (
     set_realtime_priority,
 )
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
-from pac_plant.parameters import PantographParameters, TrackParameters
-
-from pac_common import messages
+from pac_model.parameters import PantographParameters, TrackParameters
 
 from .backstepping import BacksteppingController
 from .parameters import ControllerParameters, ReferenceParameters

@@ -35,10 +35,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from pac_common.integrate import rk4_step
-from pac_plant.parameters import PantographParameters, TrackParameters
 
-from pac_plant import model
+from pac_common.integrate import rk4_step
+from pac_model import model
+from pac_model.parameters import PantographParameters, TrackParameters
 
 from .parameters import ObserverParameters
 

@@ -14,6 +14,7 @@ import math
 import sys
 from dataclasses import dataclass
 
+from pac_common import messages
 from pac_common.node import (
     LOOP_QOS,
     PUBLISH_QOS,
@@ -25,9 +26,7 @@ from pac_common.node import (
     set_realtime_priority,
 )
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
-from pac_plant.parameters import PantographParameters, TrackParameters
-
-from pac_common import messages
+from pac_model.parameters import PantographParameters, TrackParameters
 
 from .observer import AdaptiveObserver, ObserverDivergedError
 from .parameters import ObserverParameters

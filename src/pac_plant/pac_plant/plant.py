@@ -6,10 +6,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from pac_common.integrate import rk4_integrate
 
-from . import model
-from .parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from pac_common.integrate import rk4_integrate
+from pac_model import model
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+
+from .parameters import PlantOptions
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
+from pac_common import messages
 from pac_common.node import (
     LOOP_QOS,
     PUBLISH_QOS,
@@ -35,10 +36,9 @@ from pac_common.node import (
     set_realtime_priority,
 )
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from pac_common import messages
-
-from .parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from .parameters import PlantOptions
 from .plant import Plant
 
 

@@ -15,10 +15,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pac_common.messages import TOPICS, RosbagsFactory
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
+
+from pac_common.messages import TOPICS, RosbagsFactory
 
 _SOURCE_MSG_DIR = Path(__file__).resolve().parents[2] / "pac_interfaces" / "msg"
 

@@ -17,9 +17,10 @@ from dataclasses import dataclass, field
 from pac_common.parameters import LoopParameters
 from pac_controller.backstepping import BacksteppingController, Command
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
-from pac_plant.parameters import CatenaryParameters, PantographParameters, PlantOptions, TrackParameters
+from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
 
 

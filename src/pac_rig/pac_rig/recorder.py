@@ -17,6 +17,9 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
+
+from pac_common import messages
 from pac_common.node import (
     RECORD_QOS,
     RECORD_QOS_COMPATIBLE,
@@ -27,9 +30,6 @@ from pac_common.node import (
     run_node,
 )
 from pac_common.parameters import ParameterError, ParameterSet, parameter
-from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
-
-from pac_common import messages
 
 from .bag import BagWriter
 
@@ -149,7 +149,7 @@ class RecorderNode(Node):
             self.pending.clear()
             print(
                 f"recorder: recording stopped: {exc.strerror or exc} ({self.path}); "
-                f"what was written before stays readable (ros2 run pac_rig recover {self.path})",
+                f"what was written before stays readable (ros2 run pac_analysis recover {self.path})",
                 file=sys.stderr,
                 flush=True,
             )

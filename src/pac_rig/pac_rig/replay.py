@@ -15,9 +15,8 @@ import sys
 import time
 from pathlib import Path
 
-from pac_common.node import PUBLISH_QOS
-
 from pac_common import messages
+from pac_common.node import PUBLISH_QOS
 
 from .bag import BagError, iter_records
 

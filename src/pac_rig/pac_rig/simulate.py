@@ -10,12 +10,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
+from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet
 
-from pac_common import messages
-
 from .bag import BagWriter
+from .cli import OverrideError, add_override_arguments, overrides_from_args
 from .closed_loop import DivergenceError, Scenario, run
 
 
@@ -85,22 +84,10 @@ def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -
     return RunResult(Path(bag_path), ticks, diverged, wall, ticks / rate)
 
 
-def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """``name:=value`` (as ros2 -p) or ``name=value``; values parsed as YAML."""
-    out = {}
-    for item in items:
-        name, sep, value = item.partition(":=") if ":=" in item else item.partition("=")
-        if not sep:
-            raise SystemExit(f"error: override '{item}' is not name:=value")
-        out[name.strip()] = yaml.safe_load(value)
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="simulate", description=__doc__)
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
-    parser.add_argument("-p", "--param", action="append", default=[], help="name:=value override")
-    parser.add_argument("--params-file", type=Path, help="YAML of flat name: value pairs")
+    add_override_arguments(parser)
     parser.add_argument("--list", action="store_true", help="list every parameter and exit")
     args = parser.parse_args(argv)
     if args.list:
@@ -110,13 +97,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.bag is None:
         parser.error("the bag directory is required")
-    values: dict[str, Any] = {}
-    if args.params_file:
-        values.update(yaml.safe_load(args.params_file.read_text()) or {})
-    values.update(parse_overrides(args.param))
     try:
-        scenario = scenario_from_flat(values)
-    except ParameterError as exc:
+        scenario = scenario_from_flat(overrides_from_args(args))
+    except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
         return 2
     if scenario.loop.duration <= 0.0:

@@ -14,9 +14,9 @@ import sys
 from datetime import datetime
 from pathlib import Path
 
-from .bag import read_bag
-from .metrics import compute_metrics, loop_timing, markdown_table, timing_table
-from .rig import Rig
+from pac_analysis.metrics import compute_metrics, loop_timing, markdown_table, timing_table
+from pac_rig.bag import read_bag
+from pac_rig.launcher import Rig
 
 
 def free_domain():

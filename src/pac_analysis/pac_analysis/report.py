@@ -1,4 +1,4 @@
-"""``make report BAG=<dir>`` / ``ros2 run pac_rig report <bag> [<bag> ...]``.
+"""``make report BAG=<dir>`` / ``ros2 run pac_analysis report <bag> [<bag> ...]``.
 
 Writes ``reports/<bag name>/`` (or ``reports/<a>_vs_<b>/`` for several bags):
 ``metrics.json`` and ``metrics.md`` (contact-force quality over ``--from``/``--to``,
@@ -17,7 +17,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .bag import BagData, BagError, read_bag
+from pac_rig.bag import BagData, BagError, read_bag
+
 from .metrics import compute_metrics, loop_timing, markdown_table, missing_inputs, timing_table
 from .plots import overlay_figure, run_figure
 

@@ -17,11 +17,11 @@ import time
 from datetime import datetime
 from pathlib import Path
 
-from .bag import read_bag
-from .closed_loop import Scenario, run
-from .metrics import compute_metrics, loop_timing, timing_table
-from .rig import Rig
-from .simulate import simulate_to_bag
+from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
+from pac_rig.bag import read_bag
+from pac_rig.closed_loop import Scenario, run
+from pac_rig.launcher import Rig
+from pac_rig.simulate import simulate_to_bag
 
 
 def live_run(mode: str, seconds: float, workdir: Path, priority: int) -> tuple:

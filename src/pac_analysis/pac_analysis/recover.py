@@ -1,4 +1,4 @@
-"""``ros2 run pac_rig recover <bag> [--out DIR]``: make a crashed recording a closed, indexed bag.
+"""``ros2 run pac_analysis recover <bag> [--out DIR]``: make a crashed recording a closed, indexed bag.
 
 Reads whatever the MCAP record stream of ``<bag>`` holds (a recorder killed with
 SIGKILL leaves no summary, index or metadata.yaml) and writes it to a new bag
@@ -12,8 +12,7 @@ import sys
 from pathlib import Path
 
 from pac_common import messages
-
-from .bag import BagError, BagWriter, iter_records
+from pac_rig.bag import BagError, BagWriter, iter_records
 
 
 def recover(path: Path, out: Path) -> tuple[dict[str, int], list[str]]:

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .bag import BagData, TopicData
+from pac_rig.bag import BagData, TopicData
 
 
 def stamp_seconds(topic: TopicData) -> np.ndarray:

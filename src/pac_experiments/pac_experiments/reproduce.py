@@ -16,10 +16,10 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from .bag import read_bag
-from .metrics import compute_metrics, markdown_table
-from .plots import overlay_figure, run_figure
-from .simulate import RunResult, scenario_from_flat, simulate_to_bag
+from pac_analysis.metrics import compute_metrics, markdown_table
+from pac_analysis.plots import overlay_figure, run_figure
+from pac_rig.bag import read_bag
+from pac_rig.simulate import RunResult, scenario_from_flat, simulate_to_bag
 
 #: Section 6's gains, run with an actuator without limits as in the paper's continuous simulation.
 PAPER_GAINS = {"c1": 400.0, "c2": 400.0, "c3": 50.0, "u_min": -1e7, "u_max": 1e7, "slew_rate_max": 1e12}

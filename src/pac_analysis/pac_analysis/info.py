@@ -1,4 +1,4 @@
-"""``ros2 run pac_rig info <bag>``: what ``ros2 bag info`` shows, plus pac's tick check."""
+"""``ros2 run pac_analysis info <bag>``: what ``ros2 bag info`` shows, plus pac's tick check."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .bag import BagError, read_bag
+from pac_rig.bag import BagError, read_bag
 
 
 def describe(path: Path) -> tuple[str, list[str]]:

@@ -1,4 +1,4 @@
-"""``ros2 run pac_rig re_estimate <bag> [-p name:=value ...]``: the observer core over a bag, offline.
+"""``ros2 run pac_analysis re_estimate <bag> [-p name:=value ...]``: the observer core over a bag, offline.
 
 Feeds the bag's ``measurement`` messages (z1, z2 and the applied force) to the
 observer core and compares its estimates with the recorded ``estimate`` messages.
@@ -16,14 +16,13 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import yaml
+
 from pac_common.parameters import ParameterError, RateParameters
+from pac_model.parameters import PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
-from pac_plant.parameters import PantographParameters, TrackParameters
-
-from .bag import BagError, read_bag
-from .simulate import parse_overrides
+from pac_rig.bag import BagError, read_bag
+from pac_rig.cli import OverrideError, add_override_arguments, overrides_from_args
 
 FIELDS = ("z_hat", "theta_hat", "stiffness_hat", "contact_force_hat", "innovation")
 
@@ -78,16 +77,19 @@ def re_estimate(bag_path: Path, overrides: dict) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="re_estimate", description=__doc__)
     parser.add_argument("bag", type=Path)
-    parser.add_argument("-p", "--param", action="append", default=[], help="name:=value override")
-    parser.add_argument("--params-file", type=Path, help="YAML of flat name: value pairs")
+    add_override_arguments(parser)
     args = parser.parse_args(argv)
-    overrides = {}
-    if args.params_file:
-        overrides.update(yaml.safe_load(args.params_file.read_text()) or {})
-    overrides.update(parse_overrides(args.param))
+    try:
+        overrides = overrides_from_args(args)
+    except OverrideError as exc:
+        print(f"re_estimate: {exc}", file=sys.stderr)
+        return 2
     try:
         result = re_estimate(args.bag, overrides)
-    except (BagError, ParameterError) as exc:
+    except ParameterError as exc:
+        print(f"re_estimate: {exc}", file=sys.stderr)
+        return 2
+    except BagError as exc:
         print(f"re_estimate: {exc}", file=sys.stderr)
         return 1
     print(f"re-estimated {result['ticks']} ticks, compared {result['compared']} with the recorded estimates")

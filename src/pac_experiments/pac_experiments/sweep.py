@@ -1,4 +1,4 @@
-"""``ros2 run pac_rig sweep``: gains x command delay, offline, as a markdown table.
+"""``ros2 run pac_experiments sweep``: gains x command delay, offline, as a markdown table.
 
 The evidence behind the shipped gains (docs/design.md): contact-force standard
 deviation over [3, T] s with a constant 100 N reference and an ideal actuator
@@ -13,8 +13,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from .closed_loop import DivergenceError, run
-from .simulate import scenario_from_flat
+from pac_rig.closed_loop import DivergenceError, run
+from pac_rig.simulate import scenario_from_flat
 
 GAINS = [(400, 400, 50), (350, 350, 50), (150, 150, 50), (80, 80, 50), (40, 40, 50), (20, 20, 20)]
 DELAYS = [0, 1, 2, 3, 5, 10]

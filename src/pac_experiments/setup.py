@@ -1,0 +1,28 @@
+from setuptools import setup
+
+package_name = "pac_experiments"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=[package_name],
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="PAC maintainers",
+    maintainer_email="pac@example.com",
+    description="Studies that run and analyse the rig: demo, bench, sweep, reproduce.",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={
+        "console_scripts": [
+            "demo = pac_experiments.demo:main",
+            "bench = pac_experiments.bench:main",
+            "sweep = pac_experiments.sweep:main",
+            "reproduce = pac_experiments.reproduce:main",
+        ],
+    },
+)

@@ -1,0 +1,62 @@
+"""Parameter sets of the pantograph-catenary model (Table 1 of the paper)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from pac_common.parameters import ParameterSet, parameter
+
+
+@dataclass(frozen=True)
+class PantographParameters(ParameterSet):
+    """Lumped 2-DOF pantograph (Fig. 2, Table 1). Known to the observer and controller."""
+
+    m1: float = parameter(8.0, "pantograph head (upper frame) mass", "kg", low=0.0, low_open=True)
+    b1: float = parameter(120.0, "head suspension damping", "N*s/m", low=0.0, low_open=True)
+    k1: float = parameter(10000.0, "head suspension stiffness", "N/m", low=0.0, low_open=True)
+    m2: float = parameter(12.0, "lower frame mass", "kg", low=0.0, low_open=True)
+    b2: float = parameter(30.0, "lower frame damping to the car body", "N*s/m", low=0.0)
+
+
+@dataclass(frozen=True)
+class TrackParameters(ParameterSet):
+    """Vehicle speed and span length: they set the stiffness frequency omega of eq. (2).
+
+    Known to the observer and controller (v(t) of eq. (9) needs omega).
+    """
+
+    speed_kmh: float = parameter(360.0, "vehicle speed lambda", "km/h", low=0.0, low_open=True, high=600.0)
+    span_length: float = parameter(65.0, "catenary span length L", "m", low=0.0, low_open=True)
+
+    @property
+    def omega(self) -> float:
+        """omega = 2 pi lambda / L, eq. (2) [rad/s]."""
+        return 2.0 * math.pi * (self.speed_kmh / 3.6) / self.span_length
+
+
+@dataclass(frozen=True)
+class CatenaryParameters(ParameterSet):
+    """Catenary stiffness k(t) = k0 (1 + alpha cos(omega t - beta)), eqs. (2)/(7).
+
+    Unknown to the observer and the controller: only the plant uses these.
+    """
+
+    k0: float = parameter(4000.0, "average catenary stiffness", "N/m", low=0.0, low_open=True)
+    alpha: float = parameter(
+        0.5, "stiffness variation coefficient", "", low=-1.0, high=1.0, low_open=True, high_open=True
+    )
+    beta: float = parameter(math.pi / 4, "stiffness phase at t = 0", "rad", low=-math.pi, high=math.pi)
+
+    @property
+    def theta(self) -> np.ndarray:
+        """theta = (k0, k0 alpha cos beta, k0 alpha sin beta), eq. (9) [N/m]."""
+        return np.array(
+            [
+                self.k0,
+                self.k0 * self.alpha * math.cos(self.beta),
+                self.k0 * self.alpha * math.sin(self.beta),
+            ]
+        )
