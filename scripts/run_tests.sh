@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# scripts/run_tests.sh [PYTEST ARGS...] — run the test suite (tests/) in the workspace env.
+# scripts/run_tests.sh [PYTEST ARGS...] — run the test suite (tests/, or the test paths given) in the
+# workspace env.
 #
 # - Sources env.sh (venv, install/ overlay, LOCALHOST discovery, Fast DDS profile).
 # - Reserves a free ROS_DOMAIN_ID with domain_coordinator (shipped with the wheels: it binds TCP
@@ -25,7 +26,10 @@ import sys
 import domain_coordinator
 
 wall = float(os.environ.get('PAC_TEST_WALL_TIMEOUT', '2700'))
-cmd = [sys.executable, '-m', 'pytest', 'tests', '-q', '-p', 'no:cacheprovider', *sys.argv[1:]]
+args = sys.argv[1:]
+# Test paths given (e.g. tests/test_plant.py or tests/test_x.py::test_y): run those, else tests/.
+paths = [] if any(not a.startswith('-') for a in args) else ['tests']
+cmd = [sys.executable, '-m', 'pytest', *paths, '-q', '-p', 'no:cacheprovider', *args]
 
 with domain_coordinator.domain_id() as did:
     env = dict(os.environ, ROS_DOMAIN_ID=str(did), PAC_ROS_DOMAIN_ID_BASE=str(did),
