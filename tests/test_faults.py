@@ -22,7 +22,7 @@ from pac_common.parameters import ParameterError
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference
 from pac_rig.bag import read_bag
-from pac_rig.configs import NODE_MODULES
+from pac_rig.configs import NODE_MODULES, parameter_sets
 from pac_rig.launcher import NODES
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
@@ -252,12 +252,7 @@ def invalid_value(spec):
     return int(value) if spec.kind is int and math.isfinite(value) else float(value)
 
 
-ALL_SPECS = [
-    (node, spec)
-    for node, (_, module) in NODE_MODULES.items()
-    for cls in __import__(module, fromlist=["PARAMETER_SETS"]).PARAMETER_SETS
-    for spec in cls.specs()
-]
+ALL_SPECS = [(node, spec) for node in NODE_MODULES for cls in parameter_sets(node) for spec in cls.specs()]
 
 
 @pytest.mark.parametrize(("node", "spec"), ALL_SPECS, ids=[f"{n}.{s.name}" for n, s in ALL_SPECS])
@@ -293,10 +288,10 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
 
     try:
         refused = 0
-        for name, (_, module) in NODE_MODULES.items():
+        for name in NODE_MODULES:
             client = AsyncParameterClient(node, name)
             assert client.wait_for_services(timeout_sec=30), name
-            specs = [s for cls in __import__(module, fromlist=["P"]).PARAMETER_SETS for s in cls.specs()]
+            specs = [s for cls in parameter_sets(name) for s in cls.specs()]
             for spec in specs:
                 value = invalid_value(spec)
                 if value is None:
@@ -342,7 +337,7 @@ def test_two_rigs_in_parallel_do_not_hear_each_other(rigs, tmp_path):
         offline = tmp_path / f"offline_{amplitude:g}"
         simulate_to_bag(scenario_from_flat({"duration": 1.5, "force_amplitude": amplitude}), offline)
         live, ref = read_bag(rig.bag_path).topics, read_bag(offline).topics
-        for topic in messages.TOPICS:
+        for topic in messages.LOOP_TOPICS:
             ticks, idx = np.unique(live[topic]["tick"], return_index=True)
             assert ticks.size == 1500 and live[topic].log_time_ns.size == ref[topic].log_time_ns.size + (
                 live[topic].log_time_ns.size - ticks.size
