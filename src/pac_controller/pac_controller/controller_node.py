@@ -1,4 +1,8 @@
-"""``ros2 run pac_controller controller_node``: backstepping (eq. (43)) on the ROS graph.
+"""``ros2 run pac_controller controller_node``: the force controller on the ROS graph.
+
+``-p law:=<name>`` selects the control law (adaptive_backstepping, the default, eq. (43);
+backstepping_known; pid; lqr; passive: pac_controller.laws, docs/laws.md); the law is
+fixed for a run.  ``mode:=passive`` is deprecated (law:=passive), still honoured with a warning.
 
 Subscribes ``estimate`` (ObserverEstimate), publishes ``command`` (ActuatorCommand)
 for the same tick.  Safety: a non-finite estimate never reaches the actuator (the
@@ -29,10 +33,10 @@ from pac_common.node import (
     set_realtime_priority,
 )
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
-from pac_model.parameters import PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .backstepping import BacksteppingController
-from .parameters import ControllerParameters, ReferenceParameters
+from .laws import NEEDS_CATENARY, make_controller
+from .parameters import ControllerParameters, LawParameters, ReferenceParameters
 
 
 @dataclass(frozen=True)
@@ -58,29 +62,42 @@ PARAMETER_SETS = [
     TrackParameters,
     ControllerParameters,
     ReferenceParameters,
+    LawParameters,
     RateParameters,
     NodeOptions,
     EstimateLimits,
 ]
 RUNTIME_SETS = [ControllerParameters, ReferenceParameters, EstimateLimits]
+#: Selecting the law is part of the run's setup (its design, its state), as the model is.
+FROZEN_RUNTIME = ["law", "mode"]
 
 
 class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__("controller_node")
-        panto, track, params, reference, rate, node_opts, limits = declare_parameter_sets(
+        panto, track, params, reference, laws, rate, node_opts, limits = declare_parameter_sets(
             self, PARAMETER_SETS
         )
+        sets = list(PARAMETER_SETS)
+        self.catenary: CatenaryParameters | None = None
+        if params.effective_law in NEEDS_CATENARY:  # only the oracle law is told the catenary
+            (self.catenary,) = declare_parameter_sets(self, [CatenaryParameters])
+            sets.append(CatenaryParameters)
+        if params.mode == "passive":
+            self.get_logger().warning("parameter 'mode' is deprecated: use law:=passive")
+        self.laws: LawParameters = laws
         self.limits: EstimateLimits = limits
         self.loop: RateParameters = rate
         self.node_options: NodeOptions = node_opts
         set_realtime_priority(self, node_opts.realtime_priority)
         self.pantograph, self.track = panto, track
-        self.core = BacksteppingController(panto, track, params, reference, rate.sample_period)
+        self.core = make_controller(panto, track, params, reference, rate.sample_period, laws, self.catenary)
+        self.get_logger().info(f"control law: {self.core.name}")
+        runtime = [n for n in parameter_names(RUNTIME_SETS) if n not in FROZEN_RUNTIME]
         handle_parameter_changes(
             self,
-            frozen=[n for n in parameter_names(PARAMETER_SETS) if n not in parameter_names(RUNTIME_SETS)],
-            frozen_reason="fixed for a run (model, speed, rate): restart the node to change it",
+            frozen=[n for n in parameter_names(sets) if n not in runtime],
+            frozen_reason="fixed for a run (model, speed, rate, control law): restart the node to change it",
             live=lambda: [self.core.params, self.core.reference.params, self.limits],
             apply=self.apply_parameters,
         )
@@ -106,12 +123,13 @@ class ControllerNode(Node):
     def apply_parameters(self, sets: list) -> None:
         params, reference, self.limits = sets
         state = (self.core.last_u, self.core.last_tick)
-        self.core = BacksteppingController(
-            self.pantograph, self.track, params, reference, self.loop.sample_period
+        self.core = make_controller(
+            self.pantograph, self.track, params, reference, self.loop.sample_period, self.laws, self.catenary
         )
-        self.core.last_u, self.core.last_tick = state  # the actuator does not jump on a retune
+        # The actuator does not jump on a retune; a law with state restarts bumplessly from it.
+        self.core.last_u, self.core.last_tick = state
         self.get_logger().info(
-            f"parameters changed: mode {params.mode}, c = ({params.c1:g}, {params.c2:g}, "
+            f"parameters changed: law {self.core.name}, c = ({params.c1:g}, {params.c2:g}, "
             f"{params.c3:g}), reference {reference.shape} {reference.force_amplitude:g} N"
         )
 

@@ -15,7 +15,7 @@ from pac_common.parameters import ParameterError, ParameterSet
 
 from .bag import BagWriter
 from .cli import OverrideError, add_override_arguments, overrides_from_args
-from .closed_loop import DivergenceError, Scenario, run
+from .closed_loop import DivergenceError, Scenario, build_cores, run
 
 
 def scenario_sets(s: Scenario) -> dict[str, ParameterSet]:
@@ -99,6 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("the bag directory is required")
     try:
         scenario = scenario_from_flat(overrides_from_args(args))
+        build_cores(scenario)  # a law design the parameters do not allow is refused here
     except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
         return 2
