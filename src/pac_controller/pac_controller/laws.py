@@ -43,7 +43,7 @@ def _pid(pantograph, track, params, reference, laws, catenary, dt) -> Law:
 
 
 def _lqr(pantograph, track, params, reference, laws, catenary, dt) -> Law:
-    return LqrLaw(design_lqr(pantograph, laws, dt), pantograph, track, dt)
+    return LqrLaw(design_lqr(pantograph, laws, dt), pantograph, track, dt, laws.lqr_integral_time)
 
 
 def _passive(pantograph, track, params, reference, laws, catenary, dt) -> Law:

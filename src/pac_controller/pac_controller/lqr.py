@@ -21,9 +21,10 @@ du = lqr_input_scale; pending commands unweighted).  The law, on the observer's 
 The integral uses the observer's force estimate, so at rest F_hat = F_r whatever the
 true mean stiffness (zero steady-state error on a constant reference at constant
 stiffness); the gains stay those of k_d (fixed, non-adaptive).  Anti-windup by
-conditional integration: q does not move when the step would push u further into the
-limit that clipped the last command.  A (re)start is bumpless (q set so that u equals
-the actuator's present force; the pending commands are that force).
+back-calculation, as the pid law: q_{k+1} = q_k + h (F_hat_k - F_r,k + (u_k - u_applied,k) / (K_q T_I))
+(K_q the gain on q, tracking time T_I), so while the actuator is at a limit q is pulled
+to where u_law sits at that limit instead of growing.  A (re)start is bumpless (q set
+so that u equals the actuator's present force; the pending commands are that force).
 """
 
 from __future__ import annotations
@@ -117,19 +118,25 @@ class LqrLaw:
     uses_estimate = True
 
     def __init__(
-        self, gains: LqrGains, pantograph: PantographParameters, track: TrackParameters, sample_period: float
+        self,
+        gains: LqrGains,
+        pantograph: PantographParameters,
+        track: TrackParameters,
+        sample_period: float,
+        tracking_time: float,
     ) -> None:
         self.gains = gains
         self.pantograph = pantograph
         self.omega = track.omega
         self.sample_period = sample_period
+        self.tracking_time = tracking_time
         self.restart(None)
 
     def restart(self, u_applied: float | None) -> None:
         self.bumpless_from = u_applied
         self.started = False
         self.integral = 0.0
-        self.integral_step = 0.0  # F_hat - F_r of the last tick, or 0 when held (anti-windup)
+        self.integral_step = 0.0  # q' of the last tick: F_hat - F_r, plus the back-calculation term
         self.pending_commands: deque[float] = deque(
             [0.0 if u_applied is None else u_applied] * self.gains.delay, maxlen=max(self.gains.delay, 1)
         )
@@ -159,14 +166,12 @@ class LqrLaw:
     def commit(self, tick: int, u_applied: float) -> None:
         assert self.pending is not None, "commit without output"
         error, integral, u = self.pending
-        # Conditional integration: a step that would move u further past the limit is held.
-        pushes_further = (u - u_applied) * (-self.gains.integral_gain * error) > 0.0
-        self.integral_step = 0.0 if pushes_further else error
+        # Back-calculation: while the command is limited, q moves u back towards the limit.
+        self.integral_step = error + (u - u_applied) / (self.gains.integral_gain * self.tracking_time)
         self.integral, self.last_tick, self.started = integral, tick, True
         if self.gains.delay:
             self.pending_commands.append(u_applied)
         self.pending = None
-
 
 def describe(gains: LqrGains) -> str:
     """One line for logs and docs."""
