@@ -173,6 +173,7 @@ class LqrLaw:
             self.pending_commands.append(u_applied)
         self.pending = None
 
+
 def describe(gains: LqrGains) -> str:
     """One line for logs and docs."""
     slowest = float(np.max(gains.poles.real))

@@ -124,7 +124,12 @@ class LawParameters(ParameterSet):
         1, "command delay the pid and lqr designs assume (1: the rig's loop)", "ticks", low=0, high=10
     )
     pid_bandwidth: float = parameter(
-        30.0, "pid: open-loop crossover frequency of the design", "rad/s", low=0.0, low_open=True, high=1000.0
+        21.0,
+        "pid: open-loop crossover frequency of the design (21: the highest with Ms <= 2 at 45 deg)",
+        "rad/s",
+        low=0.0,
+        low_open=True,
+        high=1000.0,
     )
     pid_phase_margin: float = parameter(
         45.0, "pid: phase margin at the crossover", "deg", low=10.0, high=80.0

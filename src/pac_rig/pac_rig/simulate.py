@@ -103,6 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
         return 2
+    if scenario.controller.mode == "passive":
+        print("simulate: parameter 'mode' is deprecated: use law:=passive", file=sys.stderr)
     if scenario.loop.duration <= 0.0:
         print("simulate: invalid parameter 'duration' = 0.0: allowed (0, 86400] s offline", file=sys.stderr)
         return 2
