@@ -7,6 +7,7 @@ import pytest
 
 from pac_common.parameters import ParameterError, RateParameters
 from pac_controller.backstepping import BacksteppingController, product_derivatives, reciprocal_derivatives
+from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference, filtered_step
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
@@ -77,7 +78,7 @@ def test_quotient_derivatives():
 def closed_loop_true_state(ticks, params, reference, delay=0, z0=None, each=None):
     """Plant + controller fed the true state and true theta (no observer)."""
     plant = Plant(PANTO, TRACK, CAT, PlantOptions(), DT, z0=z0)
-    ctrl = BacksteppingController(PANTO, TRACK, params, reference, DT)
+    ctrl = make_controller(PANTO, TRACK, params, reference, DT)
     pending = [0.0] * delay
     for k in range(ticks):
         cmd = ctrl.compute(k, plant.z, CAT.theta)
@@ -124,10 +125,12 @@ def test_backstepping_lyapunov_decrease():
     assert v[-1] < 1e-4 * v[0]
 
 
-def test_passive_mode_is_the_filtered_reference():
-    ctrl = BacksteppingController(
-        PANTO, TRACK, ControllerParameters(mode="passive"), ReferenceParameters(), DT
-    )
+@pytest.mark.parametrize(
+    "params", [ControllerParameters(law="passive"), ControllerParameters(mode="passive")]
+)
+def test_passive_law_is_the_filtered_reference(params):
+    """law:=passive, and the deprecated mode:=passive that selects it."""
+    ctrl = make_controller(PANTO, TRACK, params, ReferenceParameters(), DT)
     cmd = ctrl.compute(700, np.zeros(4), np.array([3000.0, 0.0, 0.0]))
     assert cmd.u == pytest.approx(ForceReference(ReferenceParameters()).at(0.7)[0])
     assert cmd.mode == "passive"
@@ -135,7 +138,7 @@ def test_passive_mode_is_the_filtered_reference():
 
 def test_saturation_and_non_finite():
     params = ControllerParameters(u_min=-10.0, u_max=10.0, fallback_force=0.0)
-    ctrl = BacksteppingController(PANTO, TRACK, params, ReferenceParameters(), DT)
+    ctrl = make_controller(PANTO, TRACK, params, ReferenceParameters(), DT)
     cmd = ctrl.compute(1000, np.zeros(4), CAT.theta)
     assert cmd.saturated and cmd.u == 10.0 and cmd.u_unsaturated > 10.0
     fallback = ctrl.compute(1001, np.array([math.nan, 0, 0, 0]), CAT.theta)
@@ -145,7 +148,7 @@ def test_saturation_and_non_finite():
 
 def test_slew_rate_limit():
     params = ControllerParameters(slew_rate_max=1000.0, u_min=-1e5, u_max=1e5)  # 1 N per tick
-    ctrl = BacksteppingController(PANTO, TRACK, params, ReferenceParameters(shape="constant"), DT)
+    ctrl = make_controller(PANTO, TRACK, params, ReferenceParameters(shape="constant"), DT)
     from pac_model.model import static_equilibrium
 
     k = CAT.k0 * (1 + CAT.alpha * math.cos(TRACK.omega * 3.0 - CAT.beta))

@@ -5,7 +5,7 @@ import math
 import pytest
 
 from pac_common.parameters import LoopParameters, ParameterError
-from pac_controller.parameters import ControllerParameters, ReferenceParameters
+from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import PlantOptions
@@ -18,6 +18,7 @@ ALL_SETS = [
     ObserverParameters,
     ControllerParameters,
     ReferenceParameters,
+    LawParameters,
     LoopParameters,
 ]
 
@@ -44,6 +45,14 @@ BAD = [
     (ObserverParameters, "theta_hat0", (1.0, math.inf, 0.0), "3 finite values"),
     (ControllerParameters, "c1", 0.0, "(0, 10000] 1/s"),
     (ControllerParameters, "mode", "manual", "one of active, passive"),
+    (
+        ControllerParameters,
+        "law",
+        "nope",
+        "one of adaptive_backstepping, backstepping_known, pid, lqr, passive",
+    ),
+    (LawParameters, "pid_phase_margin", 5.0, "[10, 80] deg"),
+    (LawParameters, "lqr_force_scale", 0.0, "(0, 10000] N"),
     (ReferenceParameters, "filter_bandwidth", -2.0, "[0.1, 500] rad/s"),
     (LoopParameters, "rate_hz", 0.0, "[1, 20000] Hz"),
 ]

@@ -16,29 +16,15 @@ and theta_hat.  Choices the paper leaves open (docs/design.md):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from pac_model import model
-from pac_model.parameters import PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .controller import Command, Errors  # noqa: F401 - Command re-exported (it lived here)
 from .parameters import ControllerParameters, ReferenceParameters
 from .reference import ForceReference
-
-
-@dataclass(frozen=True)
-class Command:
-    """The controller's output at one tick."""
-
-    tick: int
-    time: float
-    u: float  # applied (saturated) actuator force [N]
-    u_unsaturated: float  # what the law asked for [N]
-    force_reference: float  # F_r [N]
-    tracking_error: tuple[float, float, float]  # (e1, e2, e3), eqs. (24), (29), (36)
-    saturated: bool
-    mode: str  # "active", "passive" or "fallback"
 
 
 def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
@@ -64,11 +50,14 @@ def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
 
 
 class BacksteppingController:
-    """u = m2 (-c3 e3 + alpha_2' - f2(z_hat) - (b1/m1) e2), eq. (43), then the actuator limits.
+    """The adaptive_backstepping law core: u = m2 (-c3 e3 + alpha_2' - f2(z_hat) - (b1/m1) e2), eq. (43).
 
-    Explicit state: the last commanded force and its tick (for the slew-rate limit).
-    The law itself is stateless; F_r is a pure function of time.
+    Stateless (F_r is a pure function of time); the actuator limits, fallback and tick
+    bookkeeping are the law-agnostic :class:`pac_controller.controller.Controller`'s.
     """
+
+    mode = "active"
+    uses_estimate = True
 
     def __init__(
         self,
@@ -85,8 +74,6 @@ class BacksteppingController:
         self.params = params
         self.reference = ForceReference(reference)
         self.sample_period = sample_period
-        self.last_u: float | None = None  # None: no command yet (no rate limit on the first)
-        self.last_tick = -1
 
     def stiffness_hat_derivatives(self, t: float, theta_hat: np.ndarray) -> np.ndarray:
         """k_hat and its derivatives 1..3 with theta_hat frozen, clamped at stiffness_hat_min."""
@@ -95,25 +82,16 @@ class BacksteppingController:
             return np.array([self.params.stiffness_hat_min, 0.0, 0.0, 0.0])
         return k
 
-    def compute(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> Command:
-        """The command for ``tick`` from the estimate of that tick."""
-        t = tick * self.sample_period
-        f_r = self.reference.at(t)
-        if self.params.mode == "passive":
-            return self._limited(tick, t, f_r[0], f_r[0], (0.0, 0.0, 0.0), "passive")
-        z_hat, theta_hat = np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float)
-        if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
-            return self.fallback(tick)
-        u_law, errors = self.law(t, f_r, z_hat, theta_hat)
-        if not math.isfinite(u_law):
-            return self.fallback(tick)
-        return self._limited(tick, t, u_law, f_r[0], errors, "active")
+    def restart(self, u_applied: float | None) -> None:
+        """Nothing to forget: the law is stateless."""
 
-    def fallback(self, tick: int) -> Command:
-        """The safe command: the static uplift ``fallback_force``, reached within the slew limit."""
-        t = tick * self.sample_period
-        force = self.params.fallback_force
-        return self._limited(tick, t, force, self.reference.at(t)[0], (0.0, 0.0, 0.0), "fallback")
+    def output(
+        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+    ) -> tuple[float, Errors]:
+        return self.law(t, f_r, z_hat, theta_hat)
+
+    def commit(self, tick: int, u_applied: float) -> None:
+        """Nothing to update: the law is stateless."""
 
     def law(
         self, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
@@ -150,32 +128,29 @@ class BacksteppingController:
         u = p.m2 * (-c3 * e3 + dalpha2 - f2 - (p.b1 / p.m1) * e2)  # eq. (43)
         return u, (e1, e2, e3)
 
-    def _limited(
-        self,
-        tick: int,
-        t: float,
-        u: float,
-        force_reference: float,
-        errors: tuple[float, float, float],
-        mode: str,
-    ) -> Command:
-        """Slew-rate limit from the last command, then saturation; updates the actuator state."""
-        p = self.params
-        applied = u
-        if self.last_u is not None:
-            # At least one period: a command whose tick is not after the last one (a fallback
-            # tick extrapolated ahead of a returning estimate) is still rate limited.
-            step = p.slew_rate_max * self.sample_period * max(1, tick - self.last_tick)
-            applied = min(max(applied, self.last_u - step), self.last_u + step)
-        applied = min(max(applied, p.u_min), p.u_max)
-        self.last_u, self.last_tick = applied, tick
-        return Command(
-            tick=tick,
-            time=t,
-            u=applied,
-            u_unsaturated=u,
-            force_reference=force_reference,
-            tracking_error=errors,
-            saturated=applied != u,
-            mode=mode,
-        )
+
+class KnownThetaBackstepping:
+    """The backstepping_known law core: eq. (43) on z_hat with the true theta of eq. (9).
+
+    An oracle: the same law as adaptive_backstepping, told the catenary parameters
+    (k0, alpha, beta) instead of the observer's theta_hat, i.e. the best the adaptive
+    law can hope for once theta_hat has converged.  z_hat still comes from the observer.
+    """
+
+    mode = "active"
+    uses_estimate = True
+
+    def __init__(self, backstepping: BacksteppingController, catenary: CatenaryParameters) -> None:
+        self.backstepping = backstepping
+        self.theta = catenary.theta
+
+    def restart(self, u_applied: float | None) -> None:
+        """Nothing to forget: the law is stateless."""
+
+    def output(
+        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+    ) -> tuple[float, Errors]:
+        return self.backstepping.law(t, f_r, z_hat, self.theta)
+
+    def commit(self, tick: int, u_applied: float) -> None:
+        """Nothing to update: the law is stateless."""

@@ -1,4 +1,8 @@
-"""``ros2 run pac_controller controller_node``: backstepping (eq. (43)) on the ROS graph.
+"""``ros2 run pac_controller controller_node``: the force controller on the ROS graph.
+
+``-p law:=<name>`` selects the control law (adaptive_backstepping, the default, eq. (43);
+backstepping_known; pid; lqr; passive: pac_controller.laws, docs/laws.md); the law is
+fixed for a run.  ``mode:=passive`` is deprecated (law:=passive), still honoured with a warning.
 
 Subscribes ``estimate`` (ObserverEstimate), publishes ``command`` (ActuatorCommand)
 for the same tick.  Safety: a non-finite estimate never reaches the actuator (the
@@ -20,10 +24,10 @@ import numpy as np
 from pac_common import messages
 from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
-from pac_model.parameters import PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .backstepping import BacksteppingController
-from .parameters import ControllerParameters, ReferenceParameters
+from .laws import NEEDS_CATENARY, make_controller
+from .parameters import ControllerParameters, LawParameters, ReferenceParameters
 
 
 @dataclass(frozen=True)
@@ -66,25 +70,39 @@ class ControllerNode(PacNode):
         TrackParameters,
         ControllerParameters,
         ReferenceParameters,
+        LawParameters,
+        # Read by law:=backstepping_known only (the oracle is told the true catenary).
+        CatenaryParameters,
         RateParameters,
         NodeOptions,
         RunEndOptions,
         EstimateLimits,
     ]
-    FROZEN_REASON = "fixed for a run (model, speed, rate): restart the node to change it"
+    FROZEN_REASON = "fixed for a run (model, speed, rate, control law): restart the node to change it"
 
     def __init__(self) -> None:
         super().__init__("controller_node")
+        params = self.parameters(ControllerParameters)
+        if params.mode == "passive":
+            self.get_logger().warning("parameter 'mode' is deprecated: use law:=passive")
+        self.laws = self.parameters(LawParameters)
         self.limits = self.parameters(EstimateLimits)
         self.loop = self.parameters(RateParameters)
         self.pantograph, self.track = self.parameters(PantographParameters), self.parameters(TrackParameters)
-        self.core = BacksteppingController(
+        # Only the oracle law is told the catenary.
+        self.catenary = (
+            self.parameters(CatenaryParameters) if params.effective_law in NEEDS_CATENARY else None
+        )
+        self.core = make_controller(
             self.pantograph,
             self.track,
-            self.parameters(ControllerParameters),
+            params,
             self.parameters(ReferenceParameters),
             self.loop.sample_period,
+            self.laws,
+            self.catenary,
         )
+        self.get_logger().info(f"control law: {self.core.name}")
         self.command_pub = self.create_publisher(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", PUBLISH_QOS
         )
@@ -109,12 +127,13 @@ class ControllerNode(PacNode):
         reference = changed.get(ReferenceParameters, self.core.reference.params)
         self.limits = changed.get(EstimateLimits, self.limits)
         state = (self.core.last_u, self.core.last_tick)
-        self.core = BacksteppingController(
-            self.pantograph, self.track, params, reference, self.loop.sample_period
+        self.core = make_controller(
+            self.pantograph, self.track, params, reference, self.loop.sample_period, self.laws, self.catenary
         )
-        self.core.last_u, self.core.last_tick = state  # the actuator does not jump on a retune
+        # The actuator does not jump on a retune; a law with state restarts bumplessly from it.
+        self.core.last_u, self.core.last_tick = state
         self.get_logger().info(
-            f"parameters changed: mode {params.mode}, c = ({params.c1:g}, {params.c2:g}, "
+            f"parameters changed: law {self.core.name}, c = ({params.c1:g}, {params.c2:g}, "
             f"{params.c3:g}), reference {reference.shape} {reference.force_amplitude:g} N"
         )
 

@@ -41,15 +41,25 @@ class ReferenceParameters(ParameterSet):
     )
 
 
+#: The control laws ``law`` selects (pac_controller.laws.LAWS maps them to their cores).
+LAW_NAMES = ("adaptive_backstepping", "backstepping_known", "pid", "lqr", "passive")
+
+
 @dataclass(frozen=True)
 class ControllerParameters(ParameterSet):
-    """Backstepping gains (eqs. (28), (35), (43)), mode and actuator limits."""
+    """Law selection, backstepping gains (eqs. (28), (35), (43)) and the law-agnostic actuator limits."""
 
+    law: str = parameter(
+        "adaptive_backstepping",
+        "control law: 'adaptive_backstepping' (eq. (43) on z_hat, theta_hat), 'backstepping_known' "
+        "(eq. (43) given the true theta: an oracle, needs k0, alpha, beta), 'pid' (PID on F_hat), "
+        "'lqr' (LQ servo at design_stiffness), 'passive' (u = F_r). Fixed for a run (docs/laws.md)",
+        choices=LAW_NAMES,
+    )
     mode: str = parameter(
         "active",
-        "'active': backstepping law eq. (43); 'passive': u = F_r (constant uplift, no feedback)",
+        "DEPRECATED, use law: 'passive' is law:=passive; 'active' runs the selected law",
         choices=("active", "passive"),
-        runtime=True,
     )
     c1: float = parameter(
         40.0, "backstepping gain c1, eq. (28)", "1/s", low=0.0, low_open=True, high=1e4, runtime=True
@@ -98,7 +108,16 @@ class ControllerParameters(ParameterSet):
         runtime=True,
     )
 
+    @property
+    def effective_law(self) -> str:
+        """The law that runs: ``law``, or 'passive' when the deprecated ``mode`` says so."""
+        return "passive" if self.mode == "passive" else self.law
+
     def check_consistency(self) -> None:
+        if self.mode == "passive" and self.law not in ("adaptive_backstepping", "passive"):
+            raise ParameterError(
+                "mode", self.mode, f"'active' with law = {self.law} (mode is deprecated: use law)"
+            )
         if self.u_max <= self.u_min:
             raise ParameterError("u_max", self.u_max, f"greater than u_min = {self.u_min:g} N")
         if not self.u_min <= self.fallback_force <= self.u_max:
@@ -107,3 +126,73 @@ class ControllerParameters(ParameterSet):
                 self.fallback_force,
                 f"within [u_min, u_max] = [{self.u_min:g}, {self.u_max:g}] N",
             )
+
+
+@dataclass(frozen=True)
+class LawParameters(ParameterSet):
+    """Design of the fixed-gain laws (pid, lqr): the model they are designed on and their specs.
+
+    The gains are computed from these in code (pac_controller.pid.design_pid,
+    pac_controller.lqr.design_lqr; method and numbers in docs/laws.md), never set by hand.
+    """
+
+    design_stiffness: float = parameter(
+        4000.0,
+        "catenary stiffness of the linear design model of pid and lqr (the mean stiffness k0 of the line)",
+        "N/m",
+        low=0.0,
+        low_open=True,
+        high=1e6,
+    )
+    design_delay_ticks: int = parameter(
+        1, "command delay the pid and lqr designs assume (1: the rig's loop)", "ticks", low=0, high=10
+    )
+    pid_bandwidth: float = parameter(
+        21.0,
+        "pid: open-loop crossover frequency of the design (21: the highest with Ms <= 2 at 45 deg)",
+        "rad/s",
+        low=0.0,
+        low_open=True,
+        high=1000.0,
+    )
+    pid_phase_margin: float = parameter(
+        45.0, "pid: phase margin at the crossover", "deg", low=10.0, high=80.0
+    )
+    pid_integral_ratio: float = parameter(
+        4.0, "pid: integral time / derivative time Ti / Td (4: Ziegler-Nichols)", "", low=1.0, high=100.0
+    )
+    pid_derivative_filter: float = parameter(
+        10.0, "pid: N, derivative filter time constant Td / N", "", low=2.0, high=100.0
+    )
+    lqr_force_scale: float = parameter(
+        1.0,
+        "lqr: contact-force error weighted as one unit of cost (Bryson)",
+        "N",
+        low=0.0,
+        low_open=True,
+        high=1e4,
+    )
+    lqr_velocity_scale: float = parameter(
+        1.0,
+        "lqr: head and frame velocity weighted as one unit of cost",
+        "m/s",
+        low=0.0,
+        low_open=True,
+        high=100.0,
+    )
+    lqr_integral_time: float = parameter(
+        0.05,
+        "lqr: the force-error integral is weighted as lqr_force_scale over this time",
+        "s",
+        low=0.0,
+        low_open=True,
+        high=100.0,
+    )
+    lqr_input_scale: float = parameter(
+        100.0,
+        "lqr: actuator force deviation weighted as one unit of cost",
+        "N",
+        low=0.0,
+        low_open=True,
+        high=1e5,
+    )

@@ -15,8 +15,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from pac_common.parameters import LoopParameters
-from pac_controller.backstepping import BacksteppingController, Command
-from pac_controller.parameters import ControllerParameters, ReferenceParameters
+from pac_controller.controller import Command, Controller
+from pac_controller.laws import make_controller
+from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
@@ -35,6 +36,7 @@ class Scenario:
     observer: ObserverParameters = field(default_factory=ObserverParameters)
     controller: ControllerParameters = field(default_factory=ControllerParameters)
     reference: ReferenceParameters = field(default_factory=ReferenceParameters)
+    laws: LawParameters = field(default_factory=LawParameters)  # pid / lqr design (controller.law)
     loop: LoopParameters = field(default_factory=LoopParameters)
 
 
@@ -63,11 +65,12 @@ DIVERGENCE_DISPLACEMENT = 1.0
 DIVERGENCE_FORCE = 1e6
 
 
-def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, BacksteppingController]:
+def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, Controller]:
     dt = s.loop.sample_period
     plant = Plant(s.pantograph, s.track, s.catenary, s.plant, dt)
     observer = AdaptiveObserver(s.pantograph, s.track, s.observer, dt)
-    controller = BacksteppingController(s.pantograph, s.track, s.controller, s.reference, dt)
+    # backstepping_known is told the plant's own catenary: the oracle.
+    controller = make_controller(s.pantograph, s.track, s.controller, s.reference, dt, s.laws, s.catenary)
     return plant, observer, controller
 
 

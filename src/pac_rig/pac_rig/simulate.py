@@ -15,7 +15,7 @@ from pac_common.parameters import ParameterError, ParameterSet
 
 from .bag import BagWriter
 from .cli import OverrideError, add_override_arguments, overrides_from_args
-from .closed_loop import DivergenceError, Scenario, run
+from .closed_loop import DivergenceError, Scenario, build_cores, run
 
 
 def scenario_sets(s: Scenario) -> dict[str, ParameterSet]:
@@ -109,9 +109,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("the bag directory is required")
     try:
         scenario = scenario_from_flat(overrides_from_args(args))
+        build_cores(scenario)  # a law design the parameters do not allow is refused here
     except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
         return 2
+    if scenario.controller.mode == "passive":
+        print("simulate: parameter 'mode' is deprecated: use law:=passive", file=sys.stderr)
     if scenario.loop.duration <= 0.0:
         print("simulate: invalid parameter 'duration' = 0.0: allowed (0, 86400] s offline", file=sys.stderr)
         return 2

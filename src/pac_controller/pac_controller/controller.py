@@ -1,0 +1,145 @@
+"""The law-agnostic controller: reference, estimate checks, fallback, actuator limits, tick bookkeeping.
+
+A control law (a :class:`Law`: adaptive or known-theta backstepping, PID, LQR,
+passive; the registry is :mod:`pac_controller.laws`) only proposes the force
+u_law for a tick.  Everything else is the same for every law:
+
+* F_r and its derivatives are a pure function of time (reference.py);
+* an estimate with a non-finite value never reaches a law that uses it: the
+  fallback command answers it;
+* every command passes the slew limit (from the last command, at least one
+  period) and then the saturation [u_min, u_max];
+* the law is told the force actually commanded (``commit``), so a law with state
+  (an integrator) can stop winding up against the limits, and it is restarted
+  bumplessly from the actuator's force (``restart``) whenever the previous command
+  was not its own (start, fallback, a new run).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from pac_model import model
+
+from .parameters import ControllerParameters, ReferenceParameters
+from .reference import ForceReference
+
+Errors = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Command:
+    """The controller's output at one tick."""
+
+    tick: int
+    time: float
+    u: float  # applied (saturated) actuator force [N]
+    u_unsaturated: float  # what the law asked for [N]
+    force_reference: float  # F_r [N]
+    tracking_error: Errors  # law-specific; backstepping: (e1, e2, e3), eqs. (24), (29), (36)
+    saturated: bool
+    mode: str  # "active", "passive" or "fallback"
+
+
+class Law(Protocol):
+    """What a control-law core provides to :class:`Controller`."""
+
+    #: Command.mode of its commands: "active" (feedback) or "passive".
+    mode: str
+    #: False: the law ignores the estimate (then a non-finite one does not force the fallback).
+    uses_estimate: bool
+
+    def restart(self, u_applied: float | None) -> None:
+        """Forget the law's state; the next output continues from ``u_applied`` (None: at rest)."""
+
+    def output(
+        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+    ) -> tuple[float, Errors]:
+        """The unlimited force u_law for ``tick`` and three law-specific errors; no state change."""
+
+    def commit(self, tick: int, u_applied: float) -> None:
+        """The limited force actually commanded for ``tick``: update the law's state."""
+
+
+def contact_force_estimate(t: float, omega: float, z_hat: np.ndarray, theta_hat: np.ndarray) -> float:
+    """F_hat = k_hat z_hat_1, k_hat = v(t)^T theta_hat (eqs. (6), (8))."""
+    return model.contact_force(model.stiffness(t, omega, theta_hat), float(z_hat[0]), unilateral=False)
+
+
+class Controller:
+    """One law inside the shared safety chain.
+
+    Explicit state: the last commanded force and its tick (slew limit), and the tick of
+    the law's last own command (None: the law must restart before its next output).
+    """
+
+    def __init__(
+        self,
+        law: Law,
+        params: ControllerParameters,
+        reference: ReferenceParameters,
+        sample_period: float,
+        name: str = "",
+    ) -> None:
+        if not (math.isfinite(sample_period) and sample_period > 0.0):
+            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        self.law = law
+        self.name = name
+        self.params = params
+        self.reference = ForceReference(reference)
+        self.sample_period = sample_period
+        self.last_u: float | None = None  # None: no command yet (no rate limit on the first)
+        self.last_tick = -1
+        self.law_tick: int | None = None
+
+    def compute(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> Command:
+        """The command for ``tick`` from the estimate of that tick."""
+        t = tick * self.sample_period
+        f_r = self.reference.at(t)
+        z_hat, theta_hat = np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float)
+        if self.law.uses_estimate and not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
+            return self.fallback(tick)
+        if self.law_tick is None or tick <= self.law_tick:
+            self.law.restart(self.last_u)
+        u_law, errors = self.law.output(tick, t, f_r, z_hat, theta_hat)
+        if not math.isfinite(u_law):
+            return self.fallback(tick)
+        cmd = self._limited(tick, t, u_law, f_r[0], errors, self.law.mode)
+        self.law.commit(tick, cmd.u)
+        self.law_tick = tick
+        return cmd
+
+    def fallback(self, tick: int) -> Command:
+        """The safe command: the static uplift ``fallback_force``, reached within the slew limit."""
+        t = tick * self.sample_period
+        force = self.params.fallback_force
+        self.law_tick = None  # the law did not command this: it restarts from here
+        return self._limited(tick, t, force, self.reference.at(t)[0], (0.0, 0.0, 0.0), "fallback")
+
+    def _limited(
+        self, tick: int, t: float, u: float, force_reference: float, errors: Errors, mode: str
+    ) -> Command:
+        """Slew-rate limit from the last command, then saturation; updates the actuator state."""
+        p = self.params
+        applied = u
+        if self.last_u is not None:
+            # At least one period: a command whose tick is not after the last one (a fallback
+            # tick extrapolated ahead of a returning estimate) is still rate limited.
+            step = p.slew_rate_max * self.sample_period * max(1, tick - self.last_tick)
+            applied = min(max(applied, self.last_u - step), self.last_u + step)
+        applied = min(max(applied, p.u_min), p.u_max)
+        self.last_u, self.last_tick = applied, tick
+        return Command(
+            tick=tick,
+            time=t,
+            u=applied,
+            u_unsaturated=u,
+            force_reference=force_reference,
+            tracking_error=errors,
+            saturated=applied != u,
+            mode=mode,
+        )

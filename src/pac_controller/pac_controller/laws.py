@@ -1,0 +1,92 @@
+"""The control laws by name (``law`` parameter) and the controller that runs one of them.
+
+| name | core | uses |
+|---|---|---|
+| adaptive_backstepping | backstepping.BacksteppingController | z_hat, theta_hat (eq. (43)) |
+| backstepping_known | backstepping.KnownThetaBackstepping | z_hat, the true theta (oracle) |
+| pid | pid.PidLaw (gains from pid.design_pid) | F_hat = k_hat z_hat_1 |
+| lqr | lqr.LqrLaw (gains from lqr.design_lqr) | z_hat, F_hat |
+| passive | passive.PassiveLaw | nothing (u = F_r) |
+
+Every law runs inside the same :class:`pac_controller.controller.Controller`
+(reference, fallback, slew limit, saturation).  Equations: each module's docstring
+and docs/laws.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+
+from .backstepping import BacksteppingController, KnownThetaBackstepping
+from .controller import Controller, Law
+from .lqr import LqrLaw, design_lqr
+from .parameters import LAW_NAMES, ControllerParameters, LawParameters, ReferenceParameters
+from .passive import PassiveLaw
+from .pid import PidLaw, design_pid
+
+#: Laws that need the catenary parameters (k0, alpha, beta): the controller is told them.
+NEEDS_CATENARY = frozenset({"backstepping_known"})
+
+
+def _adaptive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return BacksteppingController(pantograph, track, params, reference, dt)
+
+
+def _known(pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return KnownThetaBackstepping(BacksteppingController(pantograph, track, params, reference, dt), catenary)
+
+
+def _pid(pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return PidLaw(design_pid(pantograph, laws, dt), track, dt)
+
+
+def _lqr(pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return LqrLaw(design_lqr(pantograph, laws, dt), pantograph, track, dt, laws.lqr_integral_time)
+
+
+def _passive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return PassiveLaw()
+
+
+LAWS: dict[str, Callable[..., Law]] = {
+    "adaptive_backstepping": _adaptive,
+    "backstepping_known": _known,
+    "pid": _pid,
+    "lqr": _lqr,
+    "passive": _passive,
+}
+assert tuple(LAWS) == LAW_NAMES, "the registry and the parameter's choices must agree"
+
+
+def make_law(
+    name: str,
+    pantograph: PantographParameters,
+    track: TrackParameters,
+    params: ControllerParameters,
+    reference: ReferenceParameters,
+    sample_period: float,
+    laws: LawParameters | None = None,
+    catenary: CatenaryParameters | None = None,
+) -> Law:
+    """The core of law ``name``; raises ParameterError when its design fails (pid, lqr)."""
+    if name in NEEDS_CATENARY and catenary is None:
+        raise ValueError(f"law {name} needs the catenary parameters (k0, alpha, beta)")
+    build = LAWS[name]
+    return build(pantograph, track, params, reference, laws or LawParameters(), catenary, sample_period)
+
+
+def make_controller(
+    pantograph: PantographParameters,
+    track: TrackParameters,
+    params: ControllerParameters,
+    reference: ReferenceParameters,
+    sample_period: float,
+    laws: LawParameters | None = None,
+    catenary: CatenaryParameters | None = None,
+) -> Controller:
+    """The controller running ``params.effective_law`` (``law``, or passive by the deprecated ``mode``)."""
+    name = params.effective_law
+    law = make_law(name, pantograph, track, params, reference, sample_period, laws, catenary)
+    return Controller(law, params, reference, sample_period, name=name)
