@@ -4,9 +4,14 @@ The rig (plant in real time at 200 Hz, observer, controller) runs in its own ROS
 module; every process it starts is stopped at teardown, pass or fail.
 """
 
+import fcntl
+import os
+import pty
 import re
 import signal
+import struct
 import subprocess
+import termios
 import time
 from pathlib import Path
 
@@ -245,3 +250,54 @@ def test_unknown_verbs_and_subcommands_say_so_in_one_line():
         out = ros2(env, *args)
         assert out.returncode == 2, args
         assert len(out.stderr.strip().splitlines()) == 1 and out.stdout == "", (args, out.stderr)
+
+
+#: Executables that are ROS nodes (run_node): their --help belongs to the node base class.
+NODE_EXECUTABLES = {"plant_node", "observer_node", "controller_node", "recorder", "live_view"}
+
+
+def test_every_pac_tool_answers_help_with_its_usage():
+    env = node_env()
+    listed = ros2(env, "pkg", "executables").stdout.split("\n")
+    tools = [line.split() for line in listed if line.startswith("pac_")]
+    tools = [(pkg, exe) for pkg, exe in tools if exe not in NODE_EXECUTABLES]
+    assert {"simulate", "replay", "info", "report", "demo", "sweep", "reproduce"} <= {e for _, e in tools}
+    for pkg, exe in tools:
+        out = ros2(env, "run", pkg, exe, "--help")
+        assert out.returncode == 0 and out.stdout.startswith(f"usage: {exe}"), (pkg, exe, out.stderr[-300:])
+
+
+def test_simulate_shows_progress_on_a_terminal_only(tmp_path):
+    env = node_env()
+    cmd = [ROS2, "run", "pac_rig", "simulate", "-p", "duration:=1.0"]
+    piped = subprocess.run(
+        [*cmd[:4], str(tmp_path / "piped"), *cmd[4:]], capture_output=True, text=True, env=env
+    )
+    assert piped.returncode == 0, piped.stderr
+    assert "%|" not in piped.stderr and "tick" not in piped.stderr  # quiet in logs and pipes
+
+    master, slave = pty.openpty()
+    # A new pty is 0 columns wide, and tqdm draws nothing in no width: give it a terminal's size.
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))
+    proc = subprocess.Popen(
+        [*cmd[:4], str(tmp_path / "tty"), *cmd[4:]], stdout=subprocess.DEVNULL, stderr=slave, env=env
+    )
+    os.close(slave)
+    chunks = []
+    try:
+        while True:
+            try:
+                data = os.read(master, 4096)
+            except OSError:  # EIO: the child closed its terminal
+                break
+            if not data:
+                break
+            chunks.append(data)
+        assert proc.wait(timeout=120) == 0
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    shown = b"".join(chunks).decode(errors="replace")
+    assert "%|" in shown and "tick" in shown, shown
