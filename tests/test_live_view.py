@@ -94,6 +94,8 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
     # foxglove.websocket.v1, which it refuses); current Foxglove clients offer both, as here.
     with connect(url, subprotocols=SUBPROTOCOLS, open_timeout=10, proxy=None) as ws:
         assert ws.subprotocol in SUBPROTOCOLS
+        info = json.loads(ws.recv(timeout=10))
+        assert info["op"] == "serverInfo" and info["name"] == "pac live_view"
         channels = {}
         deadline = time.monotonic() + 10
         while len(channels) < len(TOPICS) and time.monotonic() < deadline:
