@@ -108,7 +108,7 @@ def test_node_list_and_info(live):
 
 def test_topic_echo(live):
     env, _ = live
-    once = ros2(env, "topic", "echo", "/estimate", "--once")
+    once = ros2(env, "topic", "echo", "/estimate", "--once", "--timeout", "20")
     assert once.returncode == 0, once.stderr
     assert once.stdout.endswith("---\n") and once.stdout.count("---\n") == 1
     msg = yaml.safe_load(once.stdout.removesuffix("---\n"))
@@ -120,7 +120,7 @@ def test_topic_echo(live):
     assert set(msg["header"]["stamp"]) == {"sec", "nanosec"}
     assert np.isfinite(msg["stiffness_hat"]) and msg["stiffness_hat"] > 0
 
-    csv = ros2(env, "topic", "echo", "command", "--csv", "-n", "3")
+    csv = ros2(env, "topic", "echo", "command", "--csv", "-n", "3", "--timeout", "20")
     assert csv.returncode == 0, csv.stderr
     rows = [line.split(",") for line in csv.stdout.splitlines()]
     # sec, nanosec, frame_id, tick, u, u_unsaturated, F_r, e1, e2, e3, saturated, mode, estimate age
@@ -128,10 +128,11 @@ def test_topic_echo(live):
     ticks = [int(r[3]) for r in rows]
     assert ticks == sorted(ticks) and len(set(ticks)) == 3
 
-    field = ros2(env, "topic", "echo", "/command", "--field", "u", "-n", "2")
+    field = ros2(env, "topic", "echo", "/command", "--field", "u", "-n", "2", "--timeout", "20")
+    assert field.returncode == 0, field.stderr
     values = [float(v) for v in field.stdout.split("---\n") if v.strip()]
     assert len(values) == 2 and all(np.isfinite(values))
-    bad = ros2(env, "topic", "echo", "/command", "--field", "no_such_field", "--once")
+    bad = ros2(env, "topic", "echo", "/command", "--field", "no_such_field", "--once", "--timeout", "20")
     assert bad.returncode == 2 and "no_such_field" in bad.stderr
 
     nobody = ros2(
