@@ -11,7 +11,7 @@
 #     comes from install/setup.bash. Child processes inherit all of it.
 #   - ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, RMW_IMPLEMENTATION=rmw_fastrtps_cpp,
 #     FASTRTPS_DEFAULT_PROFILES_FILE=<repo>/config/fastdds_profile.xml
-#   - <repo>/scripts/bin (a minimal `ros2` with `run` and `pkg`) appended to PATH, unless a real
+#   - <repo>/scripts/bin (a stand-in `ros2` with the daily verbs) appended to PATH, unless a real
 #     ros2cli is already on PATH.
 # ROS_DOMAIN_ID is left as it is: choose one per run (scripts/run_tests.sh reserves one).
 
@@ -68,7 +68,7 @@ _pac_env_main() {
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
     export FASTRTPS_DEFAULT_PROFILES_FILE="$root/config/fastdds_profile.xml"
 
-    # Minimal ros2 (run/pkg) unless a real ros2cli is already on PATH.
+    # The stand-in ros2 (scripts/bin/ros2) unless a real ros2cli is already on PATH.
     p="$(command -v ros2 2>/dev/null || true)"
     if [ -z "$p" ] || [ "$p" = "$root/scripts/bin/ros2" ]; then
         _pac_append PATH "$root/scripts/bin"

@@ -187,18 +187,26 @@ def test_sigint_stops_every_node_cleanly_and_the_bag_reads(rigs):
     assert counts["plant_truth"] == n_truth
 
 
+ROS2_SHIM = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
+
+
 def test_ros2_shim(domain_id):
+    """The stand-in itself, by its path (a real ros2cli first on PATH must not be tested instead)."""
     env = node_env(domain_id)
-    out = subprocess.run(["ros2", "pkg", "executables", "pac_rig"], capture_output=True, text=True, env=env)
-    assert "pac_rig recorder" in out.stdout
-    bad = subprocess.run(["ros2", "topic", "list"], capture_output=True, text=True, env=env)
-    assert bad.returncode == 2 and "only 'run', 'pkg' and 'param'" in bad.stderr
+    out = subprocess.run(
+        [ROS2_SHIM, "pkg", "executables", "pac_rig"], capture_output=True, text=True, env=env
+    )
+    assert "pac_rig recorder" in out.stdout and "pac_rig live_view" in out.stdout
+    bad = subprocess.run([ROS2_SHIM, "daemon", "stop"], capture_output=True, text=True, env=env)
+    assert bad.returncode == 2 and bad.stderr.strip().splitlines() == [
+        "ros2: unknown verb 'daemon': this minimal ros2 provides run, pkg, topic, node, param, interface, bag"
+    ]
 
 
 def test_ros2_param_set_and_get_on_a_live_node(domain_id):
     env = node_env(domain_id)
     node = subprocess.Popen(
-        ["ros2", "run", "pac_controller", "controller_node"],
+        [ROS2_SHIM, "run", "pac_controller", "controller_node"],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -206,8 +214,12 @@ def test_ros2_param_set_and_get_on_a_live_node(domain_id):
     try:
 
         def ros2(*args):
-            return subprocess.run(["ros2", *args], capture_output=True, text=True, env=env, timeout=60)
+            return subprocess.run([ROS2_SHIM, *args], capture_output=True, text=True, env=env, timeout=60)
 
+        # The shim answers "not found" within ~2 s (as ros2cli): wait for the node to be up first.
+        deadline = time.monotonic() + 60
+        while "/controller_node" not in ros2("node", "list").stdout.splitlines():
+            assert time.monotonic() < deadline and node.poll() is None
         assert ros2("param", "get", "controller_node", "c1").stdout.strip() == "40.0"
         assert ros2("param", "set", "controller_node", "c1", "30.5").returncode == 0
         assert ros2("param", "get", "/controller_node", "c1").stdout.strip() == "30.5"

@@ -27,6 +27,7 @@ setup(
             "recorder = pac_rig.recorder:main",
             "simulate = pac_rig.simulate:main",
             "replay = pac_rig.replay:main",
+            "live_view = pac_rig.live_view:main",
         ],
     },
 )

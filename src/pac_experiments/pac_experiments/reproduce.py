@@ -18,6 +18,7 @@ from pac_analysis.metrics import compute_metrics, markdown_table
 from pac_analysis.plots import overlay_figure, run_figure
 from pac_common import jsonio
 from pac_rig.bag import read_bag
+from pac_rig.progress import progress
 from pac_rig.simulate import RunResult, scenario_from_flat, simulate_to_bag
 
 #: Section 6's gains, run with an actuator without limits as in the paper's continuous simulation.
@@ -48,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     jobs = [(name, values, args.bags / name) for name, values in RUNS.items()]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        results = dict(zip(RUNS, pool.map(_run, jobs), strict=True))
+        results = dict(zip(RUNS, progress(pool.map(_run, jobs), len(jobs), "reproduce", "run"), strict=True))
     args.reports.mkdir(parents=True, exist_ok=True)
     bags, metrics, notes = {}, {}, []
     for name, result in results.items():

@@ -14,6 +14,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from pac_rig.closed_loop import DivergenceError, run
+from pac_rig.progress import progress
 from pac_rig.simulate import scenario_from_flat
 
 GAINS = [(400, 400, 50), (350, 350, 50), (150, 150, 50), (80, 80, 50), (40, 40, 50), (20, 20, 20)]
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     jobs = [(g, d, args.duration) for g in GAINS for d in DELAYS]
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        cells = list(pool.map(cell, jobs))
+        cells = list(progress(pool.map(cell, jobs), len(jobs), "sweep", "cell"))
     print(f"Contact-force std [N] over [3, {args.duration:g}] s, constant 100 N, ideal actuator\n")
     print("| c1, c2, c3 | " + " | ".join(f"delay {d}" for d in DELAYS) + " |")
     print("|---|" + "---:|" * len(DELAYS))

@@ -16,6 +16,7 @@ from pac_common.parameters import ParameterError, ParameterSet
 from .bag import BagWriter
 from .cli import OverrideError, add_override_arguments, overrides_from_args
 from .closed_loop import DivergenceError, Scenario, build_cores, run
+from .progress import progress
 
 
 def scenario_sets(s: Scenario) -> dict[str, ParameterSet]:
@@ -54,8 +55,13 @@ class RunResult:
     simulated_seconds: float
 
 
-def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -> RunResult:
-    """Run ``scenario`` offline and record the four topics; log time = simulated time."""
+def simulate_to_bag(
+    scenario: Scenario, bag_path: Path | str, label: str = "", show_progress: bool = False
+) -> RunResult:
+    """Run ``scenario`` offline and record the four topics; log time = simulated time.
+
+    ``show_progress``: a tick progress bar on stderr when it is a terminal.
+    """
     rate = scenario.loop.rate_hz
     delay = scenario.loop.command_delay_ticks
     start = time.perf_counter()
@@ -74,7 +80,10 @@ def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
         try:
-            for rec in run(scenario):
+            records = run(scenario)
+            if show_progress:
+                records = progress(records, scenario.loop.ticks, label or "simulate", "tick")
+            for rec in records:
                 k = rec.measurement.tick
                 stamp = messages.tick_stamp_ns(k, rate)
                 bag.write("measurement", messages.measurement_fields(rec.measurement, stamp), stamp)
@@ -118,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     if scenario.loop.duration <= 0.0:
         print("simulate: invalid parameter 'duration' = 0.0: allowed (0, 86400] s offline", file=sys.stderr)
         return 2
-    result = simulate_to_bag(scenario, args.bag, label=args.bag.name)
+    result = simulate_to_bag(scenario, args.bag, label=args.bag.name, show_progress=True)
     speed = result.simulated_seconds / result.wall_seconds
     print(
         f"wrote {result.bag_path}: {result.ticks} ticks, {result.simulated_seconds:g} s simulated "
