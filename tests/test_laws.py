@@ -344,3 +344,19 @@ def test_controller_node_refuses_a_bad_law_setting(domain_id, params, name, allo
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, proc.stderr
     assert f"invalid parameter '{name}'" in lines[0] and allowed in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("params", "name"),
+    [(["law:=nope"], "law"), (["law:=pid", "pid_bandwidth:=100.0"], "pid_bandwidth")],
+)
+def test_simulate_refuses_a_bad_law_setting(tmp_path, capsys, params, name):
+    from pac_rig.simulate import main
+
+    argv = [str(tmp_path / "bag")]
+    for p in params:
+        argv += ["-p", p]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"invalid parameter '{name}'" in err[0]
+    assert not (tmp_path / "bag").exists()
