@@ -12,7 +12,10 @@ BAG ?=
 setup:
 	bash scripts/setup.sh
 
+# Style first (ruff, the project's packages first-party), then the tests: CI runs exactly this.
 test: setup
+	scripts/with_env.sh ruff check src tests scripts
+	scripts/with_env.sh ruff format --check src tests scripts
 	bash scripts/run_tests.sh
 
 lint: setup

@@ -2,6 +2,7 @@
 
 import json
 import shutil
+import signal
 import subprocess
 
 import numpy as np
@@ -153,7 +154,7 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
     finally:
         for p in procs:
             if p.poll() is None:
-                p.send_signal(2)
+                p.send_signal(signal.SIGINT)
         for p in procs:
             try:
                 p.communicate(timeout=30)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from pac_common.parameters import ParameterError
+from pac_common.parameters import ParameterError, RateParameters
 from pac_controller.backstepping import BacksteppingController, product_derivatives, reciprocal_derivatives
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
@@ -14,7 +14,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
-DT = 1e-3
+DT = RateParameters().sample_period  # the nodes' default rate
 PANTO, TRACK, CAT = PantographParameters(), TrackParameters(), CatenaryParameters()
 
 

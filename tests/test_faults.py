@@ -6,6 +6,7 @@ recovery time) are measurements; the assertions are the safety properties and lo
 
 import math
 import os
+import signal
 import subprocess
 import time
 
@@ -18,16 +19,18 @@ from rclpy.parameter_client import AsyncParameterClient
 from pac_analysis.recover import recover
 from pac_common import messages
 from pac_common.node import PUBLISH_QOS
-from pac_common.parameters import ParameterError
+from pac_common.parameters import ParameterError, RateParameters
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference
+from pac_plant.plant_node import PlantNodeOptions
 from pac_rig.bag import read_bag
-from pac_rig.configs import NODE_MODULES
+from pac_rig.configs import NODE_MODULES, parameter_sets
 from pac_rig.launcher import NODES
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 U_MIN, U_MAX = ControllerParameters().u_min, ControllerParameters().u_max
 WATCHDOG = ControllerParameters().watchdog_ticks
+PLANT_DEFAULTS = PlantNodeOptions()
 
 
 def wait_for_log(proc, text, timeout=60.0):
@@ -58,7 +61,8 @@ def tracking_error_after(bag, t_from):
     truth = bag.topics["plant_truth"]
     keep = truth.log_time_ns >= t_from
     reference = ForceReference(ReferenceParameters())
-    ref = np.array([reference.at(k * 1e-3)[0] for k in truth["tick"][keep]])
+    dt = RateParameters().sample_period
+    ref = np.array([reference.at(k * dt)[0] for k in truth["tick"][keep]])
     return truth.log_time_ns[keep], np.abs(truth["contact_force"][keep] - ref)
 
 
@@ -132,13 +136,14 @@ def test_controller_crash_plant_holds_then_goes_passive_and_recovers(rigs):
     truth = bag.topics["plant_truth"]
     after = truth.log_time_ns > killed_at
     passive = np.nonzero(after & (truth["command_source"] == messages.COMMAND_PASSIVE))[0]
-    assert passive.size > 0 and np.all(truth["u_applied"][passive] == 100.0)
+    assert passive.size > 0 and np.all(truth["u_applied"][passive] == PLANT_DEFAULTS.passive_uplift)
     last_fresh = np.nonzero(after & (truth["command_source"] == messages.COMMAND_FRESH))[0]
     timeout_ticks = int(
         truth["tick"][passive[0]] - truth["tick"][np.nonzero(truth.log_time_ns <= killed_at)[0][-1]]
     )
-    print(f"\ncontroller killed: passive uplift after {timeout_ticks} ticks (command_timeout_ticks 50)")
-    assert 50 <= timeout_ticks <= 80
+    timeout = PLANT_DEFAULTS.command_timeout_ticks
+    print(f"\ncontroller killed: passive uplift after {timeout_ticks} ticks (timeout {timeout})")
+    assert timeout <= timeout_ticks <= timeout + 30
     assert truth["command_timeouts"][-1] >= 1 and last_fresh.size > 0
     cmd = bag.topics["command"]
     first_new = cmd.log_time_ns[cmd.log_time_ns > restarted_at].min()
@@ -252,12 +257,7 @@ def invalid_value(spec):
     return int(value) if spec.kind is int and math.isfinite(value) else float(value)
 
 
-ALL_SPECS = [
-    (node, spec)
-    for node, (_, module) in NODE_MODULES.items()
-    for cls in __import__(module, fromlist=["PARAMETER_SETS"]).PARAMETER_SETS
-    for spec in cls.specs()
-]
+ALL_SPECS = [(node, spec) for node in NODE_MODULES for cls in parameter_sets(node) for spec in cls.specs()]
 
 
 @pytest.mark.parametrize(("node", "spec"), ALL_SPECS, ids=[f"{n}.{s.name}" for n, s in ALL_SPECS])
@@ -293,10 +293,10 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
 
     try:
         refused = 0
-        for name, (_, module) in NODE_MODULES.items():
+        for name in NODE_MODULES:
             client = AsyncParameterClient(node, name)
             assert client.wait_for_services(timeout_sec=30), name
-            specs = [s for cls in __import__(module, fromlist=["P"]).PARAMETER_SETS for s in cls.specs()]
+            specs = [s for cls in parameter_sets(name) for s in cls.specs()]
             for spec in specs:
                 value = invalid_value(spec)
                 if value is None:
@@ -317,7 +317,7 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
         node.destroy_node()
         rclpy.shutdown(context=context)
         for p in procs.values():
-            p.send_signal(2)
+            p.send_signal(signal.SIGINT)
         for p in procs.values():
             try:
                 p.wait(timeout=15)
@@ -342,7 +342,7 @@ def test_two_rigs_in_parallel_do_not_hear_each_other(rigs, tmp_path):
         offline = tmp_path / f"offline_{amplitude:g}"
         simulate_to_bag(scenario_from_flat({"duration": 1.5, "force_amplitude": amplitude}), offline)
         live, ref = read_bag(rig.bag_path).topics, read_bag(offline).topics
-        for topic in messages.TOPICS:
+        for topic in messages.LOOP_TOPICS:
             ticks, idx = np.unique(live[topic]["tick"], return_index=True)
             assert ticks.size == 1500 and live[topic].log_time_ns.size == ref[topic].log_time_ns.size + (
                 live[topic].log_time_ns.size - ticks.size

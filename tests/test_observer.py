@@ -5,13 +5,14 @@ import math
 import numpy as np
 import pytest
 
+from pac_common.parameters import RateParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
-DT = 1e-3
+DT = RateParameters().sample_period  # the nodes' default rate
 PANTO, TRACK, CAT = PantographParameters(), TrackParameters(), CatenaryParameters()
 
 

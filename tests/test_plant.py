@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from pac_common.parameters import RateParameters
 from pac_model import model
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
-DT = 1e-3
+DT = RateParameters().sample_period  # the nodes' default rate
 SCALE = np.array([0.03, 0.03, 0.5, 0.5])  # typical magnitudes of z at 100 N
 
 

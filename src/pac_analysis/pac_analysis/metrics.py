@@ -134,7 +134,7 @@ _ROWS = (
     ("contact_loss_percent", "contact lost (F <= 0)", "%"),
     ("tracking_rms", "tracking RMS, F - F_r", "N"),
     ("stiffness_rel_rms_percent", "k_hat relative RMS error", "%"),
-    ("u_max_abs", "max |u|", "N"),
+    ("u_max_abs", "max \\|u\\|", "N"),  # "|" escaped: a Markdown table cell
     ("u_rms", "RMS u", "N"),
     ("ticks_expected", "ticks expected", ""),
     ("ticks_recorded", "ticks recorded", ""),

@@ -11,24 +11,15 @@ line per problem on stderr, exit status 1, and the results that were computable.
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 from pathlib import Path
 from typing import Any
 
+from pac_common import jsonio
 from pac_rig.bag import BagData, BagError, read_bag
 
 from .metrics import compute_metrics, loop_timing, markdown_table, missing_inputs, timing_table
 from .plots import overlay_figure, run_figure
-
-
-def _json_safe(value: Any) -> Any:
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_safe(v) for k, v in value.items()}
-    return value
 
 
 def report(
@@ -80,9 +71,7 @@ def report(
     if len(loaded) > 1:
         text.append("![overlay](overlay.png)")
     (out / "metrics.md").write_text("\n".join(text) + "\n")
-    (out / "metrics.json").write_text(
-        json.dumps(_json_safe({"runs": results, "problems": problems}), indent=2)
-    )
+    (out / "metrics.json").write_text(jsonio.dumps({"runs": results, "problems": problems}, indent=2))
     return results, problems
 
 

@@ -21,17 +21,21 @@ FRAME_MEASUREMENT = "pac_interfaces/msg/FrameMeasurement"
 PLANT_TRUTH = "pac_interfaces/msg/PlantTruth"
 OBSERVER_ESTIMATE = "pac_interfaces/msg/ObserverEstimate"
 ACTUATOR_COMMAND = "pac_interfaces/msg/ActuatorCommand"
+RUN_STATUS = "pac_interfaces/msg/RunStatus"
 
-#: Relative topic names (a namespace moves the whole rig) and their types.
-TOPICS: dict[str, str] = {
+#: The loop's topics, one message per tick each: relative names (a namespace moves the whole rig).
+LOOP_TOPICS: dict[str, str] = {
     "measurement": FRAME_MEASUREMENT,
     "plant_truth": PLANT_TRUTH,
     "estimate": OBSERVER_ESTIMATE,
     "command": ACTUATOR_COMMAND,
 }
+#: Every pac topic: the loop's, and the plant's run start and end.
+TOPICS: dict[str, str] = {**LOOP_TOPICS, "run_status": RUN_STATUS}
 
 MODES = {"active": 0, "passive": 1, "fallback": 2}
 COMMAND_FRESH, COMMAND_HELD, COMMAND_PASSIVE = 0, 1, 2
+RUN_RUNNING, RUN_ENDED = 0, 1
 STATUS_OK, STATUS_DIVERGED, STATUS_REINITIALISED, STATUS_MEASUREMENT_REJECTED = 0, 1, 2, 3
 
 
@@ -118,6 +122,11 @@ def command_fields(c: Any, stamp_ns: int, *, estimate_age_ticks: int = 0) -> dic
         "mode": MODES[c.mode],
         "estimate_age_ticks": estimate_age_ticks,
     }
+
+
+def run_status_fields(tick: int, state: int, duration: float, stamp_ns: int) -> dict[str, Any]:
+    """RunStatus: the plant's run started (tick 0) or ended (its last tick)."""
+    return {"header": header(stamp_ns), "tick": tick, "state": state, "duration": duration}
 
 
 def cdr_tick(data: bytes | memoryview) -> int:

@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar, TypeVar
+from pathlib import Path
+from typing import Any, TypeVar
 
 Scalar = float | int | str | bool
 
@@ -31,6 +33,19 @@ class ParameterError(ValueError):
         super().__init__(f"invalid parameter '{name}' = {value!r}: allowed {allowed}")
 
 
+class UnknownParameterError(ParameterError):
+    """A parameter name the program does not have (a typo): refused, never ignored."""
+
+    def __init__(self, name: str, value: Any, program: str) -> None:
+        self.name = name
+        self.value = value
+        self.allowed = f"a parameter of {program}"
+        ValueError.__init__(
+            self,
+            f"unknown parameter '{name}' = {value!r}: {program} has no such parameter (--help lists them)",
+        )
+
+
 @dataclass(frozen=True)
 class ParameterSpec:
     """What one parameter may be: type, bounds or choices, unit, meaning."""
@@ -45,6 +60,7 @@ class ParameterSpec:
     high_open: bool = False
     choices: tuple[str, ...] | None = None
     length: int | None = None  # fixed-length float array when set
+    runtime: bool = False  # may be changed while the node runs (validated like at start)
 
     @property
     def kind(self) -> type:
@@ -121,6 +137,19 @@ class ParameterSpec:
         return True
 
 
+def check_new_directory(name: str, path: Path) -> None:
+    """A directory to be created (a bag): it must not exist and its parent must be a writable folder."""
+    if path.exists():
+        raise ParameterError(name, str(path), "a path that does not exist yet")
+    parent = path.absolute().parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent  # missing folders are created: the nearest existing one decides
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise ParameterError(
+            name, str(path), f"a new directory under a writable folder ({parent} is not one)"
+        )
+
+
 def _fmt(x: float) -> str:
     return f"{x:g}"
 
@@ -136,8 +165,13 @@ def parameter(
     high_open: bool = False,
     choices: tuple[str, ...] | None = None,
     length: int | None = None,
+    runtime: bool = False,
 ) -> Any:
-    """Declare a dataclass field as a validated parameter (see :class:`ParameterSpec`)."""
+    """Declare a dataclass field as a validated parameter (see :class:`ParameterSpec`).
+
+    ``runtime=True``: a node may change it while it runs (``ros2 param set``), validated by the
+    same rule; every other parameter is fixed for a run.
+    """
     meta = {
         "description": description,
         "unit": unit,
@@ -147,6 +181,7 @@ def parameter(
         "high_open": high_open,
         "choices": choices,
         "length": length,
+        "runtime": runtime,
     }
     return field(default=default, metadata={"pac_parameter": meta})
 
@@ -157,8 +192,6 @@ P = TypeVar("P", bound="ParameterSet")
 @dataclass(frozen=True)
 class ParameterSet:
     """Base of every validated parameter set: fields checked on construction."""
-
-    cross_checks: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self) -> None:
         for spec in self.specs():
@@ -182,6 +215,11 @@ class ParameterSet:
         """Build from a mapping that may hold other keys too (those are ignored)."""
         names = {s.name for s in cls.specs()}
         return cls(**{k: v for k, v in values.items() if k in names})
+
+    @classmethod
+    def has_runtime(cls) -> bool:
+        """True when any of its parameters may change while a node runs."""
+        return any(spec.runtime for spec in cls.specs())
 
     def as_dict(self) -> dict[str, Any]:
         return {s.name: getattr(self, s.name) for s in self.specs()}
@@ -227,4 +265,15 @@ class NodeOptions(ParameterSet):
         "when refused the node warns and runs with normal scheduling",
         low=0,
         high=99,
+    )
+
+
+@dataclass(frozen=True)
+class RunEndOptions(ParameterSet):
+    """What a node that follows the plant's run (observer, controller, recorder) does at its end."""
+
+    stop_after_run: bool = parameter(
+        False,
+        "exit (status 0) once the plant has announced the end of its run and this node has handled "
+        "its last tick; false: stay idle until a new run starts",
     )

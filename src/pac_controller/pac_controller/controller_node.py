@@ -22,17 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from pac_common import messages
-from pac_common.node import (
-    LOOP_QOS,
-    PUBLISH_QOS,
-    Node,
-    declare_parameter_sets,
-    handle_parameter_changes,
-    parameter_names,
-    run_node,
-    set_realtime_priority,
-)
-from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
+from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
+from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
 from .laws import NEEDS_CATENARY, make_controller
@@ -44,70 +35,81 @@ class EstimateLimits(ParameterSet):
     """What the controller accepts as an estimate at all (else: the fallback command)."""
 
     estimate_position_limit: float = parameter(
-        0.5, "|z_hat_1|, |z_hat_2| beyond this is implausible", "m", low=0.0, low_open=True, high=10.0
+        0.5,
+        "|z_hat_1|, |z_hat_2| beyond this is implausible",
+        "m",
+        low=0.0,
+        low_open=True,
+        high=10.0,
+        runtime=True,
     )
     estimate_velocity_limit: float = parameter(
-        20.0, "|z_hat_3|, |z_hat_4| beyond this is implausible", "m/s", low=0.0, low_open=True, high=1000.0
+        20.0,
+        "|z_hat_3|, |z_hat_4| beyond this is implausible",
+        "m/s",
+        low=0.0,
+        low_open=True,
+        high=1000.0,
+        runtime=True,
     )
     estimate_stiffness_limit: float = parameter(
-        1e6, "|theta_hat_i| beyond this is implausible", "N/m", low=0.0, low_open=True
+        1e6, "|theta_hat_i| beyond this is implausible", "N/m", low=0.0, low_open=True, runtime=True
     )
     max_tick_jump: int = parameter(
-        10000, "an estimate more than this many ticks ahead of the last one is implausible", "ticks", low=1
+        10000,
+        "an estimate more than this many ticks ahead of the last one is implausible",
+        "ticks",
+        low=1,
+        runtime=True,
     )
 
 
-PARAMETER_SETS = [
-    PantographParameters,
-    TrackParameters,
-    ControllerParameters,
-    ReferenceParameters,
-    LawParameters,
-    RateParameters,
-    NodeOptions,
-    EstimateLimits,
-]
-RUNTIME_SETS = [ControllerParameters, ReferenceParameters, EstimateLimits]
-#: Selecting the law is part of the run's setup (its design, its state), as the model is.
-FROZEN_RUNTIME = ["law", "mode"]
+class ControllerNode(PacNode):
+    PARAMETER_SETS = [
+        PantographParameters,
+        TrackParameters,
+        ControllerParameters,
+        ReferenceParameters,
+        LawParameters,
+        # Read by law:=backstepping_known only (the oracle is told the true catenary).
+        CatenaryParameters,
+        RateParameters,
+        NodeOptions,
+        RunEndOptions,
+        EstimateLimits,
+    ]
+    FROZEN_REASON = "fixed for a run (model, speed, rate, control law): restart the node to change it"
 
-
-class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__("controller_node")
-        panto, track, params, reference, laws, rate, node_opts, limits = declare_parameter_sets(
-            self, PARAMETER_SETS
-        )
-        sets = list(PARAMETER_SETS)
-        self.catenary: CatenaryParameters | None = None
-        if params.effective_law in NEEDS_CATENARY:  # only the oracle law is told the catenary
-            (self.catenary,) = declare_parameter_sets(self, [CatenaryParameters])
-            sets.append(CatenaryParameters)
+        params = self.parameters(ControllerParameters)
         if params.mode == "passive":
             self.get_logger().warning("parameter 'mode' is deprecated: use law:=passive")
-        self.laws: LawParameters = laws
-        self.limits: EstimateLimits = limits
-        self.loop: RateParameters = rate
-        self.node_options: NodeOptions = node_opts
-        set_realtime_priority(self, node_opts.realtime_priority)
-        self.pantograph, self.track = panto, track
-        self.core = make_controller(panto, track, params, reference, rate.sample_period, laws, self.catenary)
-        self.get_logger().info(f"control law: {self.core.name}")
-        runtime = [n for n in parameter_names(RUNTIME_SETS) if n not in FROZEN_RUNTIME]
-        handle_parameter_changes(
-            self,
-            frozen=[n for n in parameter_names(sets) if n not in runtime],
-            frozen_reason="fixed for a run (model, speed, rate, control law): restart the node to change it",
-            live=lambda: [self.core.params, self.core.reference.params, self.limits],
-            apply=self.apply_parameters,
+        self.laws = self.parameters(LawParameters)
+        self.limits = self.parameters(EstimateLimits)
+        self.loop = self.parameters(RateParameters)
+        self.pantograph, self.track = self.parameters(PantographParameters), self.parameters(TrackParameters)
+        # Only the oracle law is told the catenary.
+        self.catenary = (
+            self.parameters(CatenaryParameters) if params.effective_law in NEEDS_CATENARY else None
         )
-        self.factory = messages.RclpyFactory()
+        self.core = make_controller(
+            self.pantograph,
+            self.track,
+            params,
+            self.parameters(ReferenceParameters),
+            self.loop.sample_period,
+            self.laws,
+            self.catenary,
+        )
+        self.get_logger().info(f"control law: {self.core.name}")
         self.command_pub = self.create_publisher(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", PUBLISH_QOS
         )
         self.create_subscription(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", self.on_estimate, LOOP_QOS
         )
+        self.follow_run()
         self.last_estimate_tick = -1
         self.last_estimate_wall: float | None = None
         self.last_answer = None  # the command that answered the last fresh estimate
@@ -117,11 +119,13 @@ class ControllerNode(Node):
         self.fallback_commands = 0
         self.fallback_episodes = 0
         self.nonfinite = 0
-        period = rate.sample_period * max(1, params.watchdog_ticks // 4)
+        period = self.loop.sample_period * max(1, self.core.params.watchdog_ticks // 4)
         self.create_timer(period, self.on_watchdog)
 
-    def apply_parameters(self, sets: list) -> None:
-        params, reference, self.limits = sets
+    def apply_parameters(self, changed: dict) -> None:
+        params = changed.get(ControllerParameters, self.core.params)
+        reference = changed.get(ReferenceParameters, self.core.reference.params)
+        self.limits = changed.get(EstimateLimits, self.limits)
         state = (self.core.last_u, self.core.last_tick)
         self.core = make_controller(
             self.pantograph, self.track, params, reference, self.loop.sample_period, self.laws, self.catenary
@@ -174,6 +178,9 @@ class ControllerNode(Node):
         if tick == 0 and self.last_estimate_tick > 0:
             self.get_logger().warning(f"estimate tick went back from {self.last_estimate_tick} to 0: new run")
             self.last_estimate_tick, self.last_answer = -1, None
+            self.run_new()
+        if self.run_ended and tick > self.run_last_tick:
+            return  # idle: the run is over (a new run starts again at tick 0)
         if tick <= self.last_estimate_tick:
             if tick == self.last_estimate_tick and self.last_answer is not None:
                 self.publish(self.last_answer, 0)  # the answer to a re-sent sample, again
@@ -191,10 +198,11 @@ class ControllerNode(Node):
         self.sent += 1
         self.last_answer = cmd
         self.publish(cmd, 0)
+        self.handled_tick(tick)
 
     def on_watchdog(self) -> None:
-        if self.last_estimate_wall is None or self.core.params.watchdog_ticks == 0:
-            return  # the loop has not started yet, or the watchdog is off
+        if self.last_estimate_wall is None or self.core.params.watchdog_ticks == 0 or self.run_ended:
+            return  # the loop has not started yet, the watchdog is off, or the run is over
         age = int((time.monotonic() - self.last_estimate_wall) / self.loop.sample_period)
         if age < self.core.params.watchdog_ticks:
             return
@@ -211,6 +219,7 @@ class ControllerNode(Node):
         self.publish(self.core.fallback(tick), age)
 
     def close(self) -> None:
+        super().close()
         print(
             f"controller_node: sent {self.sent} commands; {self.skipped} estimates never arrived; "
             f"{self.fallback_commands} fallback commands in {self.fallback_episodes} episodes; "

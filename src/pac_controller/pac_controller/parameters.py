@@ -21,13 +21,23 @@ class ReferenceParameters(ParameterSet):
         "'step' (0 -> force_initial at t = 0, -> force_amplitude at step_time), "
         "'square' (force_amplitude / 0 alternating every period / 2, high first)",
         choices=("constant", "step", "square"),
+        runtime=True,
     )
-    force_amplitude: float = parameter(100.0, "F_N, the nominal contact force", "N", low=0.0, high=1000.0)
-    force_initial: float = parameter(50.0, "first level of the 'step' shape", "N", low=0.0, high=1000.0)
-    step_time: float = parameter(5.0, "time of the second level of 'step'", "s", low=0.0)
-    period: float = parameter(4.0, "period of the 'square' shape", "s", low=0.01, high=3600.0)
+    force_amplitude: float = parameter(
+        100.0, "F_N, the nominal contact force", "N", low=0.0, high=1000.0, runtime=True
+    )
+    force_initial: float = parameter(
+        50.0, "first level of the 'step' shape", "N", low=0.0, high=1000.0, runtime=True
+    )
+    step_time: float = parameter(5.0, "time of the second level of 'step'", "s", low=0.0, runtime=True)
+    period: float = parameter(4.0, "period of the 'square' shape", "s", low=0.01, high=3600.0, runtime=True)
     filter_bandwidth: float = parameter(
-        20.0, "pole p of the critically damped filter p^4 / (s + p)^4", "rad/s", low=0.1, high=500.0
+        20.0,
+        "pole p of the critically damped filter p^4 / (s + p)^4",
+        "rad/s",
+        low=0.1,
+        high=500.0,
+        runtime=True,
     )
 
 
@@ -51,11 +61,17 @@ class ControllerParameters(ParameterSet):
         "DEPRECATED, use law: 'passive' is law:=passive; 'active' runs the selected law",
         choices=("active", "passive"),
     )
-    c1: float = parameter(40.0, "backstepping gain c1, eq. (28)", "1/s", low=0.0, low_open=True, high=1e4)
-    c2: float = parameter(40.0, "backstepping gain c2, eq. (35)", "1/s", low=0.0, low_open=True, high=1e4)
-    c3: float = parameter(50.0, "backstepping gain c3, eq. (43)", "1/s", low=0.0, low_open=True, high=1e4)
-    u_min: float = parameter(-500.0, "actuator force lower limit", "N", low=-1e7, high=1e7)
-    u_max: float = parameter(500.0, "actuator force upper limit", "N", low=-1e7, high=1e7)
+    c1: float = parameter(
+        40.0, "backstepping gain c1, eq. (28)", "1/s", low=0.0, low_open=True, high=1e4, runtime=True
+    )
+    c2: float = parameter(
+        40.0, "backstepping gain c2, eq. (35)", "1/s", low=0.0, low_open=True, high=1e4, runtime=True
+    )
+    c3: float = parameter(
+        50.0, "backstepping gain c3, eq. (43)", "1/s", low=0.0, low_open=True, high=1e4, runtime=True
+    )
+    u_min: float = parameter(-500.0, "actuator force lower limit", "N", low=-1e7, high=1e7, runtime=True)
+    u_max: float = parameter(500.0, "actuator force upper limit", "N", low=-1e7, high=1e7, runtime=True)
     slew_rate_max: float = parameter(
         100000.0,
         "actuator force rate limit. The nominal loop needs <= 4.6 kN/s, but after a large transient "
@@ -65,6 +81,7 @@ class ControllerParameters(ParameterSet):
         low=0.0,
         low_open=True,
         high=1e12,
+        runtime=True,
     )
     fallback_force: float = parameter(
         100.0,
@@ -72,6 +89,7 @@ class ControllerParameters(ParameterSet):
         "N",
         low=0.0,
         high=1000.0,
+        runtime=True,
     )
     watchdog_ticks: int = parameter(
         20,
@@ -79,9 +97,15 @@ class ControllerParameters(ParameterSet):
         "ticks",
         low=0,
         high=100000,
+        runtime=True,
     )
     stiffness_hat_min: float = parameter(
-        500.0, "k_hat is clamped below at this value in z1r = F_r / k_hat", "N/m", low=1.0, high=1e6
+        500.0,
+        "k_hat is clamped below at this value in z1r = F_r / k_hat",
+        "N/m",
+        low=1.0,
+        high=1e6,
+        runtime=True,
     )
 
     @property

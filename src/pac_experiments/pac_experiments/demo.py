@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
             duration=args.duration,
             timing_mode=args.timing_mode,
             domain_id=domain_id,
-            params={"all": {"realtime_priority": args.realtime_priority}, "recorder": {}},
+            params={"all": {"realtime_priority": args.realtime_priority}},
         )
         try:
             rig.start()

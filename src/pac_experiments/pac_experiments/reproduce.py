@@ -8,8 +8,6 @@ Writes ``bags/reproduce/{paper_square,constant_adaptive,constant_passive,paper_g
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import shutil
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -18,6 +16,7 @@ from typing import Any
 
 from pac_analysis.metrics import compute_metrics, markdown_table
 from pac_analysis.plots import overlay_figure, run_figure
+from pac_common import jsonio
 from pac_rig.bag import read_bag
 from pac_rig.simulate import RunResult, scenario_from_flat, simulate_to_bag
 
@@ -86,9 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     payload.update(
         {name: {"diverged": r.diverged, "ticks": r.ticks} for name, r in results.items() if r.diverged}
     )
-    (args.reports / "metrics.json").write_text(
-        json.dumps(payload, indent=2, default=lambda x: None if isinstance(x, float) and math.isnan(x) else x)
-    )
+    jsonio.write(args.reports / "metrics.json", payload)
     print(text)
     print(f"bags: {args.bags}/  figures and tables: {args.reports}/")
     return 0

@@ -15,17 +15,8 @@ import sys
 from dataclasses import dataclass
 
 from pac_common import messages
-from pac_common.node import (
-    LOOP_QOS,
-    PUBLISH_QOS,
-    Node,
-    declare_parameter_sets,
-    handle_parameter_changes,
-    parameter_names,
-    run_node,
-    set_realtime_priority,
-)
-from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, parameter
+from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
+from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import PantographParameters, TrackParameters
 
 from .observer import AdaptiveObserver, ObserverDivergedError
@@ -43,50 +34,54 @@ class MeasurementLimits(ParameterSet):
         low=0.0,
         low_open=True,
         high=10.0,
+        runtime=True,
     )
     max_tick_jump: int = parameter(
-        10000, "a sample more than this many ticks ahead of the last one is refused", "ticks", low=1
+        10000,
+        "a sample more than this many ticks ahead of the last one is refused",
+        "ticks",
+        low=1,
+        runtime=True,
     )
     force_limit: float = parameter(
-        1e5, "an |actuator force| beyond this is refused as physically absurd", "N", low=0.0, low_open=True
+        1e5,
+        "an |actuator force| beyond this is refused as physically absurd",
+        "N",
+        low=0.0,
+        low_open=True,
+        runtime=True,
     )
 
 
-PARAMETER_SETS = [
-    PantographParameters,
-    TrackParameters,
-    ObserverParameters,
-    RateParameters,
-    NodeOptions,
-    MeasurementLimits,
-]
+class ObserverNode(PacNode):
+    PARAMETER_SETS = [
+        PantographParameters,
+        TrackParameters,
+        ObserverParameters,
+        RateParameters,
+        NodeOptions,
+        RunEndOptions,
+        MeasurementLimits,
+    ]
+    FROZEN_REASON = "the observer's model and tuning are fixed for a run: restart the node"
 
-
-class ObserverNode(Node):
     def __init__(self) -> None:
         super().__init__("observer_node")
-        panto, track, params, loop, node_opts, limits = declare_parameter_sets(self, PARAMETER_SETS)
-        self.limits: MeasurementLimits = limits
-        handle_parameter_changes(
-            self,
-            frozen=[
-                n for n in parameter_names(PARAMETER_SETS) if n not in parameter_names([MeasurementLimits])
-            ],
-            frozen_reason="the observer's model and tuning are fixed for a run: restart the node",
-            live=lambda: [self.limits],
-            apply=self.apply_limits,
+        self.limits = self.parameters(MeasurementLimits)
+        self.loop = self.parameters(RateParameters)
+        self.core = AdaptiveObserver(
+            self.parameters(PantographParameters),
+            self.parameters(TrackParameters),
+            self.parameters(ObserverParameters),
+            self.loop.sample_period,
         )
-        self.loop: RateParameters = loop
-        self.node_options: NodeOptions = node_opts
-        set_realtime_priority(self, node_opts.realtime_priority)
-        self.core = AdaptiveObserver(panto, track, params, loop.sample_period)
-        self.factory = messages.RclpyFactory()
         self.estimate_pub = self.create_publisher(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", PUBLISH_QOS
         )
         self.create_subscription(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS
         )
+        self.follow_run()
         self.last_estimate = None  # (estimate, status, rejected, reinitialisations) last published
         self.last_seen_tick = -1
         self.reinitialisations = 0
@@ -96,8 +91,8 @@ class ObserverNode(Node):
         self.processed = 0
         self.bridged = 0  # samples never received (or refused), bridged by the core
 
-    def apply_limits(self, sets: list) -> None:
-        (self.limits,) = sets
+    def apply_parameters(self, changed: dict) -> None:
+        self.limits = changed.get(MeasurementLimits, self.limits)
 
     def ready(self) -> bool:
         return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
@@ -132,6 +127,9 @@ class ObserverNode(Node):
             self.core.reset()
             self.reinitialisations += 1
             self.last_seen_tick, self.last_estimate = -1, None
+            self.run_new()
+        if self.run_ended and tick > self.run_last_tick:
+            return  # idle: the run is over (a new run starts again at tick 0)
         if tick <= self.last_seen_tick:
             if tick == self.core.tick and self.last_estimate is not None:
                 self.publish(*self.last_estimate)  # the answer to a re-sent sample, again
@@ -155,6 +153,7 @@ class ObserverNode(Node):
         self.rejected_since_estimate = False
         self.last_estimate = (est, status, self.rejected, self.reinitialisations)
         self.publish(*self.last_estimate)
+        self.handled_tick(tick)
 
     def publish(self, est, status: int, rejected: int, reinitialisations: int) -> None:
         # The factory refills one message object per type: never keep it, re-make it.
@@ -165,6 +164,7 @@ class ObserverNode(Node):
         self.estimate_pub.publish(self.factory.make(messages.OBSERVER_ESTIMATE, fields))
 
     def close(self) -> None:
+        super().close()
         print(
             f"observer_node: processed {self.processed} measurements; "
             f"{self.bridged} never arrived or were refused and were bridged; "

@@ -25,16 +25,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from pac_common import messages
-from pac_common.node import (
-    LOOP_QOS,
-    PUBLISH_QOS,
-    Node,
-    declare_parameter_sets,
-    handle_parameter_changes,
-    parameter_names,
-    run_node,
-    set_realtime_priority,
-)
+from pac_common.node import LOOP_QOS, PUBLISH_QOS, RUN_STATUS_QOS, PacNode, run_node
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
@@ -62,6 +53,7 @@ class PlantNodeOptions(ParameterSet):
         "ticks",
         low=1,
         high=1000000,
+        runtime=True,
     )
     passive_uplift: float = parameter(
         100.0,
@@ -69,47 +61,47 @@ class PlantNodeOptions(ParameterSet):
         "N",
         low=0.0,
         high=1000.0,
+        runtime=True,
     )
 
 
-PARAMETER_SETS = [
-    PantographParameters,
-    TrackParameters,
-    CatenaryParameters,
-    PlantOptions,
-    LoopParameters,
-    NodeOptions,
-    PlantNodeOptions,
-]
+class PlantNode(PacNode):
+    PARAMETER_SETS = [
+        PantographParameters,
+        TrackParameters,
+        CatenaryParameters,
+        PlantOptions,
+        LoopParameters,
+        NodeOptions,
+        PlantNodeOptions,
+    ]
+    FROZEN_REASON = "the plant's model and timing are fixed for a run: restart the node to change it"
 
-
-class PlantNode(Node):
     def __init__(self) -> None:
         super().__init__("plant_node")
-        panto, track, catenary, options, loop, node_opts, opts = declare_parameter_sets(self, PARAMETER_SETS)
-        runtime = ["command_timeout_ticks", "passive_uplift"]
-        handle_parameter_changes(
-            self,
-            frozen=[n for n in parameter_names(PARAMETER_SETS) if n not in runtime],
-            frozen_reason="the plant's model and timing are fixed for a run: restart the node to change it",
-            live=lambda: [self.options],
-            apply=self.apply_options,
+        loop = self.loop = self.parameters(LoopParameters)
+        self.options = self.parameters(PlantNodeOptions)
+        self.plant = Plant(
+            self.parameters(PantographParameters),
+            self.parameters(TrackParameters),
+            self.parameters(CatenaryParameters),
+            self.parameters(PlantOptions),
+            loop.sample_period,
         )
-        self.loop: LoopParameters = loop
-        self.options: PlantNodeOptions = opts
-        self.node_options: NodeOptions = node_opts
-        self.plant = Plant(panto, track, catenary, options, loop.sample_period)
-        self.factory = messages.RclpyFactory()
         self.measurement_pub = self.create_publisher(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS
         )
         self.truth_pub = self.create_publisher(
             self.factory.cls(messages.PLANT_TRUTH), "plant_truth", PUBLISH_QOS
         )
+        self.run_status_pub = self.create_publisher(
+            self.factory.cls(messages.RUN_STATUS), "run_status", RUN_STATUS_QOS
+        )
         self.command_sub = self.create_subscription(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", self.on_command, LOOP_QOS
         )
-        self.finished = False
+        self.run_announced_end = False
+        self.closing = False  # the last tick is out (real time: waiting for its command)
         self.ticks_total = loop.ticks if loop.duration > 0 else math.inf
         # Command bookkeeping.
         self.latest: tuple[int, float] | None = None  # (tick, u) of the command received last
@@ -127,15 +119,14 @@ class PlantNode(Node):
         self.start_wall, self.start_tick = 0.0, 0
         self.late_ticks = 0  # ticks taken late, in a catch-up burst
         self.slips = 0  # times the schedule was reset because the loop fell too far behind
-        set_realtime_priority(self, node_opts.realtime_priority)
         self.start_timer = self.create_timer(0.01, self.try_start)
         self.get_logger().info(
-            f"{opts.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
+            f"{self.options.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
             f"({'until stopped' if loop.duration == 0 else f'{loop.ticks} ticks'}); waiting for the loop"
         )
 
-    def apply_options(self, sets: list) -> None:
-        (self.options,) = sets
+    def apply_parameters(self, changed: dict) -> None:
+        self.options = changed.get(PlantNodeOptions, self.options)
         self.get_logger().info(
             f"command timeout {self.options.command_timeout_ticks} ticks, "
             f"passive uplift {self.options.passive_uplift:g} N"
@@ -157,6 +148,7 @@ class PlantNode(Node):
         # Tick 0 is re-sent until its command comes back: that proves the whole loop (and, with
         # wait_for_recorder, every node's match with the recorder) is up. Then the run starts.
         self.get_logger().info("loop matched: closing it with tick 0")
+        self.publish_run_status(messages.RUN_RUNNING)
         self.publish_tick()
         self.resend_timer = self.create_timer(self.options.resend_timeout / 2, self.on_resend_check)
 
@@ -188,6 +180,47 @@ class PlantNode(Node):
             )
         )
 
+    def publish_run_status(self, state: int) -> None:
+        k = self.plant.tick
+        fields = messages.run_status_fields(
+            k, state, self.loop.duration, messages.tick_stamp_ns(k, self.loop.rate_hz)
+        )
+        self.run_status_pub.publish(self.factory.make(messages.RUN_STATUS, fields))
+
+    #: Real time: how long the plant keeps re-sending its last measurement for the last command.
+    CLOSING_TIMEOUT = 1.0
+
+    def end_run(self) -> None:
+        """The last tick is out. Lock step: its command is in, done. Real time: close the loop first.
+
+        In real time a best-effort sample can be lost; for the last tick nothing later would
+        bridge it, so the plant re-sends it (as lock step does) until its command is back, at
+        most CLOSING_TIMEOUT, and only then stops: the run's last command reaches the bag.
+        """
+        self.announce_end()
+        self.closing = True
+        if self.options.timing_mode == "lockstep" or self.tick_timer is None:
+            self.finished = True
+            return
+        self.destroy_timer(self.tick_timer)
+        self.closing_deadline = time.monotonic() + self.CLOSING_TIMEOUT
+        self.create_timer(self.options.resend_timeout / 2, self.on_closing)
+
+    def on_closing(self) -> None:
+        if self.finished:
+            return
+        last = self.plant.tick
+        if (self.latest is not None and self.latest[0] >= last) or time.monotonic() > self.closing_deadline:
+            self.finished = True
+        elif time.monotonic() - self.last_sent > self.options.resend_timeout:
+            self.resend_measurement()
+
+    def announce_end(self) -> None:
+        """The run is over at the current tick (its last measurement is out): tell the followers."""
+        if not self.run_announced_end:
+            self.run_announced_end = True
+            self.publish_run_status(messages.RUN_ENDED)
+
     def on_command(self, msg) -> None:
         tick, u = int(msg.tick), float(msg.u)
         if tick in self.sent_wall and tick not in self.latency:
@@ -218,7 +251,7 @@ class PlantNode(Node):
     def advance(self, command_tick: int, u: float, source: int) -> None:
         """Apply u over [t_k, t_(k+1)]; finish after the last tick's command."""
         if self.plant.tick + 1 >= self.ticks_total:
-            self.finished = True
+            self.end_run()
             return
         self.plant.advance(u)
         self.applied_tick, self.applied_source = command_tick, source
@@ -231,7 +264,7 @@ class PlantNode(Node):
         now = time.monotonic()
         due = self.start_wall + (self.plant.tick - self.start_tick) * self.loop.sample_period
         taken = 0
-        while due <= now and not self.finished and taken < self.MAX_CATCH_UP:
+        while due <= now and not self.closing and taken < self.MAX_CATCH_UP:
             self.realtime_step()
             taken += 1
             due += self.loop.sample_period
@@ -272,17 +305,27 @@ class PlantNode(Node):
         if self.tick_timer is not None:
             return
         if not self.finished and time.monotonic() - self.last_sent > self.options.resend_timeout:
-            self.resends += 1
-            k = self.plant.tick
-            stamp = messages.tick_stamp_ns(k, self.loop.rate_hz)
-            self.measurement_pub.publish(
-                self.factory.make(
-                    messages.FRAME_MEASUREMENT, messages.measurement_fields(self.plant.measurement(), stamp)
-                )
+            self.resend_measurement()
+
+    def resend_measurement(self) -> None:
+        """The current tick's measurement again (the same sample: noise is a function of the tick)."""
+        self.resends += 1
+        k = self.plant.tick
+        stamp = messages.tick_stamp_ns(k, self.loop.rate_hz)
+        self.measurement_pub.publish(
+            self.factory.make(
+                messages.FRAME_MEASUREMENT, messages.measurement_fields(self.plant.measurement(), stamp)
             )
-            self.last_sent = time.monotonic()
+        )
+        self.last_sent = time.monotonic()
 
     def close(self) -> None:
+        if self.sent_wall:  # the run had started: a stop (SIGINT, SIGTERM) ends it too
+            try:
+                self.announce_end()
+            except Exception:  # noqa: BLE001 - the context is already shut down: nothing to tell
+                pass
+        super().close()
         print(
             f"plant_node: stopped at tick {self.plant.tick} ({self.resends} measurement re-sends, "
             f"{self.late_ticks} ticks taken late, {self.slips} schedule slips, "

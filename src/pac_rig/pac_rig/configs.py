@@ -13,18 +13,24 @@ from pathlib import Path
 
 import yaml
 
-#: node executable -> (package, module with PARAMETER_SETS)
+#: node executable -> (package, "module:PacNode subclass")
 NODE_MODULES = {
-    "plant_node": ("pac_plant", "pac_plant.plant_node"),
-    "observer_node": ("pac_observer", "pac_observer.observer_node"),
-    "controller_node": ("pac_controller", "pac_controller.controller_node"),
-    "recorder": ("pac_rig", "pac_rig.recorder"),
+    "plant_node": ("pac_plant", "pac_plant.plant_node:PlantNode"),
+    "observer_node": ("pac_observer", "pac_observer.observer_node:ObserverNode"),
+    "controller_node": ("pac_controller", "pac_controller.controller_node:ControllerNode"),
+    "recorder": ("pac_rig", "pac_rig.recorder:RecorderNode"),
 }
 
 
+def parameter_sets(node: str) -> list:
+    """The parameter sets a node declares (its class's ``PARAMETER_SETS``)."""
+    module, _, cls = NODE_MODULES[node][1].partition(":")
+    return list(getattr(importlib.import_module(module), cls).PARAMETER_SETS)
+
+
 def defaults_yaml(node: str) -> str:
-    package, module = NODE_MODULES[node]
-    sets = importlib.import_module(module).PARAMETER_SETS
+    package = NODE_MODULES[node][0]
+    sets = parameter_sets(node)
     lines = [
         f"# Defaults of {package}/{node} (Table 1, 360 km/h, the shipped gains).",
         "# Generated from the parameter declarations: python -m pac_rig.configs --write",
@@ -38,7 +44,10 @@ def defaults_yaml(node: str) -> str:
             value = list(spec.default) if isinstance(spec.default, tuple) else spec.default
             text = yaml.safe_dump(value, default_flow_style=True).strip().removesuffix("\n...").strip()
             unit = f" [{spec.unit}]" if spec.unit else ""
-            lines.append(f"    {spec.name}: {text}  # {spec.description}{unit}; allowed {spec.allowed()}")
+            when = "; may change at run time" if spec.runtime else ""
+            lines.append(
+                f"    {spec.name}: {text}  # {spec.description}{unit}; allowed {spec.allowed()}{when}"
+            )
     return "\n".join(lines) + "\n"
 
 

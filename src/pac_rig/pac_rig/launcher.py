@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .configs import parameter_sets
+
 NODES = {
     "recorder": ("pac_rig", "recorder"),
     "observer": ("pac_observer", "observer_node"),
@@ -103,14 +105,30 @@ class Rig:
         self.domain_id = domain_id
         self.log_dir = Path(log_dir) if log_dir else self.bag_path.parent / f"{self.bag_path.name}_logs"
         self.record = record
-        rate = float((params or {}).get("all", {}).get("rate_hz", 1000.0))
-        last_tick = int(round(duration * rate)) - 1
-        common = {"wait_for_recorder": record, **(params or {}).get("all", {})}
+        shared = {"wait_for_recorder": record, **(params or {}).get("all", {})}
+
+        def common(name: str) -> dict[str, Any]:
+            # "all" goes to every loop node that has the parameter (an unknown name is refused).
+            names = {spec.name for cls in parameter_sets(NODES[name][1]) for spec in cls.specs()}
+            return {k: v for k, v in shared.items() if k in names}
+
+        loop_names = {
+            s.name
+            for n in ("plant", "observer", "controller")
+            for c in parameter_sets(NODES[n][1])
+            for s in c.specs()
+        }
+        unknown = sorted(set(shared) - loop_names)
+        if unknown:
+            raise ValueError(f"unknown parameter '{unknown[0]}' in params['all']: no loop node has it")
+
+        # The run ends by itself: the plant announces its end, the others stop once they have
+        # handled (recorded) its last tick; idle_timeout guards a recorder that never hears it.
         self.params: dict[str, dict[str, Any]] = {
-            "recorder": {"bag_path": str(self.bag_path), "stop_after_tick": last_tick, "idle_timeout": 2.0},
-            "observer": dict(common),
-            "controller": dict(common),
-            "plant": {**common, "timing_mode": timing_mode, "duration": duration},
+            "recorder": {"bag_path": str(self.bag_path), "stop_after_run": True, "idle_timeout": 5.0},
+            "observer": {**common("observer"), "stop_after_run": True},
+            "controller": {**common("controller"), "stop_after_run": True},
+            "plant": {**common("plant"), "timing_mode": timing_mode, "duration": duration},
         }
         if timing_mode == "lockstep":
             # The plant waits for every command: a wall-clock watchdog has nothing to guard
@@ -148,9 +166,9 @@ class Rig:
         return self
 
     def wait_finished(self, timeout: float) -> None:
-        """Wait for the plant to end its run and the recorder to close the bag, then stop the rest."""
+        """Wait for the run to end by itself (every node stops after the plant's last tick)."""
         deadline = time.monotonic() + timeout
-        for name in ("plant", "recorder"):
+        for name in ("plant", "recorder", "observer", "controller"):
             proc = self.processes.get(name)
             if proc is not None:
                 proc.wait(max(0.0, deadline - time.monotonic()))

@@ -20,16 +20,8 @@ from pathlib import Path
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 from pac_common import messages
-from pac_common.node import (
-    RECORD_QOS,
-    RECORD_QOS_COMPATIBLE,
-    Node,
-    declare_parameter_sets,
-    handle_parameter_changes,
-    parameter_names,
-    run_node,
-)
-from pac_common.parameters import ParameterError, ParameterSet, parameter
+from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
+from pac_common.parameters import ParameterError, ParameterSet, RunEndOptions, check_new_directory, parameter
 
 from .bag import BagWriter
 
@@ -38,7 +30,7 @@ from .bag import BagWriter
 class RecorderParameters(ParameterSet):
     bag_path: str = parameter("", "output bag directory (must not exist); empty: bags/run_<date>_<time>")
     topics: str = parameter(
-        "measurement,plant_truth,estimate,command", "comma-separated topics to record (of these four)"
+        ",".join(messages.TOPICS), "comma-separated topics to record (of " + ", ".join(messages.TOPICS) + ")"
     )
     stop_after_tick: int = parameter(
         -1,
@@ -54,19 +46,15 @@ class RecorderParameters(ParameterSet):
     )
 
 
-PARAMETER_SETS = [RecorderParameters]
+class RecorderNode(PacNode):
+    PARAMETER_SETS = [RecorderParameters, RunEndOptions]
+    FROZEN_REASON = "fixed for a recording: start another recorder"
 
-
-class RecorderNode(Node):
     def __init__(self) -> None:
         super().__init__("recorder")
-        (params,) = declare_parameter_sets(self, PARAMETER_SETS)
-        handle_parameter_changes(
-            self, parameter_names(PARAMETER_SETS), "fixed for a recording: start another recorder"
-        )
+        params = self.parameters(RecorderParameters)
         path = Path(params.bag_path or f"bags/run_{datetime.now():%Y%m%d_%H%M%S}")
-        if path.exists():
-            raise ParameterError("bag_path", str(path), "a path that does not exist yet")
+        check_new_directory("bag_path", path)
         names = [t.strip() for t in params.topics.split(",") if t.strip()]
         if not names or any(t not in messages.TOPICS for t in names):
             raise ParameterError(
@@ -74,22 +62,26 @@ class RecorderNode(Node):
             )
         topics = {t: messages.TOPICS[t] for t in names}
         self.params: RecorderParameters = params
-        self.bag = BagWriter(path, {"source": "live", "label": path.name}, topics)
+        try:
+            self.bag = BagWriter(path, {"source": "live", "label": path.name}, topics)
+        except OSError as exc:
+            raise ParameterError(
+                "bag_path", str(path), f"a writable new directory ({exc.strerror or exc})"
+            ) from None
         self.path = path
         # deque.append/popleft are atomic: the callbacks append, the writer thread drains in
         # batches every WRITE_PERIOD, which costs far fewer wake-ups than a queue per message.
         self.pending: deque = deque()
         self.stopping = threading.Event()
         self.failed = False
-        self.exit_status = 0
         self.last_tick = dict.fromkeys(topics, -1)
-        self.finished = False
         self.last_message_wall = None
         self.factory = messages.RclpyFactory()
         self.unsubscribed = dict(topics)
         self.subscribe_timer = self.create_timer(0.01, self._subscribe_when_published)
         self.writer = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self.writer.start()
+        self.follow_run()
         if params.idle_timeout > 0:
             self.create_timer(min(0.1, params.idle_timeout / 2), self._check_idle)
         self.get_logger().info(f"recording {', '.join(topics)} to {path}")
@@ -156,7 +148,6 @@ class RecorderNode(Node):
             return False
 
     def _drain(self) -> None:
-        stop_tick = self.params.stop_after_tick
         pending = self.pending
         wrote = False
         while pending and not self.failed:
@@ -164,12 +155,22 @@ class RecorderNode(Node):
             if not self._guard(lambda t=topic, d=data, st=stamp: self.bag.write_raw(t, d, st)):
                 return
             wrote = True
-            if stop_tick >= 0:
-                self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
+            self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
         if wrote:
             self.last_message_wall = time.monotonic()
+            stop_tick = self.params.stop_after_tick
             if stop_tick >= 0 and min(self.last_tick.values()) >= stop_tick:
                 self.finished = True
+            self._check_run_recorded()
+
+    def _check_run_recorded(self) -> None:
+        """stop_after_run: the ended run's last tick is in the bag on every recorded loop topic."""
+        last = self.run_last_tick
+        if last is not None and min(self.last_tick.values()) >= last:
+            self.handled_tick(last)
+
+    def on_run_end(self) -> None:
+        self._check_run_recorded()
 
     def _check_idle(self) -> None:
         last = self.last_message_wall
@@ -179,6 +180,7 @@ class RecorderNode(Node):
 
     def close(self) -> None:
         """Drain the queue, write the summary and metadata: the bag is complete and indexed."""
+        super().close()
         self.stopping.set()
         self.writer.join()
         if self.failed or not self._guard(self.bag.close):

@@ -64,6 +64,15 @@ def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -
     with BagWriter(
         bag_path, {"source": "offline", "label": label, "parameters": scenario_to_flat(scenario)}
     ) as bag:
+
+        def write_run_status(bag: BagWriter, tick: int, state: int) -> None:
+            """The run's start and end, as the plant node announces them."""
+            stamp = messages.tick_stamp_ns(tick, rate)
+            bag.write(
+                "run_status", messages.run_status_fields(tick, state, scenario.loop.duration, stamp), stamp
+            )
+
+        write_run_status(bag, 0, messages.RUN_RUNNING)
         try:
             for rec in run(scenario):
                 k = rec.measurement.tick
@@ -80,6 +89,7 @@ def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -
         except DivergenceError as exc:
             diverged = str(exc)
             bag.set_metadata("diverged", {"tick": exc.tick, "reason": exc.reason})
+        write_run_status(bag, max(ticks - 1, 0), messages.RUN_ENDED)
     wall = time.perf_counter() - start
     return RunResult(Path(bag_path), ticks, diverged, wall, ticks / rate)
 
