@@ -344,3 +344,41 @@ def test_controller_node_refuses_a_bad_law_setting(domain_id, params, name, allo
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, proc.stderr
     assert f"invalid parameter '{name}'" in lines[0] and allowed in lines[0]
+
+
+@pytest.mark.parametrize(
+    ("params", "name"),
+    [(["law:=nope"], "law"), (["law:=pid", "pid_bandwidth:=100.0"], "pid_bandwidth")],
+)
+def test_simulate_refuses_a_bad_law_setting(tmp_path, capsys, params, name):
+    from pac_rig.simulate import main
+
+    argv = [str(tmp_path / "bag")]
+    for p in params:
+        argv += ["-p", p]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"invalid parameter '{name}'" in err[0]
+    assert not (tmp_path / "bag").exists()
+
+
+@pytest.mark.parametrize("law", ["lqr", "backstepping_known"])
+def test_lockstep_rig_with_a_law_equals_the_offline_simulation(rigs, tmp_path, law):
+    """The node runs the same law core as the offline loop: a stateful law (lqr) and the one that is
+    told the catenary (backstepping_known) give the very same commands, bit for bit."""
+    from pac_rig.bag import read_bag
+    from pac_rig.launcher import NODES
+    from pac_rig.simulate import simulate_to_bag
+
+    duration = 1.0
+    rig = rigs(law, duration=duration, timing_mode="lockstep", params={"controller": {"law": law}})
+    rig.start()
+    rig.wait_finished(timeout=120)
+    assert rig.exit_codes() == dict.fromkeys(NODES, 0), {n: p.log()[-500:] for n, p in rig.processes.items()}
+    simulate_to_bag(scenario_from_flat({"duration": duration, "law": law}), tmp_path / "offline")
+    live = read_bag(rig.bag_path).topics["command"]
+    offline = read_bag(tmp_path / "offline").topics["command"]
+    ticks, idx = np.unique(live["tick"], return_index=True)
+    np.testing.assert_array_equal(ticks, np.arange(1000))
+    for column in ("u", "u_unsaturated", "tracking_error", "mode"):
+        np.testing.assert_array_equal(live[column][idx], offline[column], err_msg=column)

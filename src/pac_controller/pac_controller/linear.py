@@ -57,11 +57,13 @@ def with_delay(ad: np.ndarray, bd: np.ndarray, delay: int) -> tuple[np.ndarray, 
     return a, b
 
 
-def frequency_response(p: PantographParameters, k: float, w: float, delay_seconds: float) -> complex:
-    """G(j w) e^{-j w tau}: from u to F of the contact model, with a pure delay tau."""
+def frequency_response(p: PantographParameters, k: float, w: np.ndarray, delay_seconds: float) -> np.ndarray:
+    """G(j w) e^{-j w tau} at each w: from u to F of the contact model, with a pure delay tau."""
     a, b, c = contact_model(p, k)
-    g = c @ np.linalg.solve(1j * w * np.eye(a.shape[0]) - a, b)
-    return complex(g * np.exp(-1j * w * delay_seconds))
+    w = np.atleast_1d(np.asarray(w, dtype=float))
+    resolvent = 1j * w[:, None, None] * np.eye(a.shape[0]) - a  # one (j w I - A) per frequency
+    g = np.linalg.solve(resolvent, np.broadcast_to(b, (w.size, b.size))[..., None])[..., 0] @ c
+    return g * np.exp(-1j * w * delay_seconds)
 
 
 def spectral_radius(a: np.ndarray) -> float:

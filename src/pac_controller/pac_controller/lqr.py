@@ -29,6 +29,7 @@ so that u equals the actuator's present force; the pending commands are that for
 
 from __future__ import annotations
 
+import functools
 from collections import deque
 from dataclasses import dataclass
 
@@ -82,6 +83,7 @@ def augmented_model(
     return aa, ba, c_f
 
 
+@functools.lru_cache(maxsize=16)  # pure; a retune of other parameters must not redesign in the loop
 def design_lqr(pantograph: PantographParameters, laws: LawParameters, dt: float) -> LqrGains:
     """K from the discrete algebraic Riccati equation with Bryson weights (module docstring)."""
     d = laws.design_delay_ticks
@@ -108,6 +110,8 @@ def design_lqr(pantograph: PantographParameters, laws: LawParameters, dt: float)
             "lqr_force_scale", laws.lqr_force_scale, f"weights giving a stable loop (rho {rho:.4f})"
         )
     poles = np.log(np.linalg.eigvals(closed).astype(complex)) / dt
+    for shared in (k, poles):  # the result is cached and shared by every law built from it
+        shared.setflags(write=False)
     return LqrGains(k=k, delay=d, design_stiffness=laws.design_stiffness, spectral_radius=rho, poles=poles)
 
 

@@ -28,6 +28,7 @@ the highest (in 1 rad/s steps) at 45 deg for which Ms <= 2 (docs/laws.md).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -57,7 +58,7 @@ class PidGains:
     max_sensitivity: float  # Ms = max over w of |1 / (1 + L(j w))| (robustness; 1.4-2 is usual)
 
 
-def _ideal_pid(w: float, ti: float, td: float, n: float) -> complex:
+def _ideal_pid(w: float | np.ndarray, ti: float, td: float, n: float) -> complex | np.ndarray:
     """C(j w) / Kp of Kp (1 + 1 / (Ti s) + Td s / (1 + Td s / N))."""
     s = 1j * w
     return 1.0 + 1.0 / (ti * s) + td * s / (1.0 + td * s / n)
@@ -73,11 +74,12 @@ def discrete_pid(gains: PidGains, dt: float) -> tuple[np.ndarray, np.ndarray, np
     return ac, bc, cc, gains.kp + b
 
 
+@functools.lru_cache(maxsize=16)  # pure; a retune of other parameters must not redesign in the loop
 def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float) -> PidGains:
     """Gains from a crossover and a phase margin on the linear contact model (module docstring)."""
     wc, ratio, n = laws.pid_bandwidth, laws.pid_integral_ratio, laws.pid_derivative_filter
     tau = (laws.design_delay_ticks + 0.5) * dt
-    g = frequency_response(pantograph, laws.design_stiffness, wc, tau)
+    g = complex(frequency_response(pantograph, laws.design_stiffness, wc, tau)[0])
     needed = wrap_angle(math.radians(-180.0 + laws.pid_phase_margin) - math.atan2(g.imag, g.real))
 
     def phase(x: float) -> float:  # x = wc Td
@@ -123,12 +125,7 @@ def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float)
             f"a crossover whose sampled closed loop is stable (spectral radius {rho:.4f})",
         )
     ws = np.logspace(-1, math.log10(math.pi / dt), 4000)
-    loop = np.array(
-        [
-            _ideal_pid(w, ti, td, n) * kp * frequency_response(pantograph, laws.design_stiffness, w, tau)
-            for w in ws
-        ]
-    )
+    loop = kp * _ideal_pid(ws, ti, td, n) * frequency_response(pantograph, laws.design_stiffness, ws, tau)
     ms = float(np.max(1.0 / np.abs(1.0 + loop)))
     return dataclasses.replace(gains, spectral_radius=rho, max_sensitivity=ms)
 

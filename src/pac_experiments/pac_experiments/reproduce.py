@@ -27,7 +27,7 @@ PAPER_GAINS = {"c1": 400.0, "c2": 400.0, "c3": 50.0, "u_min": -1e7, "u_max": 1e7
 RUNS: dict[str, dict[str, Any]] = {
     "paper_square": {"shape": "square"},
     "constant_adaptive": {"shape": "constant"},
-    "constant_passive": {"shape": "constant", "mode": "passive"},
+    "constant_passive": {"shape": "constant", "law": "passive"},
     "paper_gains": {"shape": "constant", **PAPER_GAINS},
 }
 COMMON = {"duration": 10.0, "command_delay_ticks": 1, "theta_hat0": (3000.0, 0.0, 0.0)}
