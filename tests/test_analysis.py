@@ -34,7 +34,7 @@ def independent_contact_force(bag_dir, t_from):
     """Contact force from the raw MCAP through the mcap library's own decoder."""
     (mcap_file,) = bag_dir.glob("*.mcap")
     forces = []
-    for item in read_ros2_messages(str(mcap_file), topics=["plant_truth"]):
+    for item in read_ros2_messages(str(mcap_file), topics=["/plant_truth"]):
         stamp = item.ros_msg.header.stamp.sec + 1e-9 * item.ros_msg.header.stamp.nanosec
         if stamp >= t_from - 1e-12:
             forces.append(item.ros_msg.contact_force)
