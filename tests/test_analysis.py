@@ -204,7 +204,11 @@ def test_truncated_mcap_without_metadata_gives_partial_results(offline_bags, tmp
 def test_missing_topics_are_named_and_the_rest_is_reported(offline_bags, tmp_path):
     partial = tmp_path / "partial"
     full = read_bag(offline_bags / "active")
-    del full  # only to show the source is complete; rebuild a bag with two topics:
+    # the source is complete (so what is missing below is missing only from the rebuilt bag)
+    assert full.warnings == [] and {t: len(d) for t, d in full.topics.items()} == dict.fromkeys(
+        messages.TOPICS, 5000
+    )
+    # rebuild a bag with two topics, one of them empty:
     with BagWriter(partial, topics={t: messages.TOPICS[t] for t in ("measurement", "command")}) as bag:
         src = read_bag(offline_bags / "active", topics=["command"]).topics["command"]
         for i in range(len(src)):
