@@ -16,11 +16,11 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from pac_common import messages
-from pac_rig import cdr
+from pac_rig import cdr, simulate
 from pac_rig.bag import BagWriter, iter_records, read_bag, typestore
 from pac_rig.closed_loop import run
 from pac_rig.mcap_writer import COMPRESSIONS
-from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+from pac_rig.simulate import scenario_from_flat, simulate_to_bag, tick_fields
 
 RNG = np.random.default_rng(5)
 
@@ -109,20 +109,17 @@ def mcap_records(bag):
         ]
 
 
-def test_bulk_bag_equals_the_same_run_written_message_by_message(tmp_path):
+def test_bulk_bag_equals_the_same_run_written_message_by_message(tmp_path, monkeypatch):
     """The fast path (columns -> CDR with numpy -> whole chunks) and the path the recorder takes
     (one message at a time; CDR from the rosbags serialiser) give the same bag content."""
+    monkeypatch.setattr(simulate, "WRITE_BLOCK", 500)  # blocks end mid-run and mid-chunk
     scenario = scenario_from_flat({"duration": 1.3, "command_delay_ticks": 2})
     simulate_to_bag(scenario, tmp_path / "bulk", label="x")
     with BagWriter(tmp_path / "single", {"source": "offline", "label": "x"}) as bag:
         for rec in run(scenario):
-            k = rec.measurement.tick
-            stamp = messages.tick_stamp_ns(k, scenario.loop.rate_hz)
-            bag.write("measurement", messages.measurement_fields(rec.measurement, stamp), stamp)
-            truth = messages.truth_fields(rec.truth, stamp, applied_command_tick=max(-1, k - 3))
-            bag.write("plant_truth", truth, stamp)
-            bag.write("estimate", messages.estimate_fields(rec.estimate, stamp), stamp)
-            bag.write("command", messages.command_fields(rec.command, stamp), stamp)
+            stamp = messages.tick_stamp_ns(rec.measurement.tick, scenario.loop.rate_hz)
+            for topic, fields in tick_fields(rec, scenario).items():
+                bag.write(topic, fields, stamp)
     bulk, single = mcap_records(tmp_path / "bulk"), mcap_records(tmp_path / "single")
     assert len(bulk) == 4 * 1300
     assert bulk == single

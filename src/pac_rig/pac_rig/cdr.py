@@ -172,12 +172,17 @@ def serialize_many(typestore: Any, typename: str, columns: Mapping[str, Any], co
     lengths: dict[str, int] = {}
     cols = dict(columns)
     for path in string_fields(typestore, typename):
-        values = np.asarray(cols.get(path, ""), dtype=object).reshape(-1)
-        encoded = [v.encode() if isinstance(v, str) else bytes(v) for v in values]
-        sizes = {len(v) for v in encoded}
+        values = cols.get(path, "")
+        distinct = {values} if isinstance(values, (str, bytes)) else set(values)
+        encoded = {v: v.encode() if isinstance(v, str) else bytes(v) for v in distinct}
+        sizes = {len(v) for v in encoded.values()}
         if len(sizes) != 1:
             raise LayoutError(f"{typename}.{path}: strings of different lengths in one batch")
         lengths[path] = sizes.pop()
-        cols[path] = np.array(encoded, dtype=f"S{max(lengths[path], 1)}")
+        if lengths[path]:
+            if len(encoded) == 1:
+                cols[path] = next(iter(encoded.values()))  # one value for all (the usual frame_id)
+            else:
+                cols[path] = np.array([encoded[v] for v in values], dtype=f"S{lengths[path]}")
     lay = layout(typestore, typename, lengths)
     return lay.pack(cols, count).view(np.uint8).reshape(count, lay.size)

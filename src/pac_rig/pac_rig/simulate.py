@@ -17,7 +17,7 @@ from pac_common.parameters import ParameterError, ParameterSet
 
 from .bag import DEFAULT_COMPRESSION, BagWriter, columns_of
 from .cli import OverrideError, add_override_arguments, overrides_from_args
-from .closed_loop import DivergenceError, Scenario, run
+from .closed_loop import DivergenceError, Scenario, TickRecord, run
 from .mcap_writer import COMPRESSIONS
 
 
@@ -61,29 +61,40 @@ class RunResult:
 WRITE_BLOCK = 10_000
 
 
+def tick_fields(rec: TickRecord, scenario: Scenario) -> dict[str, dict[str, Any]]:
+    """The four topics' field dictionaries of one tick, as the nodes publish them."""
+    k = rec.measurement.tick
+    stamp = messages.tick_stamp_ns(k, scenario.loop.rate_hz)
+    applied = max(-1, k - 1 - scenario.loop.command_delay_ticks)
+    return {
+        "measurement": messages.measurement_fields(rec.measurement, stamp),
+        "plant_truth": messages.truth_fields(rec.truth, stamp, applied_command_tick=applied),
+        "estimate": messages.estimate_fields(rec.estimate, stamp),
+        "command": messages.command_fields(rec.command, stamp),
+    }
+
+
+def write_ticks(bag: BagWriter, rows: dict[str, list[dict[str, Any]]], stamps: list[int]) -> None:
+    """Write collected ticks (per topic, the field dictionaries of each tick) in one go."""
+    if stamps:
+        times = np.array(stamps, dtype=np.int64)
+        for topic, block in rows.items():
+            bag.write_many(topic, columns_of(block), times)
+
+
 def simulate_to_bag(
     scenario: Scenario, bag_path: Path | str, label: str = "", compression: str = DEFAULT_COMPRESSION
 ) -> RunResult:
     """Run ``scenario`` offline and record the four topics; log time = simulated time.
 
-    The field dictionaries of each tick are the nodes' own (pac_common.messages); they are
+    Each tick's field dictionaries are the nodes' own (pac_common.messages); they are
     collected per topic and written in blocks through the vectorised CDR path."""
     rate = scenario.loop.rate_hz
-    delay = scenario.loop.command_delay_ticks
     start = time.perf_counter()
     ticks = 0
     diverged = None
-    rows: dict[str, list] = {topic: [] for topic in messages.TOPICS}
+    rows: dict[str, list[dict[str, Any]]] = {topic: [] for topic in messages.TOPICS}
     stamps: list[int] = []
-
-    def write_block(bag: BagWriter) -> None:
-        if stamps:
-            for topic, block in rows.items():
-                bag.write_many(topic, columns_of(block), np.array(stamps, dtype=np.int64))
-                block.clear()
-            stamps.clear()
-            bag.flush()
-
     with BagWriter(
         bag_path,
         {"source": "offline", "label": label, "parameters": scenario_to_flat(scenario)},
@@ -91,22 +102,19 @@ def simulate_to_bag(
     ) as bag:
         try:
             for rec in run(scenario):
-                k = rec.measurement.tick
-                stamp = messages.tick_stamp_ns(k, rate)
-                stamps.append(stamp)
-                rows["measurement"].append(messages.measurement_fields(rec.measurement, stamp))
-                rows["plant_truth"].append(
-                    messages.truth_fields(rec.truth, stamp, applied_command_tick=max(-1, k - 1 - delay))
-                )
-                rows["estimate"].append(messages.estimate_fields(rec.estimate, stamp))
-                rows["command"].append(messages.command_fields(rec.command, stamp))
+                for topic, fields in tick_fields(rec, scenario).items():
+                    rows[topic].append(fields)
+                stamps.append(messages.tick_stamp_ns(rec.measurement.tick, rate))
                 ticks += 1
                 if len(stamps) == WRITE_BLOCK:
-                    write_block(bag)
+                    write_ticks(bag, rows, stamps)
+                    bag.flush()
+                    rows = {topic: [] for topic in messages.TOPICS}
+                    stamps = []
         except DivergenceError as exc:
             diverged = str(exc)
             bag.set_metadata("diverged", {"tick": exc.tick, "reason": exc.reason})
-        write_block(bag)
+        write_ticks(bag, rows, stamps)
     wall = time.perf_counter() - start
     return RunResult(Path(bag_path), ticks, diverged, wall, ticks / rate)
 
