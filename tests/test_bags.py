@@ -102,7 +102,7 @@ def mcap_records(bag):
     """(topic, log time, publish time, data) of every message in file order, via the mcap library."""
     (file,) = bag.glob("*.mcap")
     with open(file, "rb") as stream:
-        reader = make_reader(stream)
+        reader = make_reader(stream, validate_crcs=True)  # chunk CRCs are written
         return [
             (channel.topic, m.log_time, m.publish_time, m.data)
             for _, channel, m in reader.iter_messages(log_time_order=False)
