@@ -35,7 +35,7 @@ def independent_contact_force(bag_dir, t_from):
     """Contact force from the raw MCAP through the mcap library's own decoder."""
     (mcap_file,) = bag_dir.glob("*.mcap")
     forces = []
-    for item in read_ros2_messages(str(mcap_file), topics=["plant_truth"]):
+    for item in read_ros2_messages(str(mcap_file), topics=["/plant_truth"]):
         stamp = item.ros_msg.header.stamp.sec + 1e-9 * item.ros_msg.header.stamp.nanosec
         if stamp >= t_from - 1e-12:
             forces.append(item.ros_msg.contact_force)
@@ -205,7 +205,12 @@ def test_truncated_mcap_without_metadata_gives_partial_results(offline_bags, tmp
 def test_missing_topics_are_named_and_the_rest_is_reported(offline_bags, tmp_path):
     partial = tmp_path / "partial"
     full = read_bag(offline_bags / "active")
-    del full  # only to show the source is complete; rebuild a bag with two topics:
+    # the source is complete (so what is missing below is missing only from the rebuilt bag)
+    assert full.warnings == [] and {t: len(d) for t, d in full.topics.items()} == {
+        **dict.fromkeys(messages.LOOP_TOPICS, 5000),
+        "run_status": 2,
+    }
+    # rebuild a bag with two topics, one of them empty:
     with BagWriter(partial, topics={t: messages.TOPICS[t] for t in ("measurement", "command")}) as bag:
         src = read_bag(offline_bags / "active", topics=["command"]).topics["command"]
         for i in range(len(src)):

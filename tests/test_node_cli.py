@@ -85,9 +85,12 @@ def test_an_unknown_parameter_is_refused_by_name_at_run_time(domain_id):
     )
     try:
         deadline = time.monotonic() + 60
-        while "controller_node" not in subprocess.run(
-            [ROS2, "node", "list"], capture_output=True, text=True, timeout=60, env=env
-        ).stdout:
+        while (
+            "controller_node"
+            not in subprocess.run(
+                [ROS2, "node", "list"], capture_output=True, text=True, timeout=60, env=env
+            ).stdout
+        ):
             assert time.monotonic() < deadline and node.poll() is None, "controller_node never appeared"
         proc = subprocess.run(
             [ROS2, "param", "set", "controller_node", "c11", "3.0"],

@@ -34,7 +34,7 @@ def test_bag_is_readable_by_mcap_reader(adaptive_bag):
     """The same numbers through the mcap library's own ROS 2 decoder (schemas from the file)."""
     (mcap_file,) = adaptive_bag.glob("*.mcap")
     forces, ticks = [], []
-    for item in read_ros2_messages(str(mcap_file), topics=["plant_truth"]):
+    for item in read_ros2_messages(str(mcap_file), topics=["/plant_truth"]):
         forces.append(item.ros_msg.contact_force)
         ticks.append(item.ros_msg.tick)
     assert ticks == list(range(10000))

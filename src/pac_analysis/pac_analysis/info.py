@@ -1,4 +1,8 @@
-"""``ros2 run pac_analysis info <bag>``: what ``ros2 bag info`` shows, plus pac's tick check."""
+"""``ros2 run pac_analysis info <bag>``: what ``ros2 bag info`` shows, plus pac's tick check.
+
+A damaged bag (truncated, unreadable index, messages missing against metadata.yaml, unknown
+types) gives the table of what is readable, one line per problem on stderr and exit status 1.
+"""
 
 from __future__ import annotations
 
@@ -54,8 +58,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     print(text)
     for warning in warnings:
-        print(f"info: warning: {warning}", file=sys.stderr)
-    return 0
+        print(f"info: {args.bag}: {warning}", file=sys.stderr)
+    return 1 if warnings else 0
 
 
 if __name__ == "__main__":

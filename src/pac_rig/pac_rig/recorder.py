@@ -23,7 +23,8 @@ from pac_common import messages
 from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
 from pac_common.parameters import ParameterError, ParameterSet, RunEndOptions, check_new_directory, parameter
 
-from .bag import BagWriter
+from .bag import DEFAULT_COMPRESSION, BagWriter, qos_dict
+from .mcap_writer import COMPRESSIONS
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,9 @@ class RecorderParameters(ParameterSet):
         -1,
         "close the bag and exit once this tick has been recorded on every topic (-1: never)",
         low=-1,
+    )
+    compression: str = parameter(
+        DEFAULT_COMPRESSION, "MCAP chunk compression of the bag", choices=COMPRESSIONS
     )
     idle_timeout: float = parameter(
         0.0,
@@ -62,8 +66,11 @@ class RecorderNode(PacNode):
             )
         topics = {t: messages.TOPICS[t] for t in names}
         self.params: RecorderParameters = params
+        # Topics enter the bag when their publishers are seen, with the QoS they offer (ros2 bag).
         try:
-            self.bag = BagWriter(path, {"source": "live", "label": path.name}, topics)
+            self.bag = BagWriter(
+                path, {"source": "live", "label": path.name}, topics={}, compression=params.compression
+            )
         except OSError as exc:
             raise ParameterError(
                 "bag_path", str(path), f"a writable new directory ({exc.strerror or exc})"
@@ -103,6 +110,9 @@ class RecorderNode(PacNode):
                 for info in offered
             )
             qos = RECORD_QOS if durable else RECORD_QOS_COMPATIBLE
+            # The writer thread owns the file: the topic enters the bag through the queue, ahead
+            # of any of its messages.
+            self.pending.append((topic, None, (typename, [qos_dict(info.qos_profile) for info in offered])))
             self.create_subscription(self.factory.cls(typename), topic, self._callback(topic), qos, raw=True)
             del self.unsubscribed[topic]
             self.get_logger().info(
@@ -152,6 +162,10 @@ class RecorderNode(PacNode):
         wrote = False
         while pending and not self.failed:
             topic, data, stamp = pending.popleft()
+            if data is None:  # a new topic: (type, offered QoS profiles)
+                if not self._guard(lambda t=topic, st=stamp: self.bag.add_topic(t, *st)):
+                    return
+                continue
             if not self._guard(lambda t=topic, d=data, st=stamp: self.bag.write_raw(t, d, st)):
                 return
             wrote = True
