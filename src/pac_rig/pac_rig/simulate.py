@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,7 +16,7 @@ from pac_common.parameters import ParameterError, ParameterSet
 
 from .bag import BagWriter
 from .cli import OverrideError, add_override_arguments, overrides_from_args
-from .closed_loop import DivergenceError, Scenario, run
+from .closed_loop import DivergenceError, Scenario, TickRecord, run
 
 
 def scenario_sets(s: Scenario) -> dict[str, ParameterSet]:
@@ -54,8 +55,16 @@ class RunResult:
     simulated_seconds: float
 
 
-def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -> RunResult:
-    """Run ``scenario`` offline and record the four topics; log time = simulated time."""
+def simulate_to_bag(
+    scenario: Scenario,
+    bag_path: Path | str,
+    label: str = "",
+    on_record: Callable[[TickRecord], None] | None = None,
+) -> RunResult:
+    """Run ``scenario`` offline and record the four topics; log time = simulated time.
+
+    ``on_record`` sees every tick's record too (e.g. to compute measures without reading the bag).
+    """
     rate = scenario.loop.rate_hz
     delay = scenario.loop.command_delay_ticks
     start = time.perf_counter()
@@ -77,6 +86,8 @@ def simulate_to_bag(scenario: Scenario, bag_path: Path | str, label: str = "") -
                 bag.write("estimate", messages.estimate_fields(rec.estimate, stamp), stamp)
                 bag.write("command", messages.command_fields(rec.command, stamp), stamp)
                 ticks += 1
+                if on_record is not None:
+                    on_record(rec)
         except DivergenceError as exc:
             diverged = str(exc)
             bag.set_metadata("diverged", {"tick": exc.tick, "reason": exc.reason})
