@@ -75,10 +75,10 @@ class Spec:
 
     @property
     def axes(self) -> list[str]:
-        """Every varied parameter, in order of first appearance."""
+        """Every parameter a grid names (the campaign's varied ones), in order of first appearance."""
         out: list[str] = []
         for grid in self.grids:
-            out += [name for name, values in grid.items() if len(values) > 1 and name not in out]
+            out += [name for name in grid if name not in out]
         return out
 
 
@@ -349,7 +349,11 @@ def execute(
     ]
     sizes = {f.key: len(c) for f, c in zip(futures, _chunks(todo, size), strict=True)}
     try:
-        with (out / RUNS_FILE).open("a") as log:
+        with (out / RUNS_FILE).open("a+") as log:
+            if log.tell() > 0:
+                log.seek(log.tell() - 1)
+                if log.read(1) != "\n":
+                    log.write("\n")  # after a torn last line (a kill mid-write) start a fresh one
             for future in as_completed(futures):
                 try:
                     rows = future.result()
@@ -381,7 +385,10 @@ def execute(
 
 
 def embedded_cluster(workers: int | None = None) -> Any:
-    """One single-threaded worker process per core, on loopback, without a dashboard."""
+    """One single-threaded worker process per core, on loopback, without a dashboard.
+
+    (Dask still serves its health/metrics routes over HTTP: on a free loopback port.)
+    """
     from distributed import LocalCluster
 
     return LocalCluster(
@@ -390,6 +397,7 @@ def embedded_cluster(workers: int | None = None) -> Any:
         processes=True,
         host="127.0.0.1",
         dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
         silence_logs=logging.ERROR,
     )
 
@@ -425,16 +433,21 @@ def main(argv: list[str] | None = None) -> int:
 
     from distributed import Client
 
-    cluster = None
+    cluster = client = None
     setup_start = time.perf_counter()
     try:
         if args.scheduler:
             client = Client(args.scheduler, timeout="20s")
+            client.wait_for_workers(1, timeout=60)  # chunking and progress need to know the workers
         else:
             cluster = embedded_cluster(args.workers)
             client = Client(cluster)
     except (OSError, TimeoutError) as exc:
-        print(f"campaign: cannot reach the Dask scheduler {args.scheduler}: {exc}", file=sys.stderr)
+        where = f"Dask scheduler {args.scheduler} (or no worker)" if args.scheduler else "local Dask cluster"
+        print(f"campaign: cannot start on the {where}: {exc}", file=sys.stderr)
+        for thing in (client, cluster):
+            if thing is not None:
+                thing.close()
         return 1
     setup = time.perf_counter() - setup_start
     try:
