@@ -35,7 +35,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -148,13 +148,8 @@ def point_key(scenario: Scenario, window: tuple[float, float]) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
-def expand(spec: Spec) -> list[Point]:
-    """Every grid point, validated, in grid order (duplicates across grids run once).
-
-    Raises SpecError (one line) on the first invalid point, before anything runs.
-    """
-    points: list[Point] = []
-    seen: set[str] = set()
+def _grid_points(spec: Spec) -> Iterator[Point]:
+    """Every point of every grid, validated, in grid order (a point two grids share comes twice)."""
     for gi, grid in enumerate(spec.grids):
         names = list(grid)
         for combo in itertools.product(*grid.values()):
@@ -174,11 +169,29 @@ def expand(spec: Spec) -> list[Point]:
                     f"invalid window [{w_from:g}, {w_to:g}] s: "
                     f"allowed 0 <= from < to <= duration ({duration:g} s)"
                 )
-            key = point_key(scenario, (w_from, w_to))
-            if key not in seen:
-                seen.add(key)
-                points.append(Point(key, values, gi))
+            yield Point(point_key(scenario, (w_from, w_to)), values, gi)
+
+
+def expand(spec: Spec) -> list[Point]:
+    """Every grid point, validated, in grid order; a point several grids share runs once.
+
+    Raises SpecError (one line) on the first invalid point, before anything runs.
+    """
+    points: list[Point] = []
+    seen: set[str] = set()
+    for point in _grid_points(spec):
+        if point.key not in seen:
+            seen.add(point.key)
+            points.append(point)
     return points
+
+
+def grid_keys(spec: Spec) -> list[set[str]]:
+    """The keys of each grid's points (the rows a grid's figures show)."""
+    keys: list[set[str]] = [set() for _ in spec.grids]
+    for point in _grid_points(spec):
+        keys[point.grid].add(point.key)
+    return keys
 
 
 def _series(records: list[TickRecord]) -> RunSeries:
@@ -435,6 +448,9 @@ def main(argv: list[str] | None = None) -> int:
 
     cluster = client = None
     setup_start = time.perf_counter()
+    done = read_done(args.out)
+    if all(p.key in done for p in points):  # all done: no cluster needed
+        return _finish(args, spec, points, Outcome(len(points), len(points), 0, 0, 0, 0.0, 0.0), 0.0)
     try:
         if args.scheduler:
             client = Client(args.scheduler, timeout="20s")
@@ -456,6 +472,10 @@ def main(argv: list[str] | None = None) -> int:
         client.close()
         if cluster is not None:
             cluster.close()
+    return _finish(args, spec, points, outcome, setup)
+
+
+def _finish(args: argparse.Namespace, spec: Spec, points: list[Point], outcome: Outcome, setup: float) -> int:
     rate = outcome.simulated_seconds / outcome.wall_seconds if outcome.wall_seconds > 0 else math.nan
     print(
         f"campaign {spec.name}: {outcome.total} runs, {outcome.skipped} already done, {outcome.ran} run "
@@ -466,12 +486,13 @@ def main(argv: list[str] | None = None) -> int:
     if outcome.interrupted:
         print("campaign: interrupted; re-run the same command to resume", file=sys.stderr)
         return 130
+    args.out.mkdir(parents=True, exist_ok=True)
+    rows = write_results(spec, points, read_done(args.out), args.out)
+    print(f"wrote {args.out / RESULTS_FILE}")
     if not args.no_report:
         from .campaign_report import write_report
 
-        rows = write_results(spec, points, read_done(args.out), args.out)
-        write_report(spec, rows, args.out)
-        print(f"wrote {args.out / RESULTS_FILE} and {args.out / 'report.md'}")
+        print(f"wrote {write_report(spec, rows, args.out)}")
     return 1 if outcome.lost else 0
 
 

@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
-from .campaign import STATUS_OK, Spec  # noqa: E402
+from .campaign import STATUS_OK, Spec, grid_keys  # noqa: E402
 
 SPEED = "speed_kmh"
 #: sigma <= this times Fm (EN 50367)
@@ -138,7 +138,16 @@ def robustness_map(grid: dict[str, list], rows: list[dict], x: str, y: str, titl
             elif np.isfinite(sigma[j, i]):
                 if fails[j, i]:
                     ax.add_patch(plt.Rectangle((i - 0.5, j - 0.5), 1, 1, fill=False, hatch="xx", ec="red"))
-                ax.text(i, j, f"{sigma[j, i]:.3g}", ha="center", va="center", fontsize=8, color="w")
+                bright = norm is not None and norm(sigma[j, i]) > 0.6  # dark text on viridis' yellows
+                ax.text(
+                    i,
+                    j,
+                    f"{sigma[j, i]:.3g}",
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    color="k" if bright else "w",
+                )
     ax.set_xticks(range(len(xs)), [_label(v) for v in xs])
     ax.set_yticks(range(len(ys)), [_label(v) for v in ys])
     ax.set_xlabel(x)
@@ -202,7 +211,8 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
     ]
     for gi, grid in enumerate(spec.grids):
         lines.append(
-            f"- grid {gi + 1}: " + " x ".join(f"`{k}` {[_label(v) for v in vs]}" for k, vs in grid.items())
+            f"- grid {gi + 1}: "
+            + " x ".join(f"`{k}` [{', '.join(_label(v) for v in vs)}]" for k, vs in grid.items())
         )
     lines += [
         "",
@@ -212,8 +222,9 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
     ]
     if note:
         lines += [note, ""]
+    keys = grid_keys(spec)
     for gi, grid in enumerate(spec.grids):
-        mine = [r for r in rows if all(any(_same(r.get(a), v) for v in vs) for a, vs in grid.items())]
+        mine = [r for r in rows if r["key"] in keys[gi]]
         varied = [a for a in grid if len(grid[a]) > 1]
         tag = f"grid {gi + 1}"
         if SPEED in varied:
