@@ -312,3 +312,56 @@ def test_embedded_cluster_listens_on_loopback_only():
         assert listening and all(c.laddr.ip == "127.0.0.1" for c in listening), listening
     finally:
         cluster.close()
+
+
+def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
+    """SIGINT to the whole process group (a terminal's Ctrl-C, workers included).
+
+    48 runs: many more than finish before the interrupt, even with much faster cores."""
+    spec = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grid": {
+                "speed_kmh": [160.0, 200.0, 240.0, 280.0, 320.0, 360.0, 380.0, 400.0],
+                "c1": [30.0, 35.0, 40.0, 45.0, 50.0, 55.0],
+            },
+            "fixed": {"duration": 0.3},
+            "window": [0.1, 0.3],
+        },
+    )
+    out = tmp_path / "out"
+    args = [
+        sys.executable,
+        "-m",
+        "pac_experiments.campaign",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1",
+    ]
+    proc = subprocess.Popen(
+        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = out / "runs.jsonl"
+            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+    assert proc.returncode == 130, stderr
+    assert "interrupted; re-run the same command to resume" in stderr
+    kept = len((out / "runs.jsonl").read_text().splitlines())
+    assert 2 <= kept < 48
+    assert len(read_rows(out)) == kept  # results.csv holds what finished
+    again = _cli(str(spec), "--out", str(out), "--no-report")
+    assert again.returncode == 0, again.stderr
+    assert f"48 runs, {kept} already done, {48 - kept} run" in again.stdout
+    assert len(read_rows(out)) == 48

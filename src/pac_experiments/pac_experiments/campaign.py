@@ -33,6 +33,7 @@ import json
 import logging
 import math
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -404,15 +405,21 @@ def embedded_cluster(workers: int | None = None) -> Any:
     """
     from distributed import LocalCluster
 
-    return LocalCluster(
-        n_workers=workers or os.cpu_count() or 1,
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address=None,
-        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-        silence_logs=logging.ERROR,
-    )
+    # The worker processes start with SIGINT ignored (a new interpreter keeps an inherited
+    # SIG_IGN): Ctrl-C stops the campaign, which then closes its workers cleanly.
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        return LocalCluster(
+            n_workers=workers or os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+            scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+            silence_logs=logging.CRITICAL,  # task errors reach us through their futures
+        )
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -458,7 +465,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             cluster = embedded_cluster(args.workers)
             client = Client(cluster)
-    except (OSError, TimeoutError) as exc:
+    except (OSError, TimeoutError, ValueError) as exc:
         where = f"Dask scheduler {args.scheduler} (or no worker)" if args.scheduler else "local Dask cluster"
         print(f"campaign: cannot start on the {where}: {exc}", file=sys.stderr)
         for thing in (client, cluster):
