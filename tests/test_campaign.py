@@ -4,6 +4,7 @@ and a separate Dask cluster (scheduler + workers as processes) gives the embedde
 from __future__ import annotations
 
 import csv
+import json
 import os
 import signal
 import socket
@@ -222,7 +223,9 @@ def _free_port() -> int:
 
 @pytest.fixture
 def dask_cluster(tmp_path):
-    """``dask scheduler`` + two ``dask worker`` processes on loopback; stopped by PID at teardown."""
+    """``dask scheduler`` + two ``dask worker`` processes on loopback: (address, worker processes).
+
+    Every process is stopped by its PID (its process group) at teardown, pass or fail."""
     dask = str(Path(sys.executable).parent / "dask")
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
@@ -257,7 +260,7 @@ def dask_cluster(tmp_path):
 
         with Client(address, timeout="30s") as c:
             c.wait_for_workers(2, timeout=60)
-        yield address
+        yield address, procs[1:]
     finally:
         for p in procs:
             if p.poll() is None:
@@ -275,6 +278,7 @@ def dask_cluster(tmp_path):
 
 
 def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
+    address, _ = dask_cluster
     spec = write_spec(
         tmp_path / "spec.yaml",
         {
@@ -286,7 +290,7 @@ def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
             "window": WINDOW,
         },
     )
-    remote = _cli(str(spec), "--out", str(tmp_path / "remote"), "--scheduler", dask_cluster)
+    remote = _cli(str(spec), "--out", str(tmp_path / "remote"), "--scheduler", address)
     assert remote.returncode == 0, remote.stderr
     embedded = _cli(str(spec), "--out", str(tmp_path / "embedded"), "--workers", "2")
     assert embedded.returncode == 0, embedded.stderr
@@ -365,3 +369,52 @@ def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
     assert again.returncode == 0, again.stderr
     assert f"48 runs, {kept} already done, {48 - kept} run" in again.stdout
     assert len(read_rows(out)) == 48
+
+
+def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
+    """One of the two workers is killed (SIGKILL, with its nanny) mid-campaign: Dask re-runs its
+    tasks on the other one; every row is there once and equals a run on an intact cluster."""
+    address, workers = dask_cluster
+    spec = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grid": {"speed_kmh": [160.0, 200.0, 240.0, 280.0, 320.0, 360.0], "c1": [35.0, 40.0]},
+            "fixed": {"duration": 0.5},
+            "window": WINDOW,
+        },
+    )
+    out = tmp_path / "out"
+    args = [
+        sys.executable,
+        "-m",
+        "pac_experiments.campaign",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1",
+        "--scheduler",
+        address,
+        "--no-report",
+    ]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = out / "runs.jsonl"
+            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        os.killpg(workers[0].pid, signal.SIGKILL)
+        stdout, stderr = proc.communicate(timeout=180)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    assert proc.returncode == 0, stderr
+    assert "12 runs, 0 already done, 12 run (0 diverged or failed), 0 lost" in stdout
+    keys = [json.loads(line)["key"] for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert len(keys) == len(set(keys)) == 12
+    intact = _cli(str(spec), "--out", str(tmp_path / "intact"), "--workers", "2", "--no-report")
+    assert intact.returncode == 0, intact.stderr
+    assert (out / "results.csv").read_bytes() == (tmp_path / "intact" / "results.csv").read_bytes()
