@@ -33,6 +33,7 @@ import json
 import logging
 import math
 import os
+import shutil
 import signal
 import sys
 import time
@@ -237,9 +238,9 @@ def run_point(point: Point, window: tuple[float, float | None], bag_dir: str | N
             except DivergenceError as exc:
                 diverged = str(exc)
         else:
-            diverged = simulate_to_bag(
-                scenario, Path(bag_dir) / point.key, point.key, records.append
-            ).diverged
+            bag_path = Path(bag_dir) / point.key
+            shutil.rmtree(bag_path, ignore_errors=True)  # a partial bag of an interrupted run
+            diverged = simulate_to_bag(scenario, bag_path, point.key, records.append).diverged
         if diverged:
             row.update(status=STATUS_DIVERGED, reason=diverged.splitlines()[0])
         else:
