@@ -24,6 +24,7 @@ setup(
             "sweep = pac_experiments.sweep:main",
             "reproduce = pac_experiments.reproduce:main",
             "campaign = pac_experiments.campaign:main",
+            "campaign_bench = pac_experiments.campaign_bench:main",
         ],
     },
 )
