@@ -36,7 +36,9 @@ import os
 import shutil
 import signal
 import sys
+import threading
 import time
+import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -358,41 +360,59 @@ def execute(
         desc=spec.name,
         file=sys.stdout,
     )
+    run_id = uuid.uuid4().hex[
+        :8
+    ]  # task keys unique per invocation (a shared scheduler may remember old ones)
     futures = [
-        client.submit(run_chunk, chunk, spec.window, bag_dir, pure=False, key=f"campaign-{chunk[0].key}-{i}")
+        client.submit(run_chunk, chunk, spec.window, bag_dir, pure=False, key=f"campaign-{run_id}-{i}")
         for i, chunk in enumerate(_chunks(todo, size))
     ]
     sizes = {f.key: len(c) for f, c in zip(futures, _chunks(todo, size), strict=True)}
+    # Ctrl-C sets a flag that the loop below polls (every 50 ms) rather than raising inside
+    # Dask's client code; the rows written so far stay, the rest is cancelled.
+    stop = threading.Event()
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, lambda *_: stop.set()) if in_main else None
     try:
         with (out / RUNS_FILE).open("a+") as log:
             if log.tell() > 0:
                 log.seek(log.tell() - 1)
                 if log.read(1) != "\n":
                     log.write("\n")  # after a torn last line (a kill mid-write) start a fresh one
-            for future in as_completed(futures):
-                try:
-                    rows = future.result()
-                except Exception as exc:  # noqa: BLE001 - a lost worker or task: its runs stay to do
-                    outcome.lost += sizes[future.key]
-                    bar.write(f"campaign: {sizes[future.key]} runs not done ({type(exc).__name__}: {exc})")
-                    bar.update(sizes[future.key])
-                    continue
-                for row in rows:
-                    log.write(json.dumps(row) + "\n")
-                    done[row["key"]] = row
-                    outcome.ran += 1
-                    outcome.failed += row["status"] != STATUS_OK
-                    outcome.simulated_seconds += row["simulated_seconds"]
-                    if on_row is not None:
-                        on_row(row)
-                log.flush()
-                bar.update(len(rows))
-                bar.set_postfix(failed=outcome.failed, refresh=False)
-    except KeyboardInterrupt:
-        outcome.interrupted = True
-        for f in futures:
-            f.cancel()
+            pending = as_completed(futures)
+            while not stop.is_set() and not pending.is_empty():
+                batch = pending.next_batch(block=False)
+                if not batch:
+                    stop.wait(0.05)
+                for future in batch:
+                    try:
+                        rows = future.result()
+                    except Exception as exc:  # noqa: BLE001 - a lost worker or task: its runs stay to do
+                        outcome.lost += sizes[future.key]
+                        bar.write(
+                            f"campaign: {sizes[future.key]} runs not done ({type(exc).__name__}: {exc})"
+                        )
+                        bar.update(sizes[future.key])
+                        continue
+                    for row in rows:
+                        log.write(json.dumps(row) + "\n")
+                        done[row["key"]] = row
+                        outcome.ran += 1
+                        outcome.failed += row["status"] != STATUS_OK
+                        outcome.simulated_seconds += row["simulated_seconds"]
+                        if on_row is not None:
+                            on_row(row)
+                    log.flush()
+                    bar.update(len(rows))
+                    bar.set_postfix(failed=outcome.failed, refresh=False)
+    except KeyboardInterrupt:  # defensive: any other interrupt in here stops the same way
+        stop.set()
     finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+        if stop.is_set():
+            outcome.interrupted = True
+            client.cancel(futures)
         bar.close()
         outcome.wall_seconds = time.perf_counter() - start
         write_results(spec, points, done, out)
