@@ -122,7 +122,7 @@ def load_spec(path: Path) -> Spec:
     for i, grid in enumerate(raw_grids):
         where = "grid" if "grid" in data else f"grids[{i}]"
         if not isinstance(grid, dict) or not grid:
-            raise SpecError(f"spec {path}: '{where}' is empty (it needs at least one parameter: [values])")
+            raise SpecError(f"spec {path}: '{where}' is empty or not a mapping (parameter: [values, ...])")
         for name, values in grid.items():
             if not isinstance(values, list) or not values:
                 raise SpecError(
