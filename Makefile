@@ -6,8 +6,10 @@ SHELL := /bin/bash
 ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
+# SPECs of config/campaigns/ that `make campaigns` runs (laws_speeds needs the `law` parameter).
+CAMPAIGNS ?= robustness modes_speeds
 
-.PHONY: setup test lint clean demo reproduce bench report info replay re-estimate recover sweep
+.PHONY: setup test lint clean demo reproduce bench report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -47,3 +49,11 @@ replay: setup
 
 sweep: setup
 	scripts/with_env.sh ros2 run pac_experiments sweep $(ARGS)
+
+# Fresh runs (runs.jsonl removed: its rows are keyed by parameters, not by code version);
+# the campaign CLI itself resumes when called again on the same --out.
+campaigns: setup
+	set -e; for c in $(CAMPAIGNS); do \
+		rm -f reports/campaigns/$$c/runs.jsonl; \
+		scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/$$c.yaml --out reports/campaigns/$$c $(ARGS); \
+	done

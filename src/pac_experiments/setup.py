@@ -14,7 +14,7 @@ setup(
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Studies that run and analyse the rig: demo, bench, sweep, reproduce.",
+    description="Studies that run and analyse the rig: demo, bench, sweep, reproduce, campaign.",
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={
@@ -23,6 +23,8 @@ setup(
             "bench = pac_experiments.bench:main",
             "sweep = pac_experiments.sweep:main",
             "reproduce = pac_experiments.reproduce:main",
+            "campaign = pac_experiments.campaign:main",
+            "campaign_bench = pac_experiments.campaign_bench:main",
         ],
     },
 )

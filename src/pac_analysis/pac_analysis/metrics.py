@@ -50,43 +50,68 @@ def _rms(x: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(x)))) if x.size else math.nan
 
 
-def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | None = None) -> Metrics:
-    """Quality measures of a run over the window; NaN (and an entry in ``missing_inputs(bag)``)
-    for what a missing topic prevents. Raises ValueError when the bag has no tick at all."""
-    truth, command, estimate = (bag.topics.get(n) for n in ("plant_truth", "command", "estimate"))
-    present = [t for t in bag.topics.values() if len(t) and "tick" in t.columns]
-    if not present:
-        raise ValueError("no pac topic with ticks in the bag")
-    clock = truth if truth is not None and len(truth) else present[0]
-    t = stamp_seconds(clock)
-    end = float(t.max()) if window_to is None else window_to
+@dataclass(frozen=True)
+class RunSeries:
+    """The per-tick series the measures need, from a bag or from a run in memory.
+
+    ``tick``/``time`` are the run's clock (the plant's ticks when it has them); the
+    contact force and the stiffness are aligned with them.  Reference and estimate
+    may cover only some ticks: ``*_index`` are the positions in ``tick`` they belong to.
+    ``u`` carries its own time (the controller's stamps).
+    """
+
+    tick: np.ndarray
+    time: np.ndarray
+    contact_force: np.ndarray | None = None  # F [N]
+    stiffness: np.ndarray | None = None  # k [N/m]
+    reference_index: np.ndarray | None = None
+    force_reference: np.ndarray | None = None  # F_r [N] at tick[reference_index]
+    estimate_index: np.ndarray | None = None
+    stiffness_hat: np.ndarray | None = None  # k_hat [N/m] at tick[estimate_index]
+    u_time: np.ndarray | None = None
+    u: np.ndarray | None = None  # [N]
+
+
+def _in_window(t: np.ndarray, window_from: float, window_to: float) -> np.ndarray:
+    return (t >= window_from - 1e-12) & (t <= window_to + 1e-12)
+
+
+def metrics_from_series(s: RunSeries, window_from: float = 3.0, window_to: float | None = None) -> Metrics:
+    """Quality measures over the window (end: the last tick when None); NaN for what is absent.
+
+    The one place the measures are computed: ``compute_metrics`` (bags) and the
+    campaigns (runs in memory) both come here.  Raises ValueError when the window
+    holds no contact-force sample although the run has some.
+    """
+    if s.tick.size == 0:
+        raise ValueError("no tick in the run")
+    end = float(s.time.max()) if window_to is None else window_to
     nan = math.nan
     mean = std = fmin = fmax = loss = tracking = stiff = u_max = u_rms = nan
-    if truth is not None and len(truth):
-        win = (t >= window_from - 1e-12) & (t <= end + 1e-12)
-        force = truth["contact_force"][win]
+    if s.contact_force is not None and s.contact_force.size:
+        win = _in_window(s.time, window_from, end)
+        force = s.contact_force[win]
         if force.size == 0:
             raise ValueError(f"no plant_truth samples in the window [{window_from}, {end}] s")
         mean, std = float(force.mean()), float(force.std())
         fmin, fmax = float(force.min()), float(force.max())
         loss = 100.0 * float(np.mean(force <= 0.0))
-        if command is not None and len(command):
-            ic, it = _by_tick(command, truth)
+        if s.force_reference is not None and s.reference_index is not None and s.force_reference.size:
+            it = s.reference_index
             keep = win[it]
-            tracking = _rms(truth["contact_force"][it][keep] - command["force_reference"][ic][keep])
-        if estimate is not None and len(estimate):
-            ie, it = _by_tick(estimate, truth)
-            keep = win[it]
-            k = truth["stiffness"][it][keep]
-            stiff = 100.0 * _rms((estimate["stiffness_hat"][ie][keep] - k) / k)
-    if command is not None and len(command):
-        tc = stamp_seconds(command)
-        u = command["u"][(tc >= window_from - 1e-12) & (tc <= end + 1e-12)]
+            tracking = _rms(s.contact_force[it][keep] - s.force_reference[keep])
+        if s.stiffness_hat is not None and s.estimate_index is not None and s.stiffness is not None:
+            if s.stiffness_hat.size:
+                it = s.estimate_index
+                keep = win[it]
+                k = s.stiffness[it][keep]
+                stiff = 100.0 * _rms((s.stiffness_hat[keep] - k) / k)
+    if s.u is not None and s.u_time is not None and s.u.size:
+        u = s.u[_in_window(s.u_time, window_from, end)]
         if u.size:
             u_max, u_rms = float(np.max(np.abs(u))), _rms(u)
-    ticks = clock["tick"]
-    expected = int(ticks.max() - ticks.min() + 1)
-    recorded = int(np.unique(ticks).size)
+    expected = int(s.tick.max() - s.tick.min() + 1)
+    recorded = int(np.unique(s.tick).size)
     return Metrics(
         window_from=window_from,
         window_to=end,
@@ -105,6 +130,35 @@ def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | N
         ticks_recorded=recorded,
         ticks_missing=expected - recorded,
     )
+
+
+def series_from_bag(bag: BagData) -> RunSeries:
+    """The bag's topics as series aligned on the plant's ticks. Raises ValueError when no topic has ticks."""
+    truth, command, estimate = (bag.topics.get(n) for n in ("plant_truth", "command", "estimate"))
+    present = [t for t in bag.topics.values() if len(t) and "tick" in t.columns]
+    if not present:
+        raise ValueError("no pac topic with ticks in the bag")
+    has_truth = truth is not None and len(truth) > 0
+    clock = truth if has_truth else present[0]
+    fields: dict[str, Any] = {"tick": clock["tick"], "time": stamp_seconds(clock)}
+    if has_truth:
+        fields["contact_force"] = truth["contact_force"]
+        fields["stiffness"] = truth["stiffness"]
+    if command is not None and len(command):
+        fields["u_time"], fields["u"] = stamp_seconds(command), command["u"]
+        if has_truth:
+            ic, it = _by_tick(command, truth)
+            fields["reference_index"], fields["force_reference"] = it, command["force_reference"][ic]
+    if has_truth and estimate is not None and len(estimate):
+        ie, it = _by_tick(estimate, truth)
+        fields["estimate_index"], fields["stiffness_hat"] = it, estimate["stiffness_hat"][ie]
+    return RunSeries(**fields)
+
+
+def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | None = None) -> Metrics:
+    """Quality measures of a recorded run over the window; NaN (and an entry in ``missing_inputs(bag)``)
+    for what a missing topic prevents. Raises ValueError when the bag has no tick at all."""
+    return metrics_from_series(series_from_bag(bag), window_from, window_to)
 
 
 #: Which measures each topic feeds (for saying what a missing topic costs).

@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from pac_common.parameters import LoopParameters
+from pac_common.parameters import LoopParameters, ParameterSet, parameter
 from pac_controller.controller import Command, Controller
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
@@ -23,6 +23,18 @@ from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedEr
 from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
+
+
+@dataclass(frozen=True)
+class ModelMismatch(ParameterSet):
+    """Offline only: how the simulated pantograph differs from the one the observer and controller assume."""
+
+    plant_mass_scale: float = parameter(
+        1.0, "plant's m1 and m2 scaled by this (observer and controller keep Table 1's)", low=0.1, high=10.0
+    )
+
+    def plant_pantograph(self, nominal: PantographParameters) -> PantographParameters:
+        return replace(nominal, m1=nominal.m1 * self.plant_mass_scale, m2=nominal.m2 * self.plant_mass_scale)
 
 
 @dataclass(frozen=True)
@@ -38,6 +50,7 @@ class Scenario:
     reference: ReferenceParameters = field(default_factory=ReferenceParameters)
     laws: LawParameters = field(default_factory=LawParameters)  # pid / lqr design (controller.law)
     loop: LoopParameters = field(default_factory=LoopParameters)
+    mismatch: ModelMismatch = field(default_factory=ModelMismatch)
 
 
 @dataclass(frozen=True)
@@ -67,7 +80,7 @@ DIVERGENCE_FORCE = 1e6
 
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, Controller]:
     dt = s.loop.sample_period
-    plant = Plant(s.pantograph, s.track, s.catenary, s.plant, dt)
+    plant = Plant(s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt)
     observer = AdaptiveObserver(s.pantograph, s.track, s.observer, dt)
     # backstepping_known is told the plant's own catenary: the oracle.
     controller = make_controller(s.pantograph, s.track, s.controller, s.reference, dt, s.laws, s.catenary)

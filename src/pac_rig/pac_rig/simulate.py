@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -89,12 +90,14 @@ def simulate_to_bag(
     label: str = "",
     compression: str = DEFAULT_COMPRESSION,
     show_progress: bool = False,
+    on_record: Callable[[TickRecord], None] | None = None,
 ) -> RunResult:
     """Run ``scenario`` offline and record the pac topics; log time = simulated time.
 
     Each tick's field dictionaries are the nodes' own (pac_common.messages); they are
     collected per topic and written in blocks through the vectorised CDR path.
-    ``show_progress``: a tick progress bar on stderr when it is a terminal."""
+    ``show_progress``: a tick progress bar on stderr when it is a terminal. ``on_record``
+    sees every tick's record too (e.g. to compute measures without reading the bag)."""
     rate = scenario.loop.rate_hz
     start = time.perf_counter()
     ticks = 0
@@ -124,6 +127,8 @@ def simulate_to_bag(
                     rows[topic].append(fields)
                 stamps.append(messages.tick_stamp_ns(rec.measurement.tick, rate))
                 ticks += 1
+                if on_record is not None:
+                    on_record(rec)
                 if len(stamps) == WRITE_BLOCK:
                     write_ticks(bag, rows, stamps)
                     bag.flush()

@@ -1,0 +1,420 @@
+"""Campaigns on Dask: failing runs are rows, resume skips done rows, bad SPECs stop before any run,
+and a separate Dask cluster (scheduler + workers as processes) gives the embedded run's results."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from pac_analysis.metrics import compute_metrics
+from pac_experiments import campaign
+from pac_rig.bag import read_bag
+from pac_rig.closed_loop import build_cores
+from pac_rig.simulate import scenario_from_flat
+
+WINDOW = [0.25, 0.5]
+#: The paper's gains with an ideal actuator (as reproduce's paper_gains run): diverge in ~0.23 s.
+PAPER_GAINS = {
+    "c1": [400.0],
+    "c2": [400.0],
+    "c3": [50.0],
+    "u_min": [-1e7],
+    "u_max": [1e7],
+    "slew_rate_max": [1e12],
+    "shape": ["constant"],
+}
+
+
+def write_spec(path: Path, spec: dict) -> Path:
+    path.write_text(yaml.safe_dump(spec))
+    return path
+
+
+def read_rows(out: Path) -> list[dict[str, str]]:
+    with (out / "results.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture
+def client():
+    """An in-process Dask cluster (threads): the test's monkeypatches reach its tasks."""
+    from distributed import Client, LocalCluster
+
+    cluster = LocalCluster(
+        n_workers=1,
+        threads_per_worker=2,
+        processes=False,
+        dashboard_address=None,
+        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+    )
+    c = Client(cluster)
+    yield c
+    c.close()
+    cluster.close()
+
+
+def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path, client, monkeypatch):
+    spec_path = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grids": [
+                {"speed_kmh": [300.0, 360.0]},
+                PAPER_GAINS,  # diverge with one tick of delay
+            ],
+            "fixed": {"duration": 0.5},
+            "window": WINDOW,
+        },
+    )
+    real_run = campaign.run
+
+    def run_or_raise(scenario):
+        if scenario.track.speed_kmh == 300.0:
+            raise RuntimeError("injected failure")
+        return real_run(scenario)
+
+    monkeypatch.setattr(campaign, "run", run_or_raise)
+    spec = campaign.load_spec(spec_path)
+    points = campaign.expand(spec)
+    outcome = campaign.execute(client, spec, points, tmp_path / "out", progress=False)
+    assert (outcome.total, outcome.ran, outcome.failed, outcome.lost) == (3, 3, 2, 0)
+    rows = {(r["speed_kmh"], r["c1"]): r for r in read_rows(tmp_path / "out")}
+    raised = rows[("300.0", "40.0")]
+    assert raised["status"] == "error" and raised["reason"] == "RuntimeError: injected failure"
+    assert raised["contact_force_std"] == ""
+    diverged = rows[("360.0", "400.0")]
+    assert diverged["status"] == "diverged" and diverged["reason"].startswith("closed loop diverged at tick")
+    ok = rows[("360.0", "40.0")]
+    assert ok["status"] == "ok" and ok["reason"] == ""
+    assert float(ok["contact_force_std"]) > 0.0 and float(ok["ticks_run"]) == 500
+    from pac_experiments.campaign_report import write_report
+
+    report = write_report(
+        spec,
+        campaign.write_results(spec, points, campaign.read_done(tmp_path / "out"), tmp_path / "out"),
+        tmp_path / "out",
+    ).read_text()
+    assert (
+        "diverged: closed loop diverged at tick" in report
+        and "error: RuntimeError: injected failure" in report
+    )
+
+
+def test_resume_runs_only_what_is_not_done(tmp_path, client, monkeypatch):
+    spec = {
+        "grid": {"speed_kmh": [300.0, 360.0], "c3": [40.0, 50.0]},
+        "fixed": {"duration": 0.3},
+        "window": [0.1, 0.3],
+    }
+    executed: list[str] = []
+    real = campaign.run_point
+
+    def counting(point, window, bag_dir=None):
+        executed.append(point.key)
+        return real(point, window, bag_dir)
+
+    monkeypatch.setattr(campaign, "run_point", counting)
+    out = tmp_path / "out"
+
+    def go(s: dict) -> campaign.Outcome:
+        loaded = campaign.load_spec(write_spec(tmp_path / "spec.yaml", s))
+        return campaign.execute(client, loaded, campaign.expand(loaded), out, chunk_size=1, progress=False)
+
+    assert go(spec).ran == 4 and len(executed) == 4
+    first = (out / "results.csv").read_text()
+    assert go(spec).ran == 0 and len(executed) == 4  # the same command again: nothing runs
+    assert (out / "results.csv").read_text() == first
+    # A campaign killed mid-write: two rows lost, the last line torn.
+    lines = (out / "runs.jsonl").read_text().splitlines()
+    (out / "runs.jsonl").write_text("\n".join(lines[:2]) + "\n" + lines[2][:40])
+    executed.clear()
+    outcome = go(spec)
+    assert (outcome.skipped, outcome.ran) == (2, 2) and len(executed) == 2
+    assert (out / "results.csv").read_text() == first
+    # A grown grid runs only the new points.
+    executed.clear()
+    spec["grid"]["speed_kmh"].append(200.0)
+    assert go(spec).ran == 2 and len(executed) == 2
+    assert len(read_rows(out)) == 6
+
+
+def test_measures_in_memory_equal_the_bag_reports(tmp_path):
+    """One formula: the campaign's row (in memory) and the report of the bag it keeps agree exactly."""
+    spec = campaign.Spec("t", ({"speed_kmh": [250.0]},), {"duration": 0.5}, (0.25, 0.5))
+    (point,) = campaign.expand(spec)
+    in_memory = campaign.run_point(point, spec.window)
+    with_bag = campaign.run_point(point, spec.window, str(tmp_path))
+    from_bag = compute_metrics(read_bag(tmp_path / point.key), 0.25, 0.5)
+    for name in campaign.METRIC_COLUMNS:
+        assert in_memory[name] == with_bag[name] == getattr(from_bag, name), name
+
+
+def test_plant_mass_mismatch_scales_only_the_plant():
+    plant, observer, controller = build_cores(scenario_from_flat({"plant_mass_scale": 1.3}))
+    assert (plant.pantograph.m1, plant.pantograph.m2) == pytest.approx((8.0 * 1.3, 12.0 * 1.3))
+    assert (observer.pantograph.m1, controller.law.pantograph.m1) == (8.0, 8.0)
+    assert (observer.pantograph.m2, controller.law.pantograph.m2) == (12.0, 12.0)
+    nominal, *_ = build_cores(scenario_from_flat({}))
+    assert (nominal.pantograph.m1, nominal.pantograph.m2) == (8.0, 12.0)
+
+
+def _cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "pac_experiments.campaign", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WINDOW}
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (yaml.safe_dump({**GOOD, "grid": {"no_such_gain": [1.0]}}), "invalid parameter 'no_such_gain'"),
+        (yaml.safe_dump({**GOOD, "grid": {"speed_kmh": [300.0, 900.0]}}), "'speed_kmh' = 900.0: allowed"),
+        (yaml.safe_dump({**GOOD, "fixed": {"duration": 0.5, "c1": -1.0}}), "invalid parameter 'c1' = -1.0"),
+        (yaml.safe_dump({**GOOD, "grid": {}}), "'grid' is empty"),
+        (yaml.safe_dump({**GOOD, "grid": {"speed_kmh": []}}), "grid.speed_kmh must be a non-empty list"),
+        (yaml.safe_dump({**GOOD, "window": [0.25, 2.0]}), "invalid window [0.25, 2] s"),
+        ("grid: {speed_kmh: [300.0\nfixed: [", "is not valid YAML"),
+        (None, "cannot read spec"),
+    ],
+    ids=[
+        "unknown",
+        "out-of-range",
+        "out-of-range-fixed",
+        "empty-grid",
+        "empty-axis",
+        "window",
+        "yaml",
+        "missing",
+    ],
+)
+def test_bad_spec_fails_before_any_run_with_one_line(tmp_path, text, expected):
+    spec = tmp_path / "spec.yaml"
+    if text is not None:
+        spec.write_text(text)
+    out = tmp_path / "out"
+    result = _cli(str(spec), "--out", str(out))
+    assert result.returncode == 2, result.stderr
+    assert result.stdout == ""
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("campaign: ") and expected in lines[0], result.stderr
+    assert not out.exists()  # nothing ran, nothing was written
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """``dask scheduler`` + two ``dask worker`` processes on loopback: (address, worker processes).
+
+    Every process is stopped by its PID (its process group) at teardown, pass or fail."""
+    dask = str(Path(sys.executable).parent / "dask")
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    procs: list[subprocess.Popen] = []
+    logs = []
+
+    def start(*args: str) -> None:
+        log = (tmp_path / f"dask_{len(procs)}.log").open("w")
+        logs.append(log)
+        # Own session: the worker's nanny has a child, stopped with it through the group.
+        procs.append(
+            subprocess.Popen([dask, *args], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        )
+
+    try:
+        start("scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard")
+        for i in range(2):
+            start(
+                "worker",
+                address,
+                "--host",
+                "127.0.0.1",
+                "--nthreads",
+                "1",
+                "--nworkers",
+                "1",
+                "--no-dashboard",
+                "--name",
+                f"w{i}",
+            )
+        from distributed import Client
+
+        with Client(address, timeout="30s") as c:
+            c.wait_for_workers(2, timeout=60)
+        yield address, procs[1:]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGTERM)
+        deadline = time.monotonic() + 10.0
+        for p in procs:
+            try:
+                p.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.wait(timeout=5.0)
+        for log in logs:
+            log.close()
+        assert all(p.poll() is not None for p in procs)
+
+
+def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
+    address, _ = dask_cluster
+    spec = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grids": [
+                {"speed_kmh": [250.0, 360.0], "plant_mass_scale": [0.8, 1.2]},
+                PAPER_GAINS,
+            ],
+            "fixed": {"duration": 0.5},
+            "window": WINDOW,
+        },
+    )
+    remote = _cli(str(spec), "--out", str(tmp_path / "remote"), "--scheduler", address)
+    assert remote.returncode == 0, remote.stderr
+    embedded = _cli(str(spec), "--out", str(tmp_path / "embedded"), "--workers", "2")
+    assert embedded.returncode == 0, embedded.stderr
+    rows = read_rows(tmp_path / "remote")
+    assert len(rows) == 5 and sorted(r["status"] for r in rows) == ["diverged", "ok", "ok", "ok", "ok"]
+    assert (tmp_path / "remote" / "results.csv").read_bytes() == (
+        tmp_path / "embedded" / "results.csv"
+    ).read_bytes()
+    assert (tmp_path / "remote" / "report.md").exists() and list((tmp_path / "remote").glob("fig_*.png"))
+    assert "5 run (1 diverged or failed), 0 lost" in remote.stdout
+
+
+def test_embedded_cluster_listens_on_loopback_only():
+    import psutil
+
+    cluster = campaign.embedded_cluster(1)
+    try:
+        me = psutil.Process()
+        pids = {me.pid} | {p.pid for p in me.children(recursive=True)}
+        listening = [
+            c for c in psutil.net_connections("inet") if c.status == psutil.CONN_LISTEN and c.pid in pids
+        ]
+        assert listening and all(c.laddr.ip == "127.0.0.1" for c in listening), listening
+    finally:
+        cluster.close()
+
+
+def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
+    """SIGINT to the whole process group (a terminal's Ctrl-C, workers included).
+
+    48 runs: many more than finish before the interrupt, even with much faster cores."""
+    spec = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grid": {
+                "speed_kmh": [160.0, 200.0, 240.0, 280.0, 320.0, 360.0, 380.0, 400.0],
+                "c1": [30.0, 35.0, 40.0, 45.0, 50.0, 55.0],
+            },
+            "fixed": {"duration": 0.3},
+            "window": [0.1, 0.3],
+        },
+    )
+    out = tmp_path / "out"
+    args = [
+        sys.executable,
+        "-m",
+        "pac_experiments.campaign",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1",
+    ]
+    proc = subprocess.Popen(
+        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = out / "runs.jsonl"
+            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        os.killpg(proc.pid, signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+    assert proc.returncode == 130, stderr
+    assert "interrupted; re-run the same command to resume" in stderr
+    kept = len((out / "runs.jsonl").read_text().splitlines())
+    assert 2 <= kept < 48
+    assert len(read_rows(out)) == kept  # results.csv holds what finished
+    again = _cli(str(spec), "--out", str(out), "--no-report")
+    assert again.returncode == 0, again.stderr
+    assert f"48 runs, {kept} already done, {48 - kept} run" in again.stdout
+    assert len(read_rows(out)) == 48
+
+
+def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
+    """One of the two workers is killed (SIGKILL, with its nanny) mid-campaign: Dask re-runs its
+    tasks on the other one; every row is there once and equals a run on an intact cluster."""
+    address, workers = dask_cluster
+    spec = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grid": {"speed_kmh": [160.0, 200.0, 240.0, 280.0, 320.0, 360.0], "c1": [35.0, 40.0]},
+            "fixed": {"duration": 0.5},
+            "window": WINDOW,
+        },
+    )
+    out = tmp_path / "out"
+    args = [
+        sys.executable,
+        "-m",
+        "pac_experiments.campaign",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1",
+        "--scheduler",
+        address,
+        "--no-report",
+    ]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = out / "runs.jsonl"
+            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        os.killpg(workers[0].pid, signal.SIGKILL)
+        stdout, stderr = proc.communicate(timeout=180)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    assert proc.returncode == 0, stderr
+    assert "12 runs, 0 already done, 12 run (0 diverged or failed), 0 lost" in stdout
+    keys = [json.loads(line)["key"] for line in (out / "runs.jsonl").read_text().splitlines()]
+    assert len(keys) == len(set(keys)) == 12
+    intact = _cli(str(spec), "--out", str(tmp_path / "intact"), "--workers", "2", "--no-report")
+    assert intact.returncode == 0, intact.stderr
+    assert (out / "results.csv").read_bytes() == (tmp_path / "intact" / "results.csv").read_bytes()
