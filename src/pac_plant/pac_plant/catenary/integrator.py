@@ -28,9 +28,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import cholesky_banded
-
-from .kernels import band_chol_solve, band_matvec
+from .kernels import band_chol_solve, band_matvec2, chol_factor
 from .line import DOFS_PER_NODE, Line
 from .pantographs import LumpedPantograph
 
@@ -70,7 +68,7 @@ class ContactSimulation:
         n = line.n_dof
         self.c0, self.c1 = 4.0 / dt**2, 2.0 / dt
         a_line = line.K.ab * (1.0 + self.c1 * self.beta) + line.M.ab * (self.c0 + self.c1 * self.alpha)
-        self._chol = cholesky_banded(a_line, lower=True)
+        self._chol = chol_factor(a_line)
         self._m, self._k = np.ascontiguousarray(line.M.ab), np.ascontiguousarray(line.K.ab)
         pm = np.diag(pantograph.mass)
         self._pk = pantograph.stiffness + np.diag(pantograph.ground_stiffness)
@@ -81,10 +79,12 @@ class ContactSimulation:
         dr = line.droppers
         self._dwc, self._dwm = dr.wc, dr.wm
         nd = len(dr.node)
-        g = np.zeros((n, nd))
-        g[dr.wm, np.arange(nd)] = 1.0
-        g[dr.wc, np.arange(nd)] = -1.0
-        band_chol_solve(self._chol, g)
+        g = np.zeros((nd, n))
+        g[np.arange(nd), dr.wm] = 1.0
+        g[np.arange(nd), dr.wc] = -1.0
+        for col in g:
+            band_chol_solve(self._chol, col)
+        g = np.ascontiguousarray(g.T)
         self._ydrop = g
         self._ddrop = g[dr.wm, :] - g[dr.wc, :]
         self._kdrop = dr.stiffness.copy()
@@ -104,8 +104,8 @@ class ContactSimulation:
         self.input_force = 0.0
         self.active_set_passes_max = 0
         self._b = np.empty(n)
-        self._tmp = np.empty(n)
-        self._rhs = np.empty((n, 2))
+        self._zero = np.zeros(n)
+        self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (contact element)
         self.start_touching()
 
     # -- initial states ------------------------------------------------------------------------
@@ -167,9 +167,9 @@ class ContactSimulation:
     def energy(self) -> float:
         """Kinetic + strain energy of the deviation from static (line, pantograph, penalty) [J]."""
         tmp = np.empty_like(self.d)
-        band_matvec(self._m, self.v, tmp)
+        band_matvec2(self._m, self.v, self._k, self._zero, tmp)
         e = 0.5 * float(self.v @ tmp)
-        band_matvec(self._k, self.d, tmp)
+        band_matvec2(self._m, self._zero, self._k, self.d, tmp)
         e += 0.5 * float(self.d @ tmp)
         dp = self.p - self.roof_rest
         e += 0.5 * float(self.vp @ (self._pm @ self.vp))
@@ -197,15 +197,13 @@ class ContactSimulation:
             raise ValueError(f"the pantograph ran off the line at x = {x_new:.2f} m")
         # Line right-hand side: M (c0 d + 4/dt v + a) + C (c1 d + v), C = alpha M + beta K.
         w = c1 * d + v
-        band_matvec(self._m, c0 * d + (4.0 / dt) * v + a + self.alpha * w, self._b)
-        band_matvec(self._k, self.beta * w, self._tmp)
-        rhs = self._rhs
-        rhs[:, 0] = self._b + self._tmp
-        rhs[:, 1] = 0.0
+        y_l = self._b
+        band_matvec2(self._m, c0 * d + (4.0 / dt) * v + a + self.alpha * w, self._k, self.beta * w, y_l)
+        band_chol_solve(self._chol, y_l)
         dofs, nsh = self.line.contact_interpolation(x_new)
-        rhs[dofs, 1] = -nsh
-        band_chol_solve(self._chol, rhs)
-        y_l, yc_l = rhs[:, 0], rhs[:, 1]
+        yc_l = -(self._unit_solution(dofs[0]) * nsh[0])
+        for i in range(1, 4):
+            yc_l -= self._unit_solution(dofs[i]) * nsh[i]
         # Pantograph.
         fp = np.diag(self.panto.ground_stiffness) @ self.roof_rest
         fp[self.panto.input] += input_force
@@ -274,6 +272,18 @@ class ContactSimulation:
         self.input_force = input_force
         self.steps += 1
 
+    def _unit_solution(self, i: int) -> np.ndarray:
+        """A^-1 e_i, cached for the DOFs of the last two contact elements (2 new solves per element)."""
+        col = self._unit_solutions.get(int(i))
+        if col is None:
+            col = np.zeros(self.line.n_dof)
+            col[i] = 1.0
+            band_chol_solve(self._chol, col)
+            if len(self._unit_solutions) >= 8:
+                self._unit_solutions.pop(next(iter(self._unit_solutions)))
+            self._unit_solutions[int(i)] = col
+        return col
+
     def _sinv(self, slack: np.ndarray, contact: bool) -> np.ndarray:
         """Diagonal of S^-1 in A + U S U^T: -1/k_j for slack droppers, 1/k_p for the contact."""
         s = list(-1.0 / self._kdrop[slack])
@@ -284,6 +294,7 @@ class ContactSimulation:
     def _shift_window(self) -> None:
         """Move the window one span forward: states shift back one span, the new span is at rest."""
         s = DOFS_PER_NODE * self.line.nodes_per_span
+        self._unit_solutions.clear()
         for vec in (self.d, self.v, self.a):
             vec[:-s] = vec[s:].copy()
             vec[-s:] = 0.0
