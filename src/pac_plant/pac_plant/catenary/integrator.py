@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from .kernels import band_chol_solve, band_matvec2, chol_factor
 from .line import DOFS_PER_NODE, Line
 from .pantographs import LumpedPantograph
@@ -138,6 +139,21 @@ class ContactSimulation:
         self.in_contact = True
         self.delta = force / self.kp
 
+    def set_line_state(self, d: np.ndarray, v: np.ndarray) -> None:
+        """Line deviation and velocity; acceleration from the equations of motion (with the
+        current contact force; droppers taut)."""
+        self.d, self.v = np.array(d, dtype=float), np.array(v, dtype=float)
+        self.d[self.line.fixed] = self.v[self.line.fixed] = 0.0
+        f = np.empty_like(self.d)
+        band_matvec2(self._m, -self.alpha * self.v, self._k, -self.d - self.beta * self.v, f)  # M a
+        dofs, n = self.line.contact_interpolation(self.x)
+        f[dofs] += self.contact_force * n
+        m = self._m.copy()
+        m[0, self.line.fixed] = 1.0  # anchored DOFs carry no mass: keep M invertible there
+        f[self.line.fixed] = 0.0
+        self.a = f
+        band_chol_solve(chol_factor(m), self.a)
+
     # -- observables ---------------------------------------------------------------------------
     @property
     def time(self) -> float:
@@ -207,7 +223,8 @@ class ContactSimulation:
         # Pantograph.
         fp = np.diag(self.panto.ground_stiffness) @ self.roof_rest
         fp[self.panto.input] += input_force
-        bp = fp + self._pm @ (c0 * self.p + (4.0 / dt) * self.vp + self.ap) + self._pc @ (c1 * self.p + self.vp)
+        bp = fp + self._pm @ (c0 * self.p + (4.0 / dt) * self.vp + self.ap)
+        bp += self._pc @ (c1 * self.p + self.vp)
         y_p = self._ap_inv @ bp
         yc_p = self._ap_inv[:, self.panto.head]
         h = self.panto.head
@@ -219,7 +236,9 @@ class ContactSimulation:
         gd_y = y_l[self._dwm] - y_l[self._dwc]  # (nd,)
         gd_yc = yc_l[self._dwm] - yc_l[self._dwc]  # (nd,)
         contact, slack = self.in_contact, self.slack
-        for passes in range(1, MAX_ACTIVE_SET_PASSES + 1):
+        passes = 0
+        while passes < MAX_ACTIVE_SET_PASSES:
+            passes += 1
             ns = len(slack)
             m = ns + (1 if contact else 0)
             cap = np.zeros((m, m))

@@ -67,7 +67,7 @@ def span_nodes(data: CatenaryData, element_size: float) -> np.ndarray:
     """Node positions within one span [0, L): every dropper is a node, intervals split evenly."""
     marks = [0.0, *data.dropper_positions, data.span]
     xs: list[float] = []
-    for a, b in zip(marks[:-1], marks[1:]):
+    for a, b in zip(marks[:-1], marks[1:], strict=True):
         n = max(1, math.ceil((b - a) / element_size - 1e-9))
         xs.extend(a + (b - a) * np.arange(n) / n)
     return np.array(xs)
@@ -142,18 +142,21 @@ class Line:
 
     def __init__(
         self,
-        data: CatenaryData = CatenaryData(),
-        options: NumericalOptions = NumericalOptions(),
+        data: CatenaryData | None = None,
+        options: NumericalOptions | None = None,
         n_spans: int | None = None,
         droppers: bool = True,
         supports: bool = True,
     ) -> None:
+        data = CatenaryData() if data is None else data
+        options = NumericalOptions() if options is None else options
         self.data = data
         self.options = options
         self.n_spans = data.n_spans if n_spans is None else n_spans
         xs = span_nodes(data, options.element_size)
         self.nodes_per_span = len(xs)
-        self.x = np.concatenate([s * data.span + xs for s in range(self.n_spans)] + [[self.n_spans * data.span]])
+        spans = [s * data.span + xs for s in range(self.n_spans)]
+        self.x = np.concatenate([*spans, [self.n_spans * data.span]])
         self.n_nodes = len(self.x)
         self.n_dof = DOFS_PER_NODE * self.n_nodes
         self.length = self.n_spans * data.span
@@ -166,7 +169,9 @@ class Line:
         self.support_nodes = np.array([s * self.nodes_per_span for s in range(1, self.n_spans)], dtype=int)
         self._supports = supports
         drop_local = [int(np.argmin(np.abs(xs - p))) for p in data.dropper_positions]
-        nodes = np.array([s * self.nodes_per_span + j for s in range(self.n_spans) for j in drop_local], dtype=int)
+        nodes = np.array(
+            [s * self.nodes_per_span + j for s in range(self.n_spans) for j in drop_local], dtype=int
+        )
         if not droppers:
             nodes = nodes[:0]
         nd = len(nodes)

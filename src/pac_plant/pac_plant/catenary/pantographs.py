@@ -48,12 +48,13 @@ def _pair(n: int, a: int, b: int, value: float) -> np.ndarray:
     return m
 
 
-def paper_pantograph(p: PantographParameters = PantographParameters()) -> LumpedPantograph:
+def paper_pantograph(p: PantographParameters | None = None) -> LumpedPantograph:
     """The paper's 2-DOF pantograph (Fig. 2, Table 1, eqs. 3-4): DOFs (z1 head, z2 frame).
 
     k1, b1 join head and frame; b2 damps the frame to the car body (no spring: the
     static uplift comes from the actuator force u on the frame).
     """
+    p = PantographParameters() if p is None else p
     c = _pair(2, 0, 1, p.b1)
     c[1, 1] += p.b2
     return LumpedPantograph(
