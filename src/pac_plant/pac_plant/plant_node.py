@@ -38,8 +38,8 @@ from pac_common.node import (
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .fe_plant import make_plant
 from .parameters import PlantOptions
-from .plant import Plant
 
 
 @dataclass(frozen=True)
@@ -98,7 +98,7 @@ class PlantNode(Node):
         self.loop: LoopParameters = loop
         self.options: PlantNodeOptions = opts
         self.node_options: NodeOptions = node_opts
-        self.plant = Plant(panto, track, catenary, options, loop.sample_period)
+        self.plant = make_plant(panto, track, catenary, options, loop.sample_period)  # lumped | fe
         self.factory = messages.RclpyFactory()
         self.measurement_pub = self.create_publisher(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS

@@ -20,6 +20,7 @@ from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
+from pac_plant.fe_plant import make_plant
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
 
@@ -65,7 +66,7 @@ DIVERGENCE_FORCE = 1e6
 
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, BacksteppingController]:
     dt = s.loop.sample_period
-    plant = Plant(s.pantograph, s.track, s.catenary, s.plant, dt)
+    plant = make_plant(s.pantograph, s.track, s.catenary, s.plant, dt)  # catenary_model: lumped | fe
     observer = AdaptiveObserver(s.pantograph, s.track, s.observer, dt)
     controller = BacksteppingController(s.pantograph, s.track, s.controller, s.reference, dt)
     return plant, observer, controller
