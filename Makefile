@@ -7,7 +7,7 @@ ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
 
-.PHONY: setup test lint clean demo reproduce bench report info replay re-estimate recover sweep
+.PHONY: setup test lint clean demo reproduce catenary bench report info replay re-estimate recover sweep
 
 setup:
 	bash scripts/setup.sh
@@ -26,6 +26,9 @@ demo: setup
 
 reproduce: setup
 	scripts/with_env.sh ros2 run pac_experiments reproduce $(ARGS)
+
+catenary: setup
+	scripts/with_env.sh ros2 run pac_experiments catenary $(ARGS)
 
 bench: setup
 	scripts/with_env.sh ros2 run pac_experiments bench $(ARGS)

@@ -23,6 +23,7 @@ setup(
             "bench = pac_experiments.bench:main",
             "sweep = pac_experiments.sweep:main",
             "reproduce = pac_experiments.reproduce:main",
+            "catenary = pac_experiments.catenary:main",
         ],
     },
 )
