@@ -201,3 +201,49 @@ def test_contact_statistics_filter_and_window():
     assert s.mean == pytest.approx(100.0, abs=0.3)
     assert s.sigma == pytest.approx(10 / math.sqrt(2), rel=0.03)
     assert s.loss_percent == 0.0
+
+
+def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
+    """FEPlant (catenary_model fe): slow run under a held u, F -> u, truth consistent with the line."""
+    from pac_common import messages
+    from pac_model.parameters import PantographParameters, TrackParameters
+    from pac_plant.fe_plant import FEPlant, make_plant
+    from pac_plant.parameters import PlantOptions
+
+    options = PlantOptions(catenary_model="fe")
+    plant = make_plant(PantographParameters(), TrackParameters(speed_kmh=5.0), None, options, 1e-3)
+    assert isinstance(plant, FEPlant)
+    t0 = plant.truth()
+    assert t0.contact_force == 0.0 and t0.z == (0.0, 0.0, 0.0, 0.0)  # starts touching, at rest
+    for _ in range(8000):  # the slow mode (b2 = 30 N s/m only) decays in ~1.4 s
+        plant.advance(100.0)
+    truth, y = plant.truth(), plant.measurement()
+    assert truth.contact_force == pytest.approx(100.0, rel=0.03)
+    assert y.z1 == truth.z[0] and y.actuator_force == 100.0
+    k_line = float(plant.line.static_stiffness(np.array([plant.sim.x]))[0])
+    assert truth.stiffness == pytest.approx(k_line, rel=1e-9)
+    assert truth.contact_uplift == pytest.approx(truth.contact_force / truth.stiffness, rel=0.05)
+    assert truth.contact_position == pytest.approx(4 * DATA.span + 8.0 * 5.0 / 3.6, rel=1e-9)
+    fields = messages.truth_fields(truth, 0, applied_command_tick=3999)
+    assert fields["contact_uplift"] == truth.contact_uplift and math.isfinite(fields["support_uplift"])
+
+
+def test_endless_window_equals_a_long_fixed_line():
+    """A 6-span moving window over 5 spans (3 shifts) gives the contact force of a fixed 12-span line."""
+    forces = {}
+    for endless, n_spans in ((True, 6), (False, 12)):
+        line = Line(n_spans=n_spans)
+        v = 100.0
+        sim = ContactSimulation(line, three_mass_pantograph(), 1e-3, v, 2 * DATA.span, endless=endless)
+        sim.start_static(150.0)
+        f = []
+        for _ in range(int(5 * DATA.span / (v * 1e-3))):
+            sim.step(150.0)
+            f.append(sim.contact_force)
+        forces[endless] = np.array(f)
+        if endless:
+            assert sim.offset == pytest.approx(3 * DATA.span)
+            assert sim.position == pytest.approx(7 * DATA.span, abs=0.2)
+    assert np.std(forces[False]) > 10.0
+    # What the window drops (waves far behind, the far end) changes F by less than 1 mN here.
+    np.testing.assert_allclose(forces[True], forces[False], rtol=0, atol=1e-3)

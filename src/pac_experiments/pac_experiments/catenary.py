@@ -158,6 +158,12 @@ def closed_loop_run(job: tuple[float, str]) -> dict[str, Any]:
 def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
     t = r["t"]
     w = (t >= EXPERIMENT_WINDOW[0]) & (t <= EXPERIMENT_WINDOW[1])
+    end = float(t[-1]) if len(t) else 0.0
+    if r["diverged"] and end < EXPERIMENT_WINDOW[1] - 0.5:
+        # Stopped by the closed loop's divergence guard before the window was (mostly) run.
+        return {"speed_kmh": r["speed_kmh"], "mode": r["mode"], "target_Fm": r["force"],
+                "diverged": r["diverged"], "stopped_at_s": end,
+                "max_abs_u": float(np.max(np.abs(r["u"]))) if len(t) else None}
     stats = contact_statistics(r["F"], t, dt, *EXPERIMENT_WINDOW)
     u = r["u"][w]
     k, kh = r["k"][w], r["k_hat"][w]
@@ -290,6 +296,7 @@ def experiment_table(metrics: list[dict[str, Any]]) -> str:
         ("k_hat_min", "k̂ min [N/m]"), ("k_hat_max", "k̂ max [N/m]"), ("k_hat_mean", "k̂ mean [N/m]"),
         ("k_hat_vs_k_fe_correlation", "corr(k̂, FE k)"),
         ("contact_uplift_max_mm", "max uplift at contact [mm]"),
+        ("stopped_at_s", "stopped (diverged) at [s]"),
     ]
     head = "| measure | " + " | ".join(f"{m['speed_kmh']} {m['mode']}" for m in metrics) + " |"
     rows = [head, "|---|" + "---:|" * len(metrics)]
@@ -347,7 +354,8 @@ def main(argv: list[str] | None = None) -> int:
     by = {(m["speed_kmh"], m["mode"]): m for m in metrics}
     for v in EXPERIMENT_SPEEDS:
         p, a = by[(v, "passive")], by[(v, "active")]
-        a["sigma_reduction_percent"] = 100.0 * (p["sigma"] - a["sigma"]) / p["sigma"]
+        if "sigma" in p and "sigma" in a:
+            a["sigma_reduction_percent"] = 100.0 * (p["sigma"] - a["sigma"]) / p["sigma"]
     report["experiment"] = metrics
 
     # Figures.
@@ -466,7 +474,10 @@ def main(argv: list[str] | None = None) -> int:
         experiment_table(metrics),
         "",
     ])
-    (out / "metrics.md").write_text(text)
+    for m in metrics:
+        if m.get("diverged"):
+            text += f"\n- {m['speed_kmh']} km/h {m['mode']}: {m['diverged']}"
+    (out / "metrics.md").write_text(text + "\n")
     (out / "metrics.json").write_text(json.dumps(_strict(report), indent=2, allow_nan=False))
     print(text)
     return 0
