@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from .kernels import band_chol_solve, band_matvec2, chol_factor
+from .kernels import band_chol_solve, band_matvec2, chol_factor, newmark_rhs, newmark_update
 from .line import DOFS_PER_NODE, Line
 from .pantographs import LumpedPantograph
 
@@ -105,6 +105,7 @@ class ContactSimulation:
         self.input_force = 0.0
         self.active_set_passes_max = 0
         self._b = np.empty(n)
+        self._x1, self._x2 = np.empty(n), np.empty(n)
         self._zero = np.zeros(n)
         self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (contact element)
         self.start_touching()
@@ -212,9 +213,8 @@ class ContactSimulation:
         if x_new > self.line.length:
             raise ValueError(f"the pantograph ran off the line at x = {x_new:.2f} m")
         # Line right-hand side: M (c0 d + 4/dt v + a) + C (c1 d + v), C = alpha M + beta K.
-        w = c1 * d + v
         y_l = self._b
-        band_matvec2(self._m, c0 * d + (4.0 / dt) * v + a + self.alpha * w, self._k, self.beta * w, y_l)
+        newmark_rhs(self._m, self._k, d, v, a, dt, self.alpha, self.beta, self._x1, self._x2, y_l)
         band_chol_solve(self._chol, y_l)
         dofs, nsh = self.line.contact_interpolation(x_new)
         yc_l = -(self._unit_solution(dofs[0]) * nsh[0])
@@ -241,22 +241,13 @@ class ContactSimulation:
             passes += 1
             ns = len(slack)
             m = ns + (1 if contact else 0)
-            cap = np.zeros((m, m))
-            uy = np.zeros(m)
-            r = np.zeros(m)
-            if ns:
-                cap[:ns, :ns] = self._ddrop[np.ix_(slack, slack)] - np.diag(1.0 / self._kdrop[slack])
-                uy[:ns] = gd_y[slack]
-                r[:ns] = self._kdrop[slack] * self._e0[slack]
-            if contact:
-                cap[ns, ns] = gc_yc + 1.0 / self.kp
-                if ns:
-                    cap[ns, :ns] = gc_ydrop[slack]
-                    cap[:ns, ns] = gd_yc[slack]
-                uy[ns] = gc_y
-                r[ns] = self.kp * ws_x
-            # q = y + Y (r - z), z = cap^-1 U^T (y + Y r).
-            coef = r - np.linalg.solve(cap, uy + (cap - np.diag(self._sinv(slack, contact))) @ r) if m else r
+            if ns == 0:  # the usual case, in scalars: z = (g_c^T y + g_c^T A^-1 g_c r) / cap
+                coef = np.zeros(m)
+                if contact:
+                    r_c = self.kp * ws_x
+                    coef[0] = r_c - (gc_y + gc_yc * r_c) / (gc_yc + 1.0 / self.kp)
+            else:
+                coef = self._woodbury_coefficients(slack, contact, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
             # Contact penetration and dropper elongations at that solution.
             delta = gc_y - ws_x
             e = self._e0 + gd_y
@@ -272,16 +263,14 @@ class ContactSimulation:
                 break
             contact, slack = new_contact, new_slack
         self.active_set_passes_max = max(self.active_set_passes_max, passes)
-        d_new = y_l.copy()
+        d_new = y_l  # scratch buffer, consumed by newmark_update below
         p_new = y_p.copy()
         if len(slack):
             d_new += self._ydrop[:, slack] @ coef[: len(slack)]
         if contact:
             d_new += yc_l * coef[len(slack)]
             p_new += yc_p * coef[len(slack)]
-        a_new = c0 * (d_new - d) - (4.0 / dt) * v - a
-        self.v = v + 0.5 * dt * (a + a_new)
-        self.a, self.d = a_new, d_new
+        newmark_update(d, v, a, d_new, dt)
         ap_new = c0 * (p_new - self.p) - (4.0 / dt) * self.vp - self.ap
         self.vp = self.vp + 0.5 * dt * (self.ap + ap_new)
         self.ap, self.p = ap_new, p_new
@@ -302,6 +291,27 @@ class ContactSimulation:
                 self._unit_solutions.pop(next(iter(self._unit_solutions)))
             self._unit_solutions[int(i)] = col
         return col
+
+    def _woodbury_coefficients(
+        self, slack: np.ndarray, contact: bool, gc_y: float, gc_yc: float,
+        gc_ydrop: np.ndarray, gd_y: np.ndarray, gd_yc: np.ndarray, ws_x: float,
+    ) -> np.ndarray:
+        """r - z of q = y + Y (r - z), z = cap^-1 U^T (y + Y r), cap = S^-1 + U^T A^-1 U."""
+        ns = len(slack)
+        m = ns + (1 if contact else 0)
+        cap = np.zeros((m, m))
+        uy = np.zeros(m)
+        r = np.zeros(m)
+        cap[:ns, :ns] = self._ddrop[np.ix_(slack, slack)] - np.diag(1.0 / self._kdrop[slack])
+        uy[:ns] = gd_y[slack]
+        r[:ns] = self._kdrop[slack] * self._e0[slack]
+        if contact:
+            cap[ns, ns] = gc_yc + 1.0 / self.kp
+            cap[ns, :ns] = gc_ydrop[slack]
+            cap[:ns, ns] = gd_yc[slack]
+            uy[ns] = gc_y
+            r[ns] = self.kp * ws_x
+        return r - np.linalg.solve(cap, uy + (cap - np.diag(self._sinv(slack, contact))) @ r)
 
     def _sinv(self, slack: np.ndarray, contact: bool) -> np.ndarray:
         """Diagonal of S^-1 in A + U S U^T: -1/k_j for slack droppers, 1/k_p for the contact."""

@@ -53,3 +53,28 @@ def band_chol_solve(cb: np.ndarray, b: np.ndarray) -> None:
         for k in range(1, min(kd, n - 1 - j) + 1):
             acc -= cb[j, k] * b[j + k]
         b[j] = acc * cb[j, 0]
+
+
+@numba.njit(cache=True)
+def newmark_rhs(
+    m: np.ndarray, k: np.ndarray, d: np.ndarray, v: np.ndarray, a: np.ndarray,
+    dt: float, alpha: float, beta: float, x1: np.ndarray, x2: np.ndarray, out: np.ndarray,
+) -> None:
+    """out = M (4/dt^2 d + 4/dt v + a) + C (2/dt d + v), C = alpha M + beta K (x1, x2: scratch)."""
+    c0, c1, c2 = 4.0 / (dt * dt), 2.0 / dt, 4.0 / dt
+    for i in range(d.shape[0]):
+        w = c1 * d[i] + v[i]
+        x1[i] = c0 * d[i] + c2 * v[i] + a[i] + alpha * w
+        x2[i] = beta * w
+    band_matvec2(m, x1, k, x2, out)
+
+
+@numba.njit(cache=True)
+def newmark_update(d: np.ndarray, v: np.ndarray, a: np.ndarray, d_new: np.ndarray, dt: float) -> None:
+    """Average-acceleration update in place: a, v from the new displacement; d <- d_new."""
+    c0, c2, h = 4.0 / (dt * dt), 4.0 / dt, 0.5 * dt
+    for i in range(d.shape[0]):
+        a_new = c0 * (d_new[i] - d[i]) - c2 * v[i] - a[i]
+        v[i] += h * (a[i] + a_new)
+        a[i] = a_new
+        d[i] = d_new[i]
