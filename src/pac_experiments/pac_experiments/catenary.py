@@ -52,6 +52,11 @@ EN50318_BANDS = {
 EXPERIMENT_SPEEDS = (250, 300, 320, 360)
 EXPERIMENT_DURATION = 8.0  # s
 EXPERIMENT_WINDOW = (3.0, 8.0)  # s: after the observer's convergence transient
+#: (mode, fe_datum) of each experiment run; a passive run's physics does not depend on the datum
+#: (u = F_r), only what its observer sees does.
+EXPERIMENT_RUNS = (
+    ("passive", "fixed"), ("passive", "static_wire"), ("active", "fixed"), ("active", "static_wire"),
+)
 
 
 def target_force(speed_kmh: float) -> float:
@@ -85,7 +90,7 @@ def passive_reference(
     supports = (4 * SPAN, 5 * SPAN, 6 * SPAN)
     xs, fs, ups, slack = [], [], [], 0
     support_uplift = 0.0
-    start = time.perf_counter()
+    start = time.process_time()
     while sim.x + v * dt < x_to + 0.5 * SPAN:
         sim.step(force)
         xs.append(sim.x)
@@ -94,7 +99,7 @@ def passive_reference(
         slack = max(slack, len(sim.slack))
         if x_from - SPAN < sim.x < x_to + SPAN:
             support_uplift = max(support_uplift, max(sim.uplift(s) for s in supports))
-    wall = time.perf_counter() - start
+    wall = time.process_time() - start
     x, f = np.array(xs), np.array(fs)
     stats = contact_statistics(f, x, dt, x_from, x_to)
     return {
@@ -116,15 +121,16 @@ def passive_reference(
 
 
 # -- the experiment (paper's pantograph, closed loop, endless line) ---------------------------
-def closed_loop_run(job: tuple[float, str]) -> dict[str, Any]:
+def closed_loop_run(job: tuple[float, str, str]) -> dict[str, Any]:
     from pac_rig.closed_loop import DivergenceError, run
     from pac_rig.simulate import scenario_from_flat
 
-    speed, mode = job
+    speed, mode, datum = job
     force = target_force(speed)
     scenario = scenario_from_flat(
         {
             "catenary_model": "fe",
+            "fe_datum": datum,
             "speed_kmh": float(speed),
             "span_length": SPAN,
             "duration": EXPERIMENT_DURATION,
@@ -135,7 +141,7 @@ def closed_loop_run(job: tuple[float, str]) -> dict[str, Any]:
     )
     cols: dict[str, list[float]] = {k: [] for k in ("t", "x", "F", "k", "k_hat", "u", "uplift", "z1", "F_r")}
     diverged = None
-    start = time.perf_counter()
+    start = time.process_time()
     try:
         for rec in run(scenario):
             tr = rec.truth
@@ -150,9 +156,34 @@ def closed_loop_run(job: tuple[float, str]) -> dict[str, Any]:
             cols["F_r"].append(rec.command.force_reference)
     except DivergenceError as exc:
         diverged = str(exc)
-    wall = time.perf_counter() - start
+    wall = time.process_time() - start
     arrays = {k: np.array(v) for k, v in cols.items()}
-    return {"speed_kmh": speed, "mode": mode, "force": force, "diverged": diverged, "wall": wall, **arrays}
+    return {
+        "speed_kmh": speed, "mode": mode, "datum": datum, "force": force, "diverged": diverged, "wall": wall,
+        **arrays,
+    }
+
+
+def model_fit(r: dict[str, Any]) -> dict[str, float]:
+    """Best fit of the paper's contact model F = (th0 + th1 cos wt + th2 sin wt) z1 (eqs. 6-9) to a run.
+
+    Least squares over the window, w = 2 pi v / 55 m: the best any estimate of theta can do.
+    ``unexplained_percent`` = RMS(F - fit) / std(F): what no k(t) of eq. (7) can explain.
+    """
+    t = r["t"]
+    w = (t >= EXPERIMENT_WINDOW[0]) & (t <= EXPERIMENT_WINDOW[1])
+    omega = 2 * math.pi * r["speed_kmh"] / 3.6 / SPAN
+    z1, f, tw = r["z1"][w], r["F"][w], t[w]
+    phi = np.column_stack([z1, z1 * np.cos(omega * tw), z1 * np.sin(omega * tw)])
+    theta, *_ = np.linalg.lstsq(phi, f, rcond=None)
+    resid = f - phi @ theta
+    return {
+        "fit_k0": float(theta[0]),
+        "fit_alpha": float(math.hypot(theta[1], theta[2]) / theta[0]) if theta[0] else math.nan,
+        "fit_unexplained_percent": float(100 * np.sqrt(np.mean(resid**2)) / np.std(f)),
+        "z1_min_mm": float(1e3 * z1.min()),
+        "z1_max_mm": float(1e3 * z1.max()),
+    }
 
 
 def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
@@ -161,7 +192,7 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
     end = float(t[-1]) if len(t) else 0.0
     if r["diverged"] and end < EXPERIMENT_WINDOW[1] - 0.5:
         # Stopped by the closed loop's divergence guard before the window was (mostly) run.
-        return {"speed_kmh": r["speed_kmh"], "mode": r["mode"], "target_Fm": r["force"],
+        return {"speed_kmh": r["speed_kmh"], "mode": r["mode"], "datum": r["datum"], "target_Fm": r["force"],
                 "diverged": r["diverged"], "stopped_at_s": end,
                 "max_abs_u": float(np.max(np.abs(r["u"]))) if len(t) else None}
     stats = contact_statistics(r["F"], t, dt, *EXPERIMENT_WINDOW)
@@ -171,7 +202,9 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
     return {
         "speed_kmh": r["speed_kmh"],
         "mode": r["mode"],
+        "datum": r["datum"],
         "target_Fm": r["force"],
+        **(model_fit(r) if r["mode"] == "passive" else {}),
         **stats.as_dict(),
         "quality_sigma_le_0.3Fm": bool(stats.sigma <= 0.3 * stats.mean),
         "quality_Fm_minus_3sigma_gt_0": bool(stats.stat_min > 0),
@@ -202,10 +235,10 @@ def cost_breakdown(n_steps: int = 2000) -> dict[str, float]:
         sim.step(157.3)
 
     def per_call(fn, n=n_steps) -> float:
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         for _ in range(n):
             fn()
-        return 1e6 * (time.perf_counter() - t0) / n
+        return 1e6 * (time.process_time() - t0) / n
 
     x = np.random.default_rng(0).standard_normal(line.n_dof)
     out = np.empty(line.n_dof)
@@ -285,24 +318,37 @@ def reference_table(refs: dict[int, dict[str, Any]]) -> str:
     return "\n".join(rows)
 
 
-def experiment_table(metrics: list[dict[str, Any]]) -> str:
-    keys = [
-        ("target_Fm", "target Fm [N]"), ("mean", "Fm [N]"), ("sigma", "σ [N]"),
-        ("stat_max", "Fm+3σ [N]"), ("stat_min", "Fm−3σ [N]"), ("max", "max [N]"), ("min", "min [N]"),
-        ("loss_percent", "contact loss [%]"), ("quality_sigma_le_0.3Fm", "σ ≤ 0.3 Fm"),
-        ("quality_Fm_minus_3sigma_gt_0", "Fm − 3σ > 0"), ("sigma_reduction_percent", "σ reduction [%]"),
-        ("max_abs_u", "max |u| [N]"), ("max_abs_du_dt", "max |du/dt| [N/s]"),
-        ("k_fe_min", "FE k min [N/m]"), ("k_fe_max", "FE k max [N/m]"), ("k_fe_mean", "FE k mean [N/m]"),
-        ("k_hat_min", "k̂ min [N/m]"), ("k_hat_max", "k̂ max [N/m]"), ("k_hat_mean", "k̂ mean [N/m]"),
-        ("k_hat_vs_k_fe_correlation", "corr(k̂, FE k)"),
-        ("contact_uplift_max_mm", "max uplift at contact [mm]"),
-        ("stopped_at_s", "stopped (diverged) at [s]"),
-    ]
-    head = "| measure | " + " | ".join(f"{m['speed_kmh']} {m['mode']}" for m in metrics) + " |"
-    rows = [head, "|---|" + "---:|" * len(metrics)]
-    for k, label in keys:
-        rows.append(f"| {label} | " + " | ".join(_fmt(m.get(k, "—")) for m in metrics) + " |")
+def _table(metrics: list[dict[str, Any]], keys: list[tuple[str, str]]) -> str:
+    cols = [("speed_kmh", "v [km/h]"), ("mode", "mode"), ("datum", "z datum"), *keys]
+    rows = ["| " + " | ".join(label for _, label in cols) + " |", "|" + "---|" * len(cols)]
+    for m in metrics:
+        rows.append("| " + " | ".join(_fmt(m.get(k, "—")) for k, _ in cols) + " |")
     return "\n".join(rows)
+
+
+def experiment_table(metrics: list[dict[str, Any]]) -> str:
+    quality = [
+        ("target_Fm", "target Fm [N]"), ("mean", "Fm [N]"), ("sigma", "σ [N]"), ("stat_max", "Fm+3σ [N]"),
+        ("stat_min", "Fm−3σ [N]"), ("max", "max [N]"), ("min", "min [N]"), ("loss_percent", "loss [%]"),
+        ("quality_sigma_le_0.3Fm", "σ ≤ 0.3 Fm"), ("quality_Fm_minus_3sigma_gt_0", "Fm−3σ > 0"),
+        ("sigma_reduction_percent", "σ reduction [%]"), ("max_abs_u", "max |u| [N]"),
+        ("max_abs_du_dt", "max |du/dt| [N/s]"), ("contact_uplift_max_mm", "max uplift [mm]"),
+        ("stopped_at_s", "diverged at [s]"),
+    ]
+    estimation = [
+        ("k_fe_min", "FE k min"), ("k_fe_max", "FE k max"), ("k_fe_mean", "FE k mean"),
+        ("k_hat_min", "k̂ min"), ("k_hat_max", "k̂ max"), ("k_hat_mean", "k̂ mean"),
+        ("k_hat_vs_k_fe_correlation", "corr(k̂, FE k)"), ("z1_min_mm", "z1 min [mm]"),
+        ("z1_max_mm", "z1 max [mm]"), ("fit_k0", "best-fit k0 [N/m]"), ("fit_alpha", "best-fit α"),
+        ("fit_unexplained_percent", "F unexplained by any k(t) z1 [% of σ_F]"),
+    ]
+    return (
+        "EN 50367 statistics (window, 20 Hz low-pass):\n\n" + _table(metrics, quality)
+        + "\n\nWhat the observer sees and estimates (stiffness in N/m; the fit columns: least-squares "
+        "θ of F = (θ0 + θ1 cos ωt + θ2 sin ωt) z1 over the window of the passive run, the best any "
+        "estimate of eq. (7) can do):\n\n"
+        + _table([m for m in metrics if m["mode"] == "passive"], estimation)
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -321,7 +367,7 @@ def main(argv: list[str] | None = None) -> int:
           f"k {statics['stiffness_min_N_per_m']:.0f}..{statics['stiffness_max_N_per_m']:.0f} N/m")
 
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        exp_jobs = [(v, m) for v in EXPERIMENT_SPEEDS for m in ("passive", "active")]
+        exp_jobs = [(v, m, d) for v in EXPERIMENT_SPEEDS for m, d in EXPERIMENT_RUNS]
         exp_futures = [pool.submit(closed_loop_run, j) for j in exp_jobs]
         ref_futures = {v: pool.submit(passive_reference, v) for v in (250, 300)}
         num_jobs: dict[str, Any] = {}
@@ -351,11 +397,13 @@ def main(argv: list[str] | None = None) -> int:
     report["numerics_300kmh"] = {k: _public(r) for k, r in numerics.items()}
     report["cost_per_step_us"] = cost
     metrics = [experiment_metrics(r) for r in exp]
-    by = {(m["speed_kmh"], m["mode"]): m for m in metrics}
+    by = {(m["speed_kmh"], m["mode"], m["datum"]): m for m in metrics}
     for v in EXPERIMENT_SPEEDS:
-        p, a = by[(v, "passive")], by[(v, "active")]
-        if "sigma" in p and "sigma" in a:
-            a["sigma_reduction_percent"] = 100.0 * (p["sigma"] - a["sigma"]) / p["sigma"]
+        p = by[(v, "passive", "fixed")]
+        for datum in ("fixed", "static_wire"):
+            a = by[(v, "active", datum)]
+            if "sigma" in p and "sigma" in a:
+                a["sigma_reduction_percent"] = 100.0 * (p["sigma"] - a["sigma"]) / p["sigma"]
     report["experiment"] = metrics
 
     # Figures.
@@ -387,18 +435,21 @@ def main(argv: list[str] | None = None) -> int:
     fig.savefig(out / "reference_runs.png", dpi=110)
     plt.close(fig)
 
-    exp_by = {(r["speed_kmh"], r["mode"]): r for r in exp}
+    exp_by = {(r["speed_kmh"], r["mode"], r["datum"]): r for r in exp}
+    lines = (("passive", "fixed", "C0", "passive"), ("active", "fixed", "C3", "active, z from fixed datum"),
+             ("active", "static_wire", "C2", "active, z from static wire"))
     for name, key, ylabel, scale in (
         ("experiment_force.png", "F", "contact force, 20 Hz low-pass [N]", 1.0),
         ("experiment_uplift.png", "uplift", "uplift at contact [mm]", 1e3),
     ):
         fig, axes = plt.subplots(len(EXPERIMENT_SPEEDS), 1, figsize=(11, 11), constrained_layout=True)
         for ax, v in zip(axes, EXPERIMENT_SPEEDS, strict=True):
-            for mode, color in (("passive", "C0"), ("active", "C3")):
-                r = exp_by[(v, mode)]
+            for mode, datum, color, label in lines:
+                r = exp_by[(v, mode, datum)]
+                if len(r["t"]) < 100:
+                    continue
                 y = lowpass(r[key], 1e-3) if key == "F" else r[key]
-                w = r["t"] >= EXPERIMENT_WINDOW[0] - 1.0
-                ax.plot(r["t"][w], scale * y[w], color, lw=0.9, label=mode)
+                ax.plot(r["t"], scale * y, color, lw=0.8, label=label)
             ax.set_title(f"{v} km/h, target Fm {target_force(v):.1f} N")
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
@@ -408,9 +459,12 @@ def main(argv: list[str] | None = None) -> int:
         plt.close(fig)
     fig, axes = plt.subplots(len(EXPERIMENT_SPEEDS), 1, figsize=(11, 11), constrained_layout=True)
     for ax, v in zip(axes, EXPERIMENT_SPEEDS, strict=True):
-        r = exp_by[(v, "active")]
+        r = exp_by[(v, "passive", "fixed")]
         ax.plot(r["t"], r["k"], "k-", lw=1.0, label="FE static stiffness at the contact point")
-        ax.plot(r["t"], r["k_hat"], "C3", lw=0.9, label="observer k̂ (active run)")
+        ax.plot(r["t"], r["k_hat"], "C3", lw=0.8, label="k̂, passive run, z from fixed datum")
+        r2 = exp_by[(v, "passive", "static_wire")]
+        ax.plot(r2["t"], r2["k_hat"], "C2", lw=0.8, label="k̂, passive run, z from static wire")
+        ax.set_ylim(-2000, 15000)
         ax.set_title(f"{v} km/h")
         ax.set_ylabel("stiffness [N/m]")
         ax.grid(alpha=0.3)

@@ -6,7 +6,8 @@ speed instead of on the spring k(t) of eq. (7). The observer and controller are 
 
 Coordinates: z1, z2 are the head and frame heights measured from the static contact-wire
 height at the start point (a support, where the pre-sag is 0), i.e. from a fixed datum,
-as a real rig would measure them; at tick 0 the head just touches the wire (F = 0) and
+as a real rig would measure them (``fe_datum:=static_wire`` measures them from the
+static, pre-sagged wire under the contact point instead); at tick 0 the head just touches the wire (F = 0) and
 everything is at rest, as in the lumped plant. The line is endless (a moving window of
 ``WINDOW_SPANS`` spans, see ``ContactSimulation``), so a live run can go on until stopped.
 Truth: ``stiffness`` is the line's static point stiffness at the contact point (droppers
@@ -71,9 +72,14 @@ class FEPlant(Plant):
 
     @property
     def z(self) -> np.ndarray:
-        """(z1, z2, z1', z2') of eq. (4) from the FE state (heights above the datum)."""
+        """(z1, z2, z1', z2') of eq. (4) from the FE state (heights above the datum, ``fe_datum``)."""
         s = self.sim
-        return np.array([s.p[0] - self.datum, s.p[1] - self.datum, s.vp[0], s.vp[1]])
+        if self.options.fe_datum == "static_wire":
+            # The datum moves with the contact point along the pre-sagged static wire.
+            datum, rate = self.line.static_height(s.x), s.speed * self.line.static_slope(s.x)
+        else:
+            datum, rate = self.datum, 0.0
+        return np.array([s.p[0] - datum, s.p[1] - datum, s.vp[0] - rate, s.vp[1] - rate])
 
     def stiffness_at(self, t: float | None = None) -> float:
         """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""

@@ -44,6 +44,13 @@ class PlantOptions(ParameterSet):
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
     )
+    fe_datum: str = parameter(
+        "fixed",
+        "fe: what z1, z2 are measured from: 'fixed' the static contact-wire height at the start "
+        "support (what a rig measures); 'static_wire' the static (pre-sagged) contact-wire height "
+        "under the current contact point (the line's design sag subtracted by position)",
+        choices=("fixed", "static_wire"),
+    )
     fe_element_size: float = parameter(
         0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
     )

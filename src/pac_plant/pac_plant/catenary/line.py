@@ -305,6 +305,14 @@ class Line:
         """Static contact-wire height at x [m] (negative: below the support height)."""
         return self.contact_height(self.w_static, x)
 
+    def static_slope(self, x: float) -> float:
+        """d/dx of the static contact-wire height at x (Hermite shape-function derivatives)."""
+        e, xi = self.locate(x)
+        h = self.h[e]
+        x2 = xi * xi
+        dn = np.array([6 * (x2 - xi) / h, 1 - 4 * xi + 3 * x2, 6 * (xi - x2) / h, 3 * x2 - 2 * xi])
+        return float(dn @ self.w_static[self.contact_dofs(e)])
+
     def static_stiffness(self, xs: np.ndarray) -> np.ndarray:
         """Static point stiffness of the contact wire 1 / (N^T K^-1 N) at each x [N/m] (droppers taut)."""
         out = np.empty(len(xs))
