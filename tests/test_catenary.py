@@ -224,6 +224,14 @@ def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     assert truth.stiffness == pytest.approx(k_line, rel=1e-9)
     assert truth.contact_uplift == pytest.approx(truth.contact_force / truth.stiffness, rel=0.05)
     assert truth.contact_position == pytest.approx(4 * DATA.span + 8.0 * 5.0 / 3.6, rel=1e-9)
+    # fe_datum static_wire: the same state measured from the static wire under the contact point.
+    import dataclasses
+
+    fixed_z = plant.z
+    plant.options = dataclasses.replace(options, fe_datum="static_wire")
+    sag = plant.datum - plant.line.static_height(plant.sim.x)  # pre-sag here, relative to the start
+    assert sag > 0.01  # 11 m into the span: the wire hangs lower than at the support
+    np.testing.assert_allclose(plant.z[:2], fixed_z[:2] + sag, rtol=0, atol=1e-12)
     fields = messages.truth_fields(truth, 0, applied_command_tick=3999)
     assert fields["contact_uplift"] == truth.contact_uplift and math.isfinite(fields["support_uplift"])
 
