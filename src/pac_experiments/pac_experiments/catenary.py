@@ -112,6 +112,8 @@ def passive_reference(
         **stats.as_dict(),
         "support_uplift_mm": 1e3 * support_uplift,
         "max_slack_droppers": slack,
+        "active_set_passes_max": sim.active_set_passes_max,
+        "active_set_unconverged_steps": sim.active_set_unconverged,
         "steps": len(fs),
         "us_per_step": 1e6 * wall / len(fs),
         "_x": x,

@@ -104,6 +104,7 @@ class ContactSimulation:
         self.delta = 0.0
         self.input_force = 0.0
         self.active_set_passes_max = 0
+        self.active_set_unconverged = 0  # steps whose active set did not settle (see step)
         self._b = np.empty(n)
         self._x1, self._x2 = np.empty(n), np.empty(n)
         self._zero = np.zeros(n)
@@ -259,7 +260,10 @@ class ContactSimulation:
                 e += gd_yc * coef[ns]
             new_contact = bool(delta > 0.0)
             new_slack = np.flatnonzero(e < 0.0)
-            if new_contact == contact and np.array_equal(new_slack, slack):
+            consistent = new_contact == contact and np.array_equal(new_slack, slack)
+            if consistent or passes == MAX_ACTIVE_SET_PASSES:
+                if not consistent:  # keep the set the solution was computed for; count it
+                    self.active_set_unconverged += 1
                 break
             contact, slack = new_contact, new_slack
         self.active_set_passes_max = max(self.active_set_passes_max, passes)

@@ -101,13 +101,6 @@ class Banded:
             a[idx, idx + k] = self.ab[k, : self.n - k]
         return a
 
-    def matvec(self, x: np.ndarray) -> np.ndarray:
-        y = self.ab[0] * x
-        for k in range(1, self.kd + 1):
-            y[k:] += self.ab[k, : self.n - k] * x[: self.n - k]
-            y[: self.n - k] += self.ab[k, : self.n - k] * x[k:]
-        return y
-
 
 @dataclass
 class Dropper:
