@@ -9,7 +9,7 @@ BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs (laws_speeds needs the `law` parameter).
 CAMPAIGNS ?= robustness modes_speeds
 
-.PHONY: setup test lint clean demo reproduce bench report info replay re-estimate recover sweep campaigns
+.PHONY: setup test lint clean demo reproduce catenary bench report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -31,6 +31,9 @@ demo: setup
 
 reproduce: setup
 	scripts/with_env.sh ros2 run pac_experiments reproduce $(ARGS)
+
+catenary: setup
+	scripts/with_env.sh ros2 run pac_experiments catenary $(ARGS)
 
 bench: setup
 	scripts/with_env.sh ros2 run pac_experiments bench $(ARGS)

@@ -88,6 +88,9 @@ def truth_fields(
         "command_timeouts": command_timeouts,
         "round_trip_latency": round_trip_latency,
         "wall_stamp": time_fields(wall_stamp_ns),
+        "contact_uplift": float(getattr(t, "contact_uplift", math.nan)),
+        "support_uplift": float(getattr(t, "support_uplift", math.nan)),
+        "contact_position": float(getattr(t, "contact_position", math.nan)),
     }
 
 

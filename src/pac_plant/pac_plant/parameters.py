@@ -34,3 +34,23 @@ class PlantOptions(ParameterSet):
     substeps: int = parameter(
         2, "RK4 steps per sample period (accuracy: see docs/numerics.md)", low=1, high=1000
     )
+    catenary_model: str = parameter(
+        "lumped",
+        "catenary: 'lumped' k(t) = k0 (1 + alpha cos(omega t - beta)) of eq. (7); 'fe' the "
+        "finite-element simple catenary of docs/catenary.md (endless moving window, 55 m spans; "
+        "ignores k0/alpha/beta/span_length and contact_model: its contact is always unilateral)",
+        choices=("lumped", "fe"),
+    )
+    fe_substeps: int = parameter(
+        1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
+    )
+    fe_datum: str = parameter(
+        "fixed",
+        "fe: what z1, z2 are measured from: 'fixed' the static contact-wire height at the start "
+        "support (what a rig measures); 'static_wire' the static (pre-sagged) contact-wire height "
+        "under the current contact point (the line's design sag subtracted by position)",
+        choices=("fixed", "static_wire"),
+    )
+    fe_element_size: float = parameter(
+        0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
+    )

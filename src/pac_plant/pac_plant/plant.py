@@ -37,6 +37,12 @@ class Truth:
     contact_force: float
     in_contact: bool
     u_applied: float
+    #: Contact-wire uplift from its static position at the contact point and at the nearest
+    #: support [m] (FE line only; NaN for the lumped k(t) model, which has no wire).
+    contact_uplift: float = math.nan
+    support_uplift: float = math.nan
+    #: Distance of the contact point along the line [m] (FE line only).
+    contact_position: float = math.nan
 
 
 class Plant:
@@ -70,7 +76,11 @@ class Plant:
         self.tick = 0
         self.z = np.zeros(4) if z0 is None else np.array(z0, dtype=float)
         self.u_applied = 0.0
-        self._noisy = any(s > 0.0 for s in options.noise_std)
+        self._init_sensor()
+
+    def _init_sensor(self) -> None:
+        """Sensor noise state (shared with FEPlant, which reuses ``measurement``)."""
+        self._noisy = any(s > 0.0 for s in self.options.noise_std)
         self._noise_block_index = -1
         self._noise_block = np.zeros((0, 2))
 

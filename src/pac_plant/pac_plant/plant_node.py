@@ -29,8 +29,8 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, RUN_STATUS_QOS, PacNode, run_
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .fe_plant import make_plant
 from .parameters import PlantOptions
-from .plant import Plant
 
 
 @dataclass(frozen=True)
@@ -81,7 +81,7 @@ class PlantNode(PacNode):
         super().__init__("plant_node")
         loop = self.loop = self.parameters(LoopParameters)
         self.options = self.parameters(PlantNodeOptions)
-        self.plant = Plant(
+        self.plant = make_plant(  # catenary_model: lumped | fe
             self.parameters(PantographParameters),
             self.parameters(TrackParameters),
             self.parameters(CatenaryParameters),

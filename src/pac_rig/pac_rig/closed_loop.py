@@ -21,6 +21,7 @@ from pac_controller.parameters import ControllerParameters, LawParameters, Refer
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
+from pac_plant.fe_plant import make_plant
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
 
@@ -80,7 +81,9 @@ DIVERGENCE_FORCE = 1e6
 
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, Controller]:
     dt = s.loop.sample_period
-    plant = Plant(s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt)
+    plant = make_plant(
+        s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt
+    )  # lumped | fe
     observer = AdaptiveObserver(s.pantograph, s.track, s.observer, dt)
     # backstepping_known is told the plant's own catenary: the oracle.
     controller = make_controller(s.pantograph, s.track, s.controller, s.reference, dt, s.laws, s.catenary)

@@ -1,0 +1,344 @@
+"""Time integration of line + pantograph: Newmark average acceleration, factorised once.
+
+Unknowns: d, the line's deviation from its static equilibrium (``Line.w_static``), and
+p, the pantograph's heights. Both parts are linear and constant,
+
+    M d'' + C d' + K d = f_contact + f_slack,     Mp p'' + Cp p' + Kp p = f_input + f_roof - F e_head,
+
+with Rayleigh damping C = alpha M + beta K on the line. Newmark's average-acceleration
+rule (trapezoidal: unconditionally stable, no numerical damping, energy-conserving for
+a linear system) turns each step into A q = b with the constant A = K + 4/dt^2 M + 2/dt C
+(banded Cholesky once, ``kernels.band_chol_solve``) for the line and a small dense inverse
+for the pantograph. The two non-smooth parts are low-rank corrections of A, solved exactly
+with the Woodbury identity at the new time level (implicit, no refactorisation):
+
+* the moving unilateral penalty contact, F = k_p delta when the penetration
+  delta = z_head - w_c(x) > 0 (w_c by the element's Hermite shape functions at the
+  contact point): A + k_p g g^T with g = (-N(x) on the line, +1 on the head), one extra
+  line solve per step for A^-1 g;
+* slack droppers (elongation e_j = e0_j + w_m - w_c < 0): A - k_j g_j g_j^T and the
+  static dropper force k_j e0_j removed, A^-1 g_j precomputed for every dropper.
+
+The active set (contact on/off, which droppers are slack) is iterated until it agrees
+with the solution it produces (a few passes at most; usually the first one).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .kernels import band_chol_solve, band_matvec2, chol_factor, newmark_rhs, newmark_update
+from .line import DOFS_PER_NODE, Line
+from .pantographs import LumpedPantograph
+
+MAX_ACTIVE_SET_PASSES = 25
+
+
+class ContactSimulation:
+    """Line + pantograph moving at ``speed`` [m/s] from ``x0`` [m], time step ``dt`` [s].
+
+    ``endless``: the line is a moving window: whenever the contact point passes the
+    middle of the window by one span, every state vector is shifted back by one span
+    (the matrices are span-periodic, so nothing is refactorised) and the new last span
+    starts at rest in static equilibrium. ``position`` is then the distance travelled.
+    """
+
+    def __init__(
+        self,
+        line: Line,
+        pantograph: LumpedPantograph,
+        dt: float,
+        speed: float,
+        x0: float,
+        *,
+        damping: bool = True,
+        endless: bool = False,
+    ) -> None:
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be positive, got {dt!r}")
+        self.line = line
+        self.panto = pantograph
+        self.dt = dt
+        self.speed = speed
+        self.kp = line.options.contact_stiffness
+        self.alpha = line.options.rayleigh_alpha if damping else 0.0
+        self.beta = line.options.rayleigh_beta if damping else 0.0
+        self.endless = endless
+        n = line.n_dof
+        self.c0, self.c1 = 4.0 / dt**2, 2.0 / dt
+        a_line = line.K.ab * (1.0 + self.c1 * self.beta) + line.M.ab * (self.c0 + self.c1 * self.alpha)
+        self._chol = chol_factor(a_line)
+        self._m, self._k = np.ascontiguousarray(line.M.ab), np.ascontiguousarray(line.K.ab)
+        pm = np.diag(pantograph.mass)
+        self._pk = pantograph.stiffness + np.diag(pantograph.ground_stiffness)
+        self._pc = pantograph.damping if damping else np.zeros_like(pantograph.damping)
+        self._pm = pm
+        self._ap_inv = np.linalg.inv(self._pk + self.c0 * pm + self.c1 * self._pc)
+        # Droppers: A^-1 g_j for every dropper (line part only) and D = G^T A^-1 G.
+        dr = line.droppers
+        self._dwc, self._dwm = dr.wc, dr.wm
+        nd = len(dr.node)
+        g = np.zeros((nd, n))
+        g[np.arange(nd), dr.wm] = 1.0
+        g[np.arange(nd), dr.wc] = -1.0
+        for col in g:
+            band_chol_solve(self._chol, col)
+        g = np.ascontiguousarray(g.T)
+        self._ydrop = g
+        self._ddrop = g[dr.wm, :] - g[dr.wc, :]
+        self._kdrop = dr.stiffness.copy()
+        self._e0 = dr.elongation0.copy()
+        self._drop_per_span = len(line.data.dropper_positions)
+        # State.
+        self.d, self.v, self.a = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.p = np.zeros(pantograph.n)
+        self.vp, self.ap = np.zeros(pantograph.n), np.zeros(pantograph.n)
+        self.roof_rest = np.zeros(pantograph.n)
+        self.x = float(x0)
+        self.offset = 0.0  # distance already shifted out of the window (endless)
+        self.steps = 0
+        self.in_contact = False
+        self.slack = np.zeros(0, dtype=int)
+        self.delta = 0.0
+        self.input_force = 0.0
+        self.active_set_passes_max = 0
+        self.active_set_unconverged = 0  # steps whose active set did not settle (see step)
+        self._b = np.empty(n)
+        self._x1, self._x2 = np.empty(n), np.empty(n)
+        self._zero = np.zeros(n)
+        self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (contact element)
+        self.start_touching()
+
+    # -- initial states ------------------------------------------------------------------------
+    def start_touching(self) -> None:
+        """Line at static equilibrium, pantograph at rest with the head just touching (F = 0)."""
+        self.d[:] = self.v[:] = self.a[:] = 0.0
+        head = self.line.static_height(self.x)
+        self.p = self.panto.static_positions(head, 0.0)
+        self.vp[:] = self.ap[:] = 0.0
+        self.roof_rest = self.p.copy()
+        self.input_force = 0.0
+        self.in_contact = False
+        self.delta = 0.0
+
+    def start_static(self, force: float) -> None:
+        """Static equilibrium of line and pantograph under uplift ``force`` at the start point."""
+        dofs, n = self.line.contact_interpolation(self.x)
+        f = np.zeros(self.line.n_dof)
+        f[dofs] = force * n
+        self.d = self.line.solve_static(f)
+        self.v[:] = self.a[:] = 0.0
+        e = self._e0 + self.d[self._dwm] - self.d[self._dwc]
+        if np.any(e < 0):
+            raise ValueError("static uplift slackens a dropper: start from rest instead")
+        head = self.line.static_height(self.x) + float(n @ self.d[dofs]) + force / self.kp
+        self.p = self.panto.static_positions(head, force)
+        self.vp[:] = self.ap[:] = 0.0
+        self.roof_rest = self.p.copy()  # roof spring unloaded in the static state
+        self.input_force = force
+        self.in_contact = True
+        self.delta = force / self.kp
+
+    def set_line_state(self, d: np.ndarray, v: np.ndarray) -> None:
+        """Line deviation and velocity; acceleration from the equations of motion (with the
+        current contact force; droppers taut)."""
+        self.d, self.v = np.array(d, dtype=float), np.array(v, dtype=float)
+        self.d[self.line.fixed] = self.v[self.line.fixed] = 0.0
+        f = np.empty_like(self.d)
+        band_matvec2(self._m, -self.alpha * self.v, self._k, -self.d - self.beta * self.v, f)  # M a
+        dofs, n = self.line.contact_interpolation(self.x)
+        f[dofs] += self.contact_force * n
+        m = self._m.copy()
+        m[0, self.line.fixed] = 1.0  # anchored DOFs carry no mass: keep M invertible there
+        f[self.line.fixed] = 0.0
+        self.a = f
+        band_chol_solve(chol_factor(m), self.a)
+
+    # -- observables ---------------------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return self.steps * self.dt
+
+    @property
+    def position(self) -> float:
+        """Distance of the contact point from the line's start (plus what an endless line shifted)."""
+        return self.x + self.offset
+
+    @property
+    def contact_force(self) -> float:
+        return self.kp * self.delta if self.in_contact else 0.0
+
+    def wire_height(self, x: float | None = None) -> float:
+        """Contact-wire height at x (default: the contact point), static + dynamic [m]."""
+        x = self.x if x is None else x
+        return self.line.static_height(x) + self.line.contact_height(self.d, x)
+
+    def uplift(self, x: float | None = None) -> float:
+        """Contact-wire uplift from its static position at x (default: the contact point) [m]."""
+        return self.line.contact_height(self.d, self.x if x is None else x)
+
+    def dropper_elongation(self) -> np.ndarray:
+        return self._e0 + self.d[self._dwm] - self.d[self._dwc]
+
+    def energy(self) -> float:
+        """Kinetic + strain energy of the deviation from static (line, pantograph, penalty) [J]."""
+        tmp = np.empty_like(self.d)
+        band_matvec2(self._m, self.v, self._k, self._zero, tmp)
+        e = 0.5 * float(self.v @ tmp)
+        band_matvec2(self._m, self._zero, self._k, self.d, tmp)
+        e += 0.5 * float(self.d @ tmp)
+        dp = self.p - self.roof_rest
+        e += 0.5 * float(self.vp @ (self._pm @ self.vp))
+        e += 0.5 * float(self.p @ (self.panto.stiffness @ self.p))
+        e += 0.5 * float(dp @ (np.diag(self.panto.ground_stiffness) @ dp))
+        if self.in_contact:
+            e += 0.5 * self.kp * self.delta**2
+        # A slack dropper stores nothing, where the linear K (about static) counts k e^2 / 2.
+        for j in self.slack:
+            ej = self._e0[j] + self.d[self._dwm[j]] - self.d[self._dwc[j]]
+            e -= 0.5 * self._kdrop[j] * ej**2
+        return e
+
+    # -- stepping ------------------------------------------------------------------------------
+    def step(self, input_force: float) -> None:
+        """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time."""
+        dt, c0, c1 = self.dt, self.c0, self.c1
+        d, v, a = self.d, self.v, self.a
+        x_new = self.x + self.speed * dt
+        if self.endless and x_new > (self.line.n_spans // 2 + 1) * self.line.data.span:
+            self._shift_window()
+            d, v, a = self.d, self.v, self.a
+            x_new = self.x + self.speed * dt
+        if x_new > self.line.length:
+            raise ValueError(f"the pantograph ran off the line at x = {x_new:.2f} m")
+        # Line right-hand side: M (c0 d + 4/dt v + a) + C (c1 d + v), C = alpha M + beta K.
+        y_l = self._b
+        newmark_rhs(self._m, self._k, d, v, a, dt, self.alpha, self.beta, self._x1, self._x2, y_l)
+        band_chol_solve(self._chol, y_l)
+        dofs, nsh = self.line.contact_interpolation(x_new)
+        yc_l = -(self._unit_solution(dofs[0]) * nsh[0])
+        for i in range(1, 4):
+            yc_l -= self._unit_solution(dofs[i]) * nsh[i]
+        # Pantograph.
+        fp = np.diag(self.panto.ground_stiffness) @ self.roof_rest
+        fp[self.panto.input] += input_force
+        bp = fp + self._pm @ (c0 * self.p + (4.0 / dt) * self.vp + self.ap)
+        bp += self._pc @ (c1 * self.p + self.vp)
+        y_p = self._ap_inv @ bp
+        yc_p = self._ap_inv[:, self.panto.head]
+        h = self.panto.head
+        ws_x = self.line.static_height(x_new)
+        # Projections on the contact direction g_c and on the dropper directions g_j.
+        gc_y = -float(nsh @ y_l[dofs]) + y_p[h]
+        gc_yc = -float(nsh @ yc_l[dofs]) + yc_p[h]
+        gc_ydrop = -(nsh @ self._ydrop[dofs, :])  # (nd,)
+        gd_y = y_l[self._dwm] - y_l[self._dwc]  # (nd,)
+        gd_yc = yc_l[self._dwm] - yc_l[self._dwc]  # (nd,)
+        contact, slack = self.in_contact, self.slack
+        passes = 0
+        while passes < MAX_ACTIVE_SET_PASSES:
+            passes += 1
+            ns = len(slack)
+            m = ns + (1 if contact else 0)
+            if ns == 0:  # the usual case, in scalars: z = (g_c^T y + g_c^T A^-1 g_c r) / cap
+                coef = np.zeros(m)
+                if contact:
+                    r_c = self.kp * ws_x
+                    coef[0] = r_c - (gc_y + gc_yc * r_c) / (gc_yc + 1.0 / self.kp)
+            else:
+                coef = self._woodbury_coefficients(slack, contact, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
+            # Contact penetration and dropper elongations at that solution.
+            delta = gc_y - ws_x
+            e = self._e0 + gd_y
+            if ns:
+                delta += float(gc_ydrop[slack] @ coef[:ns])
+                e += self._ddrop[:, slack] @ coef[:ns]
+            if contact:
+                delta += gc_yc * coef[ns]
+                e += gd_yc * coef[ns]
+            new_contact = bool(delta > 0.0)
+            new_slack = np.flatnonzero(e < 0.0)
+            consistent = new_contact == contact and np.array_equal(new_slack, slack)
+            if consistent or passes == MAX_ACTIVE_SET_PASSES:
+                if not consistent:  # keep the set the solution was computed for; count it
+                    self.active_set_unconverged += 1
+                break
+            contact, slack = new_contact, new_slack
+        self.active_set_passes_max = max(self.active_set_passes_max, passes)
+        d_new = y_l  # scratch buffer, consumed by newmark_update below
+        p_new = y_p.copy()
+        if len(slack):
+            d_new += self._ydrop[:, slack] @ coef[: len(slack)]
+        if contact:
+            d_new += yc_l * coef[len(slack)]
+            p_new += yc_p * coef[len(slack)]
+        newmark_update(d, v, a, d_new, dt)
+        ap_new = c0 * (p_new - self.p) - (4.0 / dt) * self.vp - self.ap
+        self.vp = self.vp + 0.5 * dt * (self.ap + ap_new)
+        self.ap, self.p = ap_new, p_new
+        self.x = x_new
+        self.in_contact, self.slack = contact, slack
+        self.delta = delta if contact else min(delta, 0.0)
+        self.input_force = input_force
+        self.steps += 1
+
+    def _unit_solution(self, i: int) -> np.ndarray:
+        """A^-1 e_i, cached for the DOFs of the last two contact elements (2 new solves per element)."""
+        col = self._unit_solutions.get(int(i))
+        if col is None:
+            col = np.zeros(self.line.n_dof)
+            col[i] = 1.0
+            band_chol_solve(self._chol, col)
+            if len(self._unit_solutions) >= 8:
+                self._unit_solutions.pop(next(iter(self._unit_solutions)))
+            self._unit_solutions[int(i)] = col
+        return col
+
+    def _woodbury_coefficients(
+        self,
+        slack: np.ndarray,
+        contact: bool,
+        gc_y: float,
+        gc_yc: float,
+        gc_ydrop: np.ndarray,
+        gd_y: np.ndarray,
+        gd_yc: np.ndarray,
+        ws_x: float,
+    ) -> np.ndarray:
+        """r - z of q = y + Y (r - z), z = cap^-1 U^T (y + Y r), cap = S^-1 + U^T A^-1 U."""
+        ns = len(slack)
+        m = ns + (1 if contact else 0)
+        cap = np.zeros((m, m))
+        uy = np.zeros(m)
+        r = np.zeros(m)
+        cap[:ns, :ns] = self._ddrop[np.ix_(slack, slack)] - np.diag(1.0 / self._kdrop[slack])
+        uy[:ns] = gd_y[slack]
+        r[:ns] = self._kdrop[slack] * self._e0[slack]
+        if contact:
+            cap[ns, ns] = gc_yc + 1.0 / self.kp
+            cap[ns, :ns] = gc_ydrop[slack]
+            cap[:ns, ns] = gd_yc[slack]
+            uy[ns] = gc_y
+            r[ns] = self.kp * ws_x
+        return r - np.linalg.solve(cap, uy + (cap - np.diag(self._sinv(slack, contact))) @ r)
+
+    def _sinv(self, slack: np.ndarray, contact: bool) -> np.ndarray:
+        """Diagonal of S^-1 in A + U S U^T: -1/k_j for slack droppers, 1/k_p for the contact."""
+        s = list(-1.0 / self._kdrop[slack])
+        if contact:
+            s.append(1.0 / self.kp)
+        return np.array(s)
+
+    def _shift_window(self) -> None:
+        """Move the window one span forward: states shift back one span, the new span is at rest."""
+        s = DOFS_PER_NODE * self.line.nodes_per_span
+        self._unit_solutions.clear()
+        for vec in (self.d, self.v, self.a):
+            vec[:-s] = vec[s:].copy()
+            vec[-s:] = 0.0
+            vec[self.line.fixed] = 0.0
+        self.slack = self.slack[self.slack >= self._drop_per_span] - self._drop_per_span
+        self.x -= self.line.data.span
+        self.offset += self.line.data.span

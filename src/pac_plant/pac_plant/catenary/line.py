@@ -1,0 +1,360 @@
+"""The contact line: mesh, Hermite beam matrices, droppers, supports, static equilibrium.
+
+Both wires are tensioned Euler-Bernoulli beams (cubic Hermite elements, DOFs w and
+w' per node) with the string (geometric) stiffness of their tension T:
+
+    rho w_tt + EI w_xxxx - T w_xx = -rho g + (dropper, support and contact forces)
+
+Small-displacement theory about two straight reference lines: the contact wire's
+w is measured from the contact-wire height at the supports, the messenger's from
+the messenger support height (system height H above). Node ordering interleaves
+the wires, node i -> DOFs (w_c, w'_c, w_m, w'_m) = 4i .. 4i+3, so every matrix is
+symmetric banded with 7 sub-diagonals (LAPACK lower band storage ``ab[k, j] = A[j+k, j]``).
+
+Droppers are springs EA/L0 between the two wires at the same x (tension only: the
+dynamics drop a dropper whose elongation goes negative, see ``integrator``); their
+clamp masses and half of their own mass are lumped on the wire nodes. Steady arms
+(contact wire) and messenger supports are springs to ground at the interior
+supports; both wires are anchored (w = 0) at the two end supports. The unstrained
+dropper lengths L0 are solved so that the static contact wire meets the target
+pre-sag at every dropper (``solve_dropper_lengths``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import cho_solve_banded, cholesky_banded
+
+from .data import CatenaryData, NumericalOptions, WireData
+
+DOFS_PER_NODE = 4
+BANDWIDTH = 7  # sub-diagonals: node i couples with node i+1 only
+WC, RC, WM, RM = 0, 1, 2, 3  # DOF offsets within a node
+
+
+def hermite_shape(xi: float, h: float) -> np.ndarray:
+    """Cubic Hermite shape functions at xi in [0, 1] for (w_a, w'_a, w_b, w'_b)."""
+    x2, x3 = xi * xi, xi * xi * xi
+    return np.array([1 - 3 * x2 + 2 * x3, h * (xi - 2 * x2 + x3), 3 * x2 - 2 * x3, h * (x3 - x2)])
+
+
+def beam_matrices(w: WireData, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Element (stiffness = bending + string, consistent mass) of a tensioned beam of length h."""
+    kb = (
+        w.ei
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    kg = (
+        w.tension
+        / (30 * h)
+        * np.array(
+            [
+                [36, 3 * h, -36, 3 * h],
+                [3 * h, 4 * h * h, -3 * h, -h * h],
+                [-36, -3 * h, 36, -3 * h],
+                [3 * h, -h * h, -3 * h, 4 * h * h],
+            ]
+        )
+    )
+    m = (
+        w.rho
+        * h
+        / 420
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
+    )
+    return kb + kg, m
+
+
+def gravity_load(w: WireData, h: float, g: float) -> np.ndarray:
+    """Consistent nodal load of the wire's own weight over one element (downwards)."""
+    return -w.rho * g * np.array([h / 2, h * h / 12, h / 2, -h * h / 12])
+
+
+def span_nodes(data: CatenaryData, element_size: float) -> np.ndarray:
+    """Node positions within one span [0, L): every dropper is a node, intervals split evenly."""
+    marks = [0.0, *data.dropper_positions, data.span]
+    xs: list[float] = []
+    for a, b in zip(marks[:-1], marks[1:], strict=True):
+        n = max(1, math.ceil((b - a) / element_size - 1e-9))
+        xs.extend(a + (b - a) * np.arange(n) / n)
+    return np.array(xs)
+
+
+class Banded:
+    """Symmetric banded matrix in LAPACK lower storage, assembled in place."""
+
+    def __init__(self, n: int, kd: int = BANDWIDTH) -> None:
+        self.ab = np.zeros((kd + 1, n))
+        self.n = n
+        self.kd = kd
+
+    def add(self, i: int, j: int, v: float) -> None:
+        """A[i, j] += v and A[j, i] += v (once on the diagonal)."""
+        if i < j:
+            i, j = j, i
+        self.ab[i - j, j] += v
+
+    def add_block(self, dofs: list[int] | np.ndarray, block: np.ndarray) -> None:
+        for a, i in enumerate(dofs):
+            for b, j in enumerate(dofs):
+                if i >= j:
+                    self.ab[i - j, j] += block[a, b]
+
+    def dense(self) -> np.ndarray:
+        a = np.zeros((self.n, self.n))
+        for k in range(self.kd + 1):
+            idx = np.arange(self.n - k)
+            a[idx + k, idx] = self.ab[k, : self.n - k]
+            a[idx, idx + k] = self.ab[k, : self.n - k]
+        return a
+
+
+@dataclass
+class Dropper:
+    """Index arrays over all droppers of the line."""
+
+    node: np.ndarray  # node index (contact and messenger ends share it)
+    x: np.ndarray  # position along the line [m]
+    target_sag: np.ndarray  # m (positive down)
+    length0: np.ndarray  # unstrained length [m]
+    stiffness: np.ndarray  # EA / L0 [N/m]
+    elongation0: np.ndarray  # static elongation [m] (> 0: in tension)
+
+    @property
+    def wc(self) -> np.ndarray:
+        return DOFS_PER_NODE * self.node + WC
+
+    @property
+    def wm(self) -> np.ndarray:
+        return DOFS_PER_NODE * self.node + WM
+
+    @property
+    def static_tension(self) -> np.ndarray:
+        return self.stiffness * self.elongation0
+
+
+class Line:
+    """A catenary section of ``n_spans`` spans, assembled and in static equilibrium.
+
+    ``w_static`` is the static displacement of every DOF (gravity, droppers taut);
+    the dynamics use the deviation d = w - w_static, so ``M``, ``K`` (line only) act on d.
+    """
+
+    def __init__(
+        self,
+        data: CatenaryData | None = None,
+        options: NumericalOptions | None = None,
+        n_spans: int | None = None,
+        droppers: bool = True,
+        supports: bool = True,
+    ) -> None:
+        data = CatenaryData() if data is None else data
+        options = NumericalOptions() if options is None else options
+        self.data = data
+        self.options = options
+        self.n_spans = data.n_spans if n_spans is None else n_spans
+        xs = span_nodes(data, options.element_size)
+        self.nodes_per_span = len(xs)
+        spans = [s * data.span + xs for s in range(self.n_spans)]
+        self.x = np.concatenate([*spans, [self.n_spans * data.span]])
+        self.n_nodes = len(self.x)
+        self.n_dof = DOFS_PER_NODE * self.n_nodes
+        self.length = self.n_spans * data.span
+        self.h = np.diff(self.x)
+        self.has_droppers = droppers
+        # Constrained DOFs: both wires anchored at the two end supports.
+        last = self.n_nodes - 1
+        self.fixed = np.array([WC, WM, DOFS_PER_NODE * last + WC, DOFS_PER_NODE * last + WM])
+        # Interior supports: nodes at multiples of the span.
+        self.support_nodes = np.array([s * self.nodes_per_span for s in range(1, self.n_spans)], dtype=int)
+        self._supports = supports
+        drop_local = [int(np.argmin(np.abs(xs - p))) for p in data.dropper_positions]
+        nodes = np.array(
+            [s * self.nodes_per_span + j for s in range(self.n_spans) for j in drop_local], dtype=int
+        )
+        if not droppers:
+            nodes = nodes[:0]
+        nd = len(nodes)
+        sag = np.tile(np.array(data.presag), self.n_spans)[:nd]
+        self.droppers = Dropper(
+            node=nodes,
+            x=self.x[nodes],
+            target_sag=sag,
+            length0=np.full(nd, data.system_height),
+            stiffness=np.full(nd, data.dropper_ea / data.system_height),
+            elongation0=np.zeros(nd),
+        )
+        self._assemble_wires()
+        self.solve_dropper_lengths()
+
+    # -- assembly ------------------------------------------------------------------------------
+    def _assemble_wires(self) -> None:
+        d = self.data
+        kw, mw = Banded(self.n_dof), Banded(self.n_dof)
+        fw = np.zeros(self.n_dof)
+        for e, h in enumerate(self.h):
+            for wire, off in ((d.contact, WC), (d.messenger, WM)):
+                ke, me = beam_matrices(wire, h)
+                dofs = [4 * e + off, 4 * e + off + 1, 4 * (e + 1) + off, 4 * (e + 1) + off + 1]
+                kw.add_block(dofs, ke)
+                mw.add_block(dofs, me)
+                fw[dofs] += gravity_load(wire, h, d.gravity)
+        if self._supports:
+            for n in self.support_nodes:
+                kw.add(4 * n + WC, 4 * n + WC, d.steady_arm_stiffness)
+                kw.add(4 * n + WM, 4 * n + WM, d.messenger_support_stiffness)
+        self._k_wires, self._m_wires, self._f_wires = kw.ab.copy(), mw.ab.copy(), fw
+
+    def _assemble(self) -> None:
+        """K, M and the static load for the current dropper lengths (droppers taut)."""
+        d, dr = self.data, self.droppers
+        k, m = Banded(self.n_dof), Banded(self.n_dof)
+        k.ab[:], m.ab[:] = self._k_wires, self._m_wires
+        f = self._f_wires.copy()
+        # Dropper: spring k_d between w_c and w_m; elongation e = H + w_m - w_c - L0.
+        half = 0.5 * d.dropper_rho * dr.length0
+        for j in range(len(dr.node)):
+            ic, im, kd = dr.wc[j], dr.wm[j], dr.stiffness[j]
+            k.add(ic, ic, kd)
+            k.add(im, im, kd)
+            k.add(im, ic, -kd)
+            pre = kd * (d.system_height - dr.length0[j])
+            f[ic] += pre
+            f[im] -= pre
+            mc, mm = d.clamp_mass_contact + half[j], d.clamp_mass_messenger + half[j]
+            m.add(ic, ic, mc)
+            m.add(im, im, mm)
+            f[ic] -= mc * d.gravity
+            f[im] -= mm * d.gravity
+        for i in self.fixed:
+            k.ab[:, i] = 0.0
+            m.ab[:, i] = 0.0
+            for kk in range(1, BANDWIDTH + 1):
+                if i - kk >= 0:
+                    k.ab[kk, i - kk] = 0.0
+                    m.ab[kk, i - kk] = 0.0
+            k.ab[0, i] = 1.0
+            f[i] = 0.0
+        self.K, self.M, self.f_static = k, m, f
+        self._k_chol = cholesky_banded(k.ab, lower=True)
+
+    def solve_static(self, f: np.ndarray) -> np.ndarray:
+        """K^-1 f (droppers taut), f of shape (n_dof,) or (n_dof, m)."""
+        f = np.array(f, dtype=float)
+        f[self.fixed] = 0.0
+        return cho_solve_banded((self._k_chol, True), f)
+
+    def solve_dropper_lengths(self, tolerance: float = 1e-9, max_iterations: int = 50) -> None:
+        """Unstrained dropper lengths that put the static contact wire at -presag at every dropper.
+
+        The static solution is linear in the dropper pre-tension terms p_j = k_j (H - L0_j):
+        w = K^-1 (f_g + B p), so p solves a small linear system; k_j = EA / L0_j depends on
+        L0, hence fixed-point passes until L0 moves less than ``tolerance`` [m].
+        """
+        d, dr = self.data, self.droppers
+        nd = len(dr.node)
+        for _ in range(max_iterations):
+            self._assemble()
+            if nd == 0:
+                break
+            # Load without the pre-tension terms, and one column per dropper for them.
+            pre = dr.stiffness * (d.system_height - dr.length0)
+            f_g = self.f_static.copy()
+            np.add.at(f_g, dr.wc, -pre)
+            np.add.at(f_g, dr.wm, pre)
+            b = np.zeros((self.n_dof, nd))
+            b[dr.wc, np.arange(nd)] = 1.0
+            b[dr.wm, np.arange(nd)] = -1.0
+            w_g = self.solve_static(f_g)
+            w_b = self.solve_static(b)
+            p = np.linalg.solve(w_b[dr.wc, :], -dr.target_sag - w_g[dr.wc])
+            length0 = d.dropper_ea * d.system_height / (d.dropper_ea + p)
+            change = float(np.max(np.abs(length0 - dr.length0)))
+            dr.length0 = length0
+            dr.stiffness = d.dropper_ea / dr.length0
+            if change < tolerance:
+                break
+        self._assemble()
+        self.w_static = self.solve_static(self.f_static)
+        ws = self.w_static
+        dr.elongation0 = d.system_height + ws[dr.wm] - ws[dr.wc] - dr.length0
+
+    # -- geometry of a point on the contact wire ----------------------------------------------
+    def locate(self, x: float) -> tuple[int, float]:
+        """Element index and local coordinate xi in [0, 1] of position x on the line."""
+        if not (0.0 <= x <= self.length):
+            raise ValueError(f"position {x!r} m is off the line [0, {self.length}] m")
+        e = int(np.searchsorted(self.x, x, side="right")) - 1
+        e = min(max(e, 0), self.n_nodes - 2)
+        return e, (x - self.x[e]) / self.h[e]
+
+    def contact_dofs(self, e: int) -> np.ndarray:
+        """The contact-wire DOFs of element e: (w_a, w'_a, w_b, w'_b)."""
+        return np.array([4 * e + WC, 4 * e + RC, 4 * (e + 1) + WC, 4 * (e + 1) + RC])
+
+    def contact_interpolation(self, x: float) -> tuple[np.ndarray, np.ndarray]:
+        """(DOFs, Hermite weights) such that w_c(x) = weights . q[DOFs]."""
+        e, xi = self.locate(x)
+        return self.contact_dofs(e), hermite_shape(xi, self.h[e])
+
+    def contact_height(self, q: np.ndarray, x: float) -> float:
+        dofs, n = self.contact_interpolation(x)
+        return float(n @ q[dofs])
+
+    def static_height(self, x: float) -> float:
+        """Static contact-wire height at x [m] (negative: below the support height)."""
+        return self.contact_height(self.w_static, x)
+
+    def static_slope(self, x: float) -> float:
+        """d/dx of the static contact-wire height at x (Hermite shape-function derivatives)."""
+        e, xi = self.locate(x)
+        h = self.h[e]
+        x2 = xi * xi
+        dn = np.array([6 * (x2 - xi) / h, 1 - 4 * xi + 3 * x2, 6 * (xi - x2) / h, 3 * x2 - 2 * xi])
+        return float(dn @ self.w_static[self.contact_dofs(e)])
+
+    def static_stiffness(self, xs: np.ndarray) -> np.ndarray:
+        """Static point stiffness of the contact wire 1 / (N^T K^-1 N) at each x [N/m] (droppers taut)."""
+        out = np.empty(len(xs))
+        for i, x in enumerate(xs):
+            dofs, n = self.contact_interpolation(float(x))
+            f = np.zeros(self.n_dof)
+            f[dofs] = n
+            out[i] = 1.0 / float(n @ self.solve_static(f)[dofs])
+        return out
+
+    def element_flexibility(self) -> np.ndarray:
+        """Per element, the 4x4 block of K^-1 on its contact DOFs (static stiffness at any x)."""
+        ne = self.n_nodes - 1
+        out = np.empty((ne, 4, 4))
+        cols = [(i, off) for i in range(self.n_nodes) for off in (WC, RC)]
+        batch = 256
+        for start in range(0, len(cols), batch):
+            cb = cols[start : start + batch]
+            rhs = np.zeros((self.n_dof, len(cb)))
+            rhs[[4 * i + off for i, off in cb], np.arange(len(cb))] = 1.0
+            sol = self.solve_static(rhs)
+            for c, (i, off) in enumerate(cb):
+                # Column (i, off) enters the blocks of the elements on both sides of node i.
+                for e, a in ((i - 1, 2 + off), (i, off)):
+                    if 0 <= e < ne:
+                        out[e, :, a] = sol[self.contact_dofs(e), c]
+        return out

@@ -1,0 +1,126 @@
+"""The paper's 2-DOF pantograph on the finite-element catenary, with the interface of ``Plant``.
+
+``catenary_model:=fe``: the pantograph of Table 1 (eqs. 3-4 with the actuator force u on
+the lower mass m2) runs on the FE simple catenary of ``pac_plant.catenary`` at the track
+speed instead of on the spring k(t) of eq. (7). The observer and controller are unchanged.
+
+Coordinates: z1, z2 are the head and frame heights measured from the static contact-wire
+height at the start point (a support, where the pre-sag is 0), i.e. from a fixed datum,
+as a real rig would measure them (``fe_datum:=static_wire`` measures them from the
+static, pre-sagged wire under the contact point instead); at tick 0 the head just touches the wire (F = 0) and
+everything is at rest, as in the lumped plant. The line is endless (a moving window of
+``WINDOW_SPANS`` spans, see ``ContactSimulation``), so a live run can go on until stopped.
+Truth: ``stiffness`` is the line's static point stiffness at the contact point (droppers
+taut), ``contact_force`` the penalty force, plus the wire uplift at the contact point
+and at the nearest support.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+
+from .catenary.data import CatenaryData, NumericalOptions
+from .catenary.integrator import ContactSimulation
+from .catenary.line import Line, hermite_shape
+from .catenary.pantographs import paper_pantograph
+from .parameters import PlantOptions
+from .plant import Plant, Truth
+
+#: Spans in the moving window; the contact point stays in spans 4..6 of it (4 behind, >= 4 ahead).
+WINDOW_SPANS = 10
+START_SPAN = 4
+
+
+class FEPlant(Plant):
+    """Same interface as ``Plant``: tick, time, measurement(), truth(), advance(u), sample_period."""
+
+    def __init__(
+        self,
+        pantograph: PantographParameters,
+        track: TrackParameters,
+        catenary: CatenaryParameters | None,
+        options: PlantOptions,
+        sample_period: float,
+        data: CatenaryData | None = None,
+    ) -> None:
+        if not (math.isfinite(sample_period) and sample_period > 0.0):
+            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        self.pantograph = pantograph
+        self.track = track
+        self.options = options
+        self.sample_period = sample_period
+        self.data = CatenaryData() if data is None else data
+        numerics = NumericalOptions(element_size=options.fe_element_size)
+        self.line = Line(self.data, numerics, n_spans=WINDOW_SPANS)
+        self._flex = self.line.element_flexibility()
+        self.sim = ContactSimulation(
+            self.line,
+            paper_pantograph(pantograph),
+            sample_period / options.fe_substeps,
+            track.speed_kmh / 3.6,
+            START_SPAN * self.data.span,
+            endless=True,
+        )
+        self.datum = self.line.static_height(self.sim.x)
+        self.tick = 0
+        self.u_applied = 0.0
+        self._init_sensor()
+
+    @property
+    def z(self) -> np.ndarray:
+        """(z1, z2, z1', z2') of eq. (4) from the FE state (heights above the datum, ``fe_datum``)."""
+        s = self.sim
+        if self.options.fe_datum == "static_wire":
+            # The datum moves with the contact point along the pre-sagged static wire.
+            datum, rate = self.line.static_height(s.x), s.speed * self.line.static_slope(s.x)
+        else:
+            datum, rate = self.datum, 0.0
+        return np.array([s.p[0] - datum, s.p[1] - datum, s.vp[0] - rate, s.vp[1] - rate])
+
+    def stiffness_at(self, t: float | None = None) -> float:
+        """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""
+        e, xi = self.line.locate(self.sim.x)
+        n = hermite_shape(xi, self.line.h[e])
+        return 1.0 / float(n @ self._flex[e] @ n)
+
+    def truth(self) -> Truth:
+        s = self.sim
+        span = self.data.span
+        support = round(s.x / span) * span
+        return Truth(
+            tick=self.tick,
+            time=self.time,
+            z=tuple(float(v) for v in self.z),
+            stiffness=self.stiffness_at(),
+            contact_force=s.contact_force,
+            in_contact=s.contact_force > 0.0,
+            u_applied=self.u_applied,
+            contact_uplift=s.uplift(),
+            support_uplift=s.uplift(support),
+            contact_position=s.position,
+        )
+
+    def advance(self, u: float) -> None:
+        """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
+        if not math.isfinite(u):
+            raise ValueError(f"actuator force must be finite, got {u!r}")
+        for _ in range(self.options.fe_substeps):
+            self.sim.step(u)
+        self.tick += 1
+        self.u_applied = float(u)
+
+
+def make_plant(
+    pantograph: PantographParameters,
+    track: TrackParameters,
+    catenary: CatenaryParameters,
+    options: PlantOptions,
+    sample_period: float,
+) -> Plant:
+    """The plant ``options.catenary_model`` asks for: ``Plant`` (lumped k(t)) or ``FEPlant``."""
+    cls = FEPlant if options.catenary_model == "fe" else Plant
+    return cls(pantograph, track, catenary, options, sample_period)

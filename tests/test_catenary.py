@@ -1,0 +1,282 @@
+"""FE catenary (issue #11): statics, wave speed, stiffness profile, energy, slack droppers,
+Woodbury against a direct solve, mesh/step convergence of the contact-force statistics."""
+
+import math
+
+import numpy as np
+import pytest
+
+from pac_plant.catenary.data import CatenaryData, NumericalOptions
+from pac_plant.catenary.enstats import contact_statistics
+from pac_plant.catenary.integrator import ContactSimulation
+from pac_plant.catenary.line import DOFS_PER_NODE, WC, Line
+from pac_plant.catenary.pantographs import paper_pantograph, three_mass_pantograph
+
+DATA = CatenaryData()
+
+
+@pytest.fixture(scope="module")
+def line10():
+    return Line()
+
+
+def test_static_sag_meets_the_target_presag_at_every_dropper(line10):
+    dr = line10.droppers
+    achieved = -line10.w_static[dr.wc]
+    assert len(dr.node) == 90
+    assert np.max(np.abs(achieved - dr.target_sag)) < 2e-3
+    assert np.all(dr.static_tension > 0.0)  # every dropper hangs in tension
+    # Messenger sags far more than the contact wire (it carries the droppers).
+    assert np.min(line10.w_static[dr.wm]) < -0.3
+
+
+def test_transverse_wave_speed_is_sqrt_t_over_rho():
+    """A pulse on the bare contact wire (no droppers, no supports) travels at sqrt(T / rho) within 2 %."""
+    line = Line(n_spans=2, droppers=False, supports=False, options=NumericalOptions(element_size=0.25))
+    sim = ContactSimulation(line, paper_pantograph(), 2.5e-4, 0.0, 2.0, damping=False)
+    x = line.x
+    x0, s = 55.0, 2.0
+    d = np.zeros(line.n_dof)
+    d[DOFS_PER_NODE * np.arange(line.n_nodes) + WC] = 0.01 * np.exp(-(((x - x0) / s) ** 2))
+    wc = DOFS_PER_NODE * np.arange(line.n_nodes) + WC
+    d[wc + 1] = -2 * (x - x0) / s**2 * d[wc]
+    sim.set_line_state(d, np.zeros(line.n_dof))
+    peaks = []
+    times = []
+    for k in range(1, 1201):
+        sim.step(0.0)
+        if k % 200 == 0:
+            w = sim.d[DOFS_PER_NODE * np.arange(line.n_nodes) + WC]
+            right = x > x0 + 5.0
+            i = np.flatnonzero(right)[np.argmax(w[right])]
+            # Parabola through the three nodes around the maximum.
+            a, b, c = w[i - 1], w[i], w[i + 1]
+            peaks.append(x[i] + 0.5 * (a - c) / (a - 2 * b + c) * (x[i + 1] - x[i]))
+            times.append(sim.time)
+    speed = np.polyfit(times, peaks, 1)[0]
+    expected = DATA.contact.wave_speed
+    assert speed == pytest.approx(expected, rel=0.02)
+    assert abs(speed - expected) / expected < 0.02
+
+
+def test_static_stiffness_profile_along_a_span():
+    line = Line(n_spans=6)
+    L = DATA.span
+    xs = np.linspace(2 * L, 3 * L, 111)
+    k = line.static_stiffness(xs)
+    k_next = line.static_stiffness(xs + L)
+    assert np.max(np.abs(k - k_next) / k) < 0.02  # periodic with the span
+    i_max, i_min = int(np.argmax(k)), int(np.argmin(k))
+    assert min(xs[i_max] - 2 * L, 3 * L - xs[i_max]) < 1.0  # highest at a support
+    assert abs(xs[i_min] - 2.5 * L) < 0.25 * L  # lowest around mid-span
+    mid = float(line.static_stiffness(np.array([2.5 * L]))[0])
+    estimate = 4 * (DATA.contact.tension + DATA.messenger.tension) / L  # 2.76 kN/m
+    assert 0.7 * estimate < mid < 1.3 * estimate
+    assert k[i_max] > 2.0 * k[i_min]
+
+
+def _hamiltonian(sim, force):
+    return sim.energy() - force * sim.p[sim.panto.input]
+
+
+def test_energy_is_conserved_without_damping():
+    """Undamped line + 3-mass pantograph in contact under a constant uplift: H drifts < 1e-9 relative."""
+    line = Line(n_spans=2)
+    undamped = three_mass_pantograph(dampings=(0.0, 0.0, 0.0))
+    sim = ContactSimulation(line, undamped, 1e-3, 0.0, 30.0, damping=False)
+    force = 60.0
+    sim.start_static(force)
+    v = np.zeros(line.n_dof)
+    v[DOFS_PER_NODE * np.arange(line.n_nodes) + WC] = 0.05 * np.sin(8 * np.pi * line.x / line.length)
+    h_static = _hamiltonian(sim, force)
+    sim.set_line_state(sim.d, v)
+    h0 = _hamiltonian(sim, force)
+    kick = h0 - h_static
+    assert kick > 0.01  # J
+    worst = 0.0
+    for _ in range(2000):
+        sim.step(force)
+        assert sim.in_contact and len(sim.slack) == 0  # the linear regime the identity holds in
+        worst = max(worst, abs(_hamiltonian(sim, force) - h0))
+    assert worst < 1e-9 * kick
+    # With damping on, the same start loses energy.
+    sim2 = ContactSimulation(line, three_mass_pantograph(), 1e-3, 0.0, 30.0, damping=True)
+    sim2.start_static(force)
+    sim2.set_line_state(sim2.d, v)
+    for _ in range(2000):
+        sim2.step(force)
+    assert _hamiltonian(sim2, force) < h0 - 0.01 * kick
+
+
+def test_dropper_goes_slack_under_a_large_uplift():
+    line = Line(n_spans=3)
+    x = DATA.span + DATA.dropper_positions[4]  # at the mid-span dropper of span 2
+    sim = ContactSimulation(line, paper_pantograph(), 1e-3, 0.0, x)
+    sim.start_static(50.0)
+    assert len(sim.slack) == 0
+    for k in range(3000):
+        sim.step(50.0 + min(k, 1000) * 0.4)  # ramp to 450 N, then hold
+    e = sim.dropper_elongation()
+    assert len(sim.slack) >= 1
+    assert np.all(e[sim.slack] < 0.0)  # slack ones are really compressed (length < L0)
+    taut = np.setdiff1d(np.arange(len(e)), sim.slack)
+    assert np.all(e[taut] >= 0.0)  # and no taut one is
+    assert sim.contact_force == pytest.approx(450.0, rel=0.02)  # settled: F = uplift
+
+
+def test_woodbury_step_equals_a_direct_solve():
+    """One step with the contact and slack droppers active equals the dense direct solve of the same step."""
+    line = Line(n_spans=2)
+    panto = paper_pantograph()
+    sim = ContactSimulation(line, panto, 1e-3, 80.0, 20.0)
+    sim.start_static(100.0)
+    for k in range(200):  # ramp the uplift until a step ends with a dropper slack
+        d, v, a, p, vp, ap = (np.copy(q) for q in (sim.d, sim.v, sim.a, sim.p, sim.vp, sim.ap))
+        x_new = sim.x + sim.speed * sim.dt
+        force = 100.0 + 5.0 * k
+        sim.step(force)
+        if sim.in_contact and len(sim.slack):
+            break
+    assert sim.in_contact and len(sim.slack) >= 1  # the step really exercised both corrections
+    n, m = line.n_dof, panto.n
+    c0, c1 = 4 / sim.dt**2, 2 / sim.dt
+    mm, kk = line.M.dense(), line.K.dense()
+    cc = sim.alpha * mm + sim.beta * kk
+    big = np.zeros((n + m, n + m))
+    big[:n, :n] = kk + c0 * mm + c1 * cc
+    pk = panto.stiffness + np.diag(panto.ground_stiffness)
+    big[n:, n:] = pk + c0 * np.diag(panto.mass) + c1 * panto.damping
+    rhs = np.zeros(n + m)
+    rhs[:n] = mm @ (c0 * d + 4 / sim.dt * v + a) + cc @ (c1 * d + v)
+    rhs[n:] = np.diag(panto.mass) @ (c0 * p + 4 / sim.dt * vp + ap) + panto.damping @ (c1 * p + vp)
+    rhs[n:] += np.diag(panto.ground_stiffness) @ sim.roof_rest
+    rhs[n + panto.input] += force
+    dofs, shape = line.contact_interpolation(x_new)
+    g = np.zeros(n + m)
+    g[dofs] = -shape
+    g[n + panto.head] = 1.0
+    big += sim.kp * np.outer(g, g)
+    rhs += sim.kp * line.static_height(x_new) * g
+    for j in sim.slack:
+        gj = np.zeros(n + m)
+        gj[line.droppers.wm[j]], gj[line.droppers.wc[j]] = 1.0, -1.0
+        kj = line.droppers.stiffness[j]
+        big -= kj * np.outer(gj, gj)
+        rhs += kj * line.droppers.elongation0[j] * gj
+    q = np.linalg.solve(big, rhs)
+    np.testing.assert_allclose(sim.d, q[:n], atol=1e-10)
+    np.testing.assert_allclose(sim.p, q[n:], atol=1e-10)
+
+
+def _passive_sigma(h: float, dt: float) -> float:
+    line = Line(n_spans=6, options=NumericalOptions(element_size=h))
+    v = 300 / 3.6
+    force = 0.00097 * 300**2 + 70
+    sim = ContactSimulation(line, three_mass_pantograph(), dt, v, DATA.span)
+    sim.start_static(force)
+    xs, fs = [], []
+    while sim.x + v * dt < 4.2 * DATA.span:
+        sim.step(force)
+        xs.append(sim.x)
+        fs.append(sim.contact_force)
+    stats = contact_statistics(np.array(fs), np.array(xs), dt, 2 * DATA.span, 4 * DATA.span)
+    return stats.sigma
+
+
+def test_mesh_and_step_convergence_of_contact_force_sigma():
+    """Halving the element size and the time step together changes sigma by less than 2 %."""
+    coarse = _passive_sigma(0.5, 1e-3)
+    fine = _passive_sigma(0.25, 5e-4)
+    assert abs(coarse - fine) / fine < 0.02
+    assert fine > 5.0  # a real dynamic response
+
+
+def test_contact_statistics_filter_and_window():
+    """The statistics see only the window and the 20 Hz low-pass removes a 60 Hz ripple."""
+    dt = 1e-3
+    t = np.arange(0, 4, dt)
+    x = 50.0 * t
+    f = 100 + 10 * np.sin(2 * math.pi * 2 * t) + 20 * np.sin(2 * math.pi * 60 * t)
+    s = contact_statistics(f, x, dt, 50.0, 150.0)
+    assert s.mean == pytest.approx(100.0, abs=0.3)
+    assert s.sigma == pytest.approx(10 / math.sqrt(2), rel=0.03)
+    assert s.loss_percent == 0.0
+
+
+def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
+    """FEPlant (catenary_model fe): slow run under a held u, F -> u, truth consistent with the line."""
+    from pac_common import messages
+    from pac_model.parameters import PantographParameters, TrackParameters
+    from pac_plant.fe_plant import FEPlant, make_plant
+    from pac_plant.parameters import PlantOptions
+
+    options = PlantOptions(catenary_model="fe")
+    plant = make_plant(PantographParameters(), TrackParameters(speed_kmh=5.0), None, options, 1e-3)
+    assert isinstance(plant, FEPlant)
+    t0 = plant.truth()
+    assert t0.contact_force == 0.0 and t0.z == (0.0, 0.0, 0.0, 0.0)  # starts touching, at rest
+    for _ in range(8000):  # the slow mode (b2 = 30 N s/m only) decays in ~1.4 s
+        plant.advance(100.0)
+    truth, y = plant.truth(), plant.measurement()
+    assert truth.contact_force == pytest.approx(100.0, rel=0.03)
+    assert y.z1 == truth.z[0] and y.actuator_force == 100.0
+    k_line = float(plant.line.static_stiffness(np.array([plant.sim.x]))[0])
+    assert truth.stiffness == pytest.approx(k_line, rel=1e-9)
+    assert truth.contact_uplift == pytest.approx(truth.contact_force / truth.stiffness, rel=0.05)
+    assert truth.contact_position == pytest.approx(4 * DATA.span + 8.0 * 5.0 / 3.6, rel=1e-9)
+    # fe_datum static_wire: the same state measured from the static wire under the contact point.
+    import dataclasses
+
+    fixed_z = plant.z
+    plant.options = dataclasses.replace(options, fe_datum="static_wire")
+    sag = plant.datum - plant.line.static_height(plant.sim.x)  # pre-sag here, relative to the start
+    assert sag > 0.01  # 11 m into the span: the wire hangs lower than at the support
+    np.testing.assert_allclose(plant.z[:2], fixed_z[:2] + sag, rtol=0, atol=1e-12)
+    fields = messages.truth_fields(truth, 0, applied_command_tick=3999)
+    assert fields["contact_uplift"] == truth.contact_uplift and math.isfinite(fields["support_uplift"])
+
+
+def test_endless_window_equals_a_long_fixed_line():
+    """A 6-span moving window over 5 spans (3 shifts) gives the contact force of a fixed 12-span line."""
+    forces = {}
+    for endless, n_spans in ((True, 6), (False, 12)):
+        line = Line(n_spans=n_spans)
+        v = 100.0
+        sim = ContactSimulation(line, three_mass_pantograph(), 1e-3, v, 2 * DATA.span, endless=endless)
+        sim.start_static(150.0)
+        f = []
+        for _ in range(int(5 * DATA.span / (v * 1e-3))):
+            sim.step(150.0)
+            f.append(sim.contact_force)
+        forces[endless] = np.array(f)
+        if endless:
+            assert sim.offset == pytest.approx(3 * DATA.span)
+            assert sim.position == pytest.approx(7 * DATA.span, abs=0.2)
+    assert np.std(forces[False]) > 10.0
+    # What the window drops (waves far behind, the far end) changes F by less than 1 mN here.
+    np.testing.assert_allclose(forces[True], forces[False], rtol=0, atol=1e-3)
+
+
+def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path):
+    """plant_node with catenary_model fe, 4 processes over DDS in lock step == pac_rig.closed_loop."""
+    from pac_rig.bag import read_bag
+    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+    duration = 1.0
+    fe = {"catenary_model": "fe", "speed_kmh": 300.0, "span_length": 55.0}
+    rig = rigs("fe_lockstep", duration=duration, timing_mode="lockstep", params={"all": fe})
+    rig.start()
+    rig.wait_finished(timeout=180)
+    assert set(rig.exit_codes().values()) == {0}, {n: p.log()[-500:] for n, p in rig.processes.items()}
+    simulate_to_bag(scenario_from_flat({"duration": duration, **fe}), tmp_path / "offline")
+    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
+    for topic, column in (
+        ("plant_truth", "contact_force"),
+        ("plant_truth", "contact_uplift"),
+        ("measurement", "z1"),
+        ("command", "u"),
+    ):
+        ticks = np.asarray(live[topic]["tick"])
+        _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
+        np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
+    assert np.max(offline["plant_truth"]["contact_force"]) > 10.0  # the run pressed on the wire
