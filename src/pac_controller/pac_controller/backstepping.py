@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
@@ -41,9 +42,10 @@ class Command:
     mode: str  # "active", "passive" or "fallback"
 
 
+@njit(cache=True, error_model="numpy")
 def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
     """Derivatives 0..3 of g = 1 / k from those of k (Faa di Bruno)."""
-    k0, k1, k2, k3 = k
+    k0, k1, k2, k3 = k[0], k[1], k[2], k[3]
     g0 = 1.0 / k0
     g1 = -k1 * g0**2
     g2 = -k2 * g0**2 + 2.0 * k1**2 * g0**3
@@ -51,6 +53,7 @@ def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
     return np.array([g0, g1, g2, g3])
 
 
+@njit(cache=True)
 def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Derivatives 0..3 of f g (Leibniz)."""
     return np.array(
@@ -61,6 +64,66 @@ def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
             f[3] * g[0] + 3.0 * f[2] * g[1] + 3.0 * f[1] * g[2] + f[0] * g[3],
         ]
     )
+
+
+@njit(cache=True)
+def stiffness_hat_derivatives(t: float, omega: float, theta_hat: np.ndarray, k_min: float) -> np.ndarray:
+    """k_hat = v(t)^T theta_hat (eq. (8)) and its derivatives 1..3 with theta_hat frozen, clamped at k_min."""
+    k = model.stiffness_regressor_derivatives(t, omega, 3) @ theta_hat
+    if k[0] < k_min:
+        return np.array([k_min, 0.0, 0.0, 0.0])
+    return k
+
+
+@njit(cache=True, error_model="numpy")
+def backstepping_law(
+    t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray, omega: float, m1: float, b1: float,
+    k1: float, m2: float, b2: float, c1: float, c2: float, c3: float, k_min: float,
+) -> tuple[float, float, float, float]:
+    """Eqs. (23)-(43) on numbers: (u, e1, e2, e3), u unsaturated."""
+    z1, z2, z3, z4 = z_hat[0], z_hat[1], z_hat[2], z_hat[3]
+    k = stiffness_hat_derivatives(t, omega, theta_hat, k_min)
+    r = product_derivatives(f_r, reciprocal_derivatives(k))  # z1r and derivatives, eq. (23)
+
+    # Observer model (21) without injection; z1 in psi replaced by z_hat_1.
+    f1 = -(k1 / m1) * z1 + (k1 / m1) * z2 - (b1 / m1) * z3  # eq. (22)
+    f2 = (k1 / m2) * (z1 - z2) + (b1 / m2) * z3 - ((b1 + b2) / m2) * z4  # eq. (22)
+    force_term = z1 * k[0] / m1  # (z1/m1) v^T theta_hat
+    dz1, dz2 = z3, z4
+    dz3 = f1 + (b1 / m1) * z4 - force_term
+
+    e1 = z1 - r[0]  # eq. (24)
+    alpha1 = r[1] - c1 * e1  # eq. (28)
+    de1 = dz1 - r[1]
+    dalpha1 = r[2] - c1 * de1
+    e2 = z3 - alpha1  # eq. (29)
+    alpha2 = (m1 / b1) * (-c2 * e2 - e1 - f1 + force_term + dalpha1)  # eq. (35)
+    e3 = z4 - alpha2  # eq. (36)
+
+    # alpha_2' along the model: needs e2', f1', (z1 k_hat)' and alpha_1''.
+    de2 = dz3 - dalpha1
+    df1 = -(k1 / m1) * dz1 + (k1 / m1) * dz2 - (b1 / m1) * dz3
+    dforce_term = (dz1 * k[0] + z1 * k[1]) / m1
+    ddalpha1 = r[3] - c1 * (dz3 - r[2])
+    dalpha2 = (m1 / b1) * (-c2 * de2 - de1 - df1 + dforce_term + ddalpha1)
+
+    u = m2 * (-c3 * e3 + dalpha2 - f2 - (b1 / m1) * e2)  # eq. (43)
+    return u, e1, e2, e3
+
+
+@njit(cache=True)
+def limit_command(
+    u: float, last_u: float, has_last: bool, ticks_since: int, slew_rate_max: float, sample_period: float,
+    u_min: float, u_max: float,
+) -> float:
+    """The actuator limits: slew rate from the last command (over at least one period), then saturation."""
+    applied = u
+    if has_last:
+        # At least one period: a command whose tick is not after the last one (a fallback
+        # tick extrapolated ahead of a returning estimate) is still rate limited.
+        step = slew_rate_max * sample_period * max(1, ticks_since)
+        applied = min(max(applied, last_u - step), last_u + step)
+    return min(max(applied, u_min), u_max)
 
 
 class BacksteppingController:
@@ -90,10 +153,9 @@ class BacksteppingController:
 
     def stiffness_hat_derivatives(self, t: float, theta_hat: np.ndarray) -> np.ndarray:
         """k_hat and its derivatives 1..3 with theta_hat frozen, clamped at stiffness_hat_min."""
-        k = model.stiffness_regressor_derivatives(t, self.omega, 3) @ theta_hat
-        if k[0] < self.params.stiffness_hat_min:
-            return np.array([self.params.stiffness_hat_min, 0.0, 0.0, 0.0])
-        return k
+        theta_hat = np.asarray(theta_hat, dtype=np.float64)
+        k_min = float(self.params.stiffness_hat_min)
+        return stiffness_hat_derivatives(float(t), self.omega, theta_hat, k_min)
 
     def compute(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> Command:
         """The command for ``tick`` from the estimate of that tick."""
@@ -118,36 +180,13 @@ class BacksteppingController:
     def law(
         self, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
     ) -> tuple[float, tuple[float, float, float]]:
-        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3)."""
-        p = self.pantograph
-        c1, c2, c3 = self.params.c1, self.params.c2, self.params.c3
-        z1, z2, z3, z4 = z_hat
-        k = self.stiffness_hat_derivatives(t, theta_hat)
-        r = product_derivatives(f_r, reciprocal_derivatives(k))  # z1r and derivatives, eq. (23)
-
-        # Observer model (21) without injection; z1 in psi replaced by z_hat_1.
-        f1 = -(p.k1 / p.m1) * z1 + (p.k1 / p.m1) * z2 - (p.b1 / p.m1) * z3  # eq. (22)
-        f2 = (p.k1 / p.m2) * (z1 - z2) + (p.b1 / p.m2) * z3 - ((p.b1 + p.b2) / p.m2) * z4  # eq. (22)
-        force_term = z1 * k[0] / p.m1  # (z1/m1) v^T theta_hat
-        dz1, dz2 = z3, z4
-        dz3 = f1 + (p.b1 / p.m1) * z4 - force_term
-
-        e1 = z1 - r[0]  # eq. (24)
-        alpha1 = r[1] - c1 * e1  # eq. (28)
-        de1 = dz1 - r[1]
-        dalpha1 = r[2] - c1 * de1
-        e2 = z3 - alpha1  # eq. (29)
-        alpha2 = (p.m1 / p.b1) * (-c2 * e2 - e1 - f1 + force_term + dalpha1)  # eq. (35)
-        e3 = z4 - alpha2  # eq. (36)
-
-        # alpha_2' along the model: needs e2', f1', (z1 k_hat)' and alpha_1''.
-        de2 = dz3 - dalpha1
-        df1 = -(p.k1 / p.m1) * dz1 + (p.k1 / p.m1) * dz2 - (p.b1 / p.m1) * dz3
-        dforce_term = (dz1 * k[0] + z1 * k[1]) / p.m1
-        ddalpha1 = r[3] - c1 * (dz3 - r[2])
-        dalpha2 = (p.m1 / p.b1) * (-c2 * de2 - de1 - df1 + dforce_term + ddalpha1)
-
-        u = p.m2 * (-c3 * e3 + dalpha2 - f2 - (p.b1 / p.m1) * e2)  # eq. (43)
+        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3) (compiled :func:`backstepping_law`)."""
+        p, c = self.pantograph, self.params
+        u, e1, e2, e3 = backstepping_law(
+            float(t), np.asarray(f_r, dtype=np.float64), np.asarray(z_hat, dtype=np.float64),
+            np.asarray(theta_hat, dtype=np.float64), self.omega, p.m1, p.b1, p.k1, p.m2, p.b2,
+            float(c.c1), float(c.c2), float(c.c3), float(c.stiffness_hat_min),
+        )
         return u, (e1, e2, e3)
 
     def _limited(
@@ -161,13 +200,11 @@ class BacksteppingController:
     ) -> Command:
         """Slew-rate limit from the last command, then saturation; updates the actuator state."""
         p = self.params
-        applied = u
-        if self.last_u is not None:
-            # At least one period: a command whose tick is not after the last one (a fallback
-            # tick extrapolated ahead of a returning estimate) is still rate limited.
-            step = p.slew_rate_max * self.sample_period * max(1, tick - self.last_tick)
-            applied = min(max(applied, self.last_u - step), self.last_u + step)
-        applied = min(max(applied, p.u_min), p.u_max)
+        has_last = self.last_u is not None
+        applied = limit_command(
+            float(u), self.last_u if has_last else 0.0, has_last, tick - self.last_tick,
+            float(p.slew_rate_max), self.sample_period, float(p.u_min), float(p.u_max),
+        )
         self.last_u, self.last_tick = applied, tick
         return Command(
             tick=tick,
