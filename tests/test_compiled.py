@@ -53,7 +53,11 @@ def test_plant_agrees_with_numpy_oracle(contact_model):
     options = PlantOptions(contact_model=contact_model)
     plant = Plant(PantographParameters(), TrackParameters(), CatenaryParameters(), options, DT)
     ref = oracle.OraclePlant(
-        PantographParameters(), TrackParameters(), CatenaryParameters(), options.substeps, DT,
+        PantographParameters(),
+        TrackParameters(),
+        CatenaryParameters(),
+        options.substeps,
+        DT,
         contact_model == "unilateral",
     )
     zs, refs = [], []

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pac_common.smallmat import matvec
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
@@ -69,7 +70,7 @@ def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
 @njit(cache=True)
 def stiffness_hat_derivatives(t: float, omega: float, theta_hat: np.ndarray, k_min: float) -> np.ndarray:
     """k_hat = v(t)^T theta_hat (eq. (8)) and its derivatives 1..3 with theta_hat frozen, clamped at k_min."""
-    k = model.stiffness_regressor_derivatives(t, omega, 3) @ theta_hat
+    k = matvec(model.stiffness_regressor_derivatives(t, omega, 3), theta_hat)
     if k[0] < k_min:
         return np.array([k_min, 0.0, 0.0, 0.0])
     return k
@@ -153,7 +154,7 @@ class BacksteppingController:
 
     def stiffness_hat_derivatives(self, t: float, theta_hat: np.ndarray) -> np.ndarray:
         """k_hat and its derivatives 1..3 with theta_hat frozen, clamped at stiffness_hat_min."""
-        theta_hat = np.asarray(theta_hat, dtype=np.float64)
+        theta_hat = np.array(theta_hat, dtype=np.float64)
         k_min = float(self.params.stiffness_hat_min)
         return stiffness_hat_derivatives(float(t), self.omega, theta_hat, k_min)
 
@@ -163,7 +164,9 @@ class BacksteppingController:
         f_r = self.reference.at(t)
         if self.params.mode == "passive":
             return self._limited(tick, t, f_r[0], f_r[0], (0.0, 0.0, 0.0), "passive")
-        z_hat, theta_hat = np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float)
+        # Fresh C-contiguous float64 copies: message arrays may be read-only or strided, and the
+        # compiled law has one cached specialisation.
+        z_hat, theta_hat = np.array(z_hat, dtype=np.float64), np.array(theta_hat, dtype=np.float64)
         if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
             return self.fallback(tick)
         u_law, errors = self.law(t, f_r, z_hat, theta_hat)
@@ -183,8 +186,8 @@ class BacksteppingController:
         """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3) (compiled :func:`backstepping_law`)."""
         p, c = self.pantograph, self.params
         u, e1, e2, e3 = backstepping_law(
-            float(t), np.asarray(f_r, dtype=np.float64), np.asarray(z_hat, dtype=np.float64),
-            np.asarray(theta_hat, dtype=np.float64), self.omega, p.m1, p.b1, p.k1, p.m2, p.b2,
+            float(t), np.array(f_r, dtype=np.float64), np.array(z_hat, dtype=np.float64),
+            np.array(theta_hat, dtype=np.float64), self.omega, p.m1, p.b1, p.k1, p.m2, p.b2,
             float(c.c1), float(c.c2), float(c.c3), float(c.stiffness_hat_min),
         )
         return u, (e1, e2, e3)

@@ -69,7 +69,13 @@ def input_vector(u: float, p: PantographParameters) -> np.ndarray:
 @njit(cache=True)
 def actuator_input(u: float, m2: float) -> np.ndarray:
     """phi(u) of eq. (14) (m2 as a number)."""
-    return np.array([0.0, 0.0, 0.0, u / m2])
+    return np.array([0.0, 0.0, 0.0, actuator_acceleration(u, m2)])
+
+
+@njit(cache=True)
+def actuator_acceleration(u: float, m2: float) -> float:
+    """u / m2, the only non-zero entry of phi(u), eq. (14)."""
+    return u / m2
 
 
 def output_regressor(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
@@ -114,7 +120,8 @@ def pantograph_rhs(z: np.ndarray, u: float, force: float, a: np.ndarray, m1: flo
     for i in range(4):
         dz[i] = a[i, 0] * z[0] + a[i, 1] * z[1] + a[i, 2] * z[2] + a[i, 3] * z[3]
     dz[2] -= force / m1
-    return dz + actuator_input(u, m2)
+    dz[3] += actuator_acceleration(u, m2)
+    return dz
 
 
 def static_equilibrium(u: float, k: float, p: PantographParameters) -> np.ndarray:

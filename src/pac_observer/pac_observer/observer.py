@@ -38,6 +38,7 @@ import scipy.linalg
 from numba import njit
 
 from pac_common.integrate import rk4_step
+from pac_common.smallmat import matmul, matvec
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
@@ -90,7 +91,7 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> tuple[bool, np.ndarray]:
 @njit(cache=True, error_model="numpy")
 def _half_step_s_z(s_z: np.ndarray, half_map: np.ndarray, half_input: np.ndarray) -> np.ndarray:
     """S_z half a period later, exactly: E^T S_z E + Q_h (docs/numerics.md, observer step 1)."""
-    return half_map.T @ s_z @ half_map + half_input
+    return matmul(matmul(half_map.T, s_z), half_map) + half_input
 
 
 @njit(cache=True, error_model="numpy")
@@ -108,25 +109,46 @@ def _observer_rhs(
     y_s = y0 + frac * dy
     closed = a.copy()  # A - L C
     closed[:, :2] -= gain
-    out = closed @ x
-    out[:, 0] += model.actuator_input(u, m2) + gain @ y_s  # phi(u) + L y
-    out[2, 1:] += model.regressor_row(y_s[0], t, omega, m1)  # psi(y), eq. (15)
+    out = matmul(closed, x)
+    out[:, 0] += matvec(gain, y_s)  # + L y
+    out[3, 0] += model.actuator_acceleration(u, m2)  # + phi(u), eq. (14)
+    out[2, 1:] += model.regressor_row(y_s[0], t, omega, m1)  # + psi(y), eq. (15)
     return out
 
 
+# The observer's state and constants travel through the compiled functions as tuples:
+#   state  = (xi, Lambda, S_z, S_z settled, L, S_theta, theta_hat, y_prev)
+#   consts = (dt, A, C^T Sigma, Sigma, E, Q_h, exp(-rho_theta dt), (1 - exp(-rho_theta dt)) s_floor,
+#             omega, m1, m2)
+
+
 @njit(cache=True, error_model="numpy")
-def observer_step(
-    t0: float, dt: float, xi: np.ndarray, lam: np.ndarray, s_z: np.ndarray, s_z_settled: bool,
-    gain_now: np.ndarray, s_theta: np.ndarray, theta_hat: np.ndarray, y_prev: np.ndarray, y_now: np.ndarray,
-    u: float, a: np.ndarray, c_t_sigma: np.ndarray, sigma: np.ndarray, sz_half_map: np.ndarray,
-    sz_half_input: np.ndarray, forgetting: float, floor_input: float, omega: float, m1: float, m2: float,
-):
+def observer_initial_state(xi0: np.ndarray, theta_hat0: np.ndarray, s_z0: float, s_theta0: float, consts):
+    """The state at the initial conditions: Lambda(0) = 0 (z_hat(0) carries no theta information)."""
+    s_z = s_z0 * np.eye(4)
+    ok, gain = cholesky_solve(s_z, consts[2])  # L = S_z^-1 C^T Sigma
+    if not ok:
+        gain[:] = np.nan
+    s_theta = s_theta0 * np.eye(3)
+    return (xi0.copy(), np.zeros((4, 3)), s_z, False, gain, s_theta, theta_hat0.copy(), np.zeros(2))
+
+
+@njit(cache=True, error_model="numpy")
+def observer_output(state) -> np.ndarray:
+    """z_hat = xi + Lambda theta_hat (docs/numerics.md)."""
+    xi, lam, theta_hat = state[0], state[1], state[6]
+    return xi + matvec(lam, theta_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def observer_step(t0: float, state, y_now: np.ndarray, u: float, consts):
     """One sample period of the observer from t0 to t0 + dt (docs/numerics.md, steps 1-3).
 
-    Pure: the inputs are not modified.  Returns (status, xi, Lambda, S_z, settled, L,
-    S_theta, theta_hat, innovation); status 0 is fine, otherwise a key of
-    ``_DIVERGED_REASONS`` and the other outputs are meaningless.
+    Pure: the inputs are not modified.  Returns (status, state, innovation); status 0 is
+    fine, otherwise a key of ``_DIVERGED_REASONS`` and the returned state is the input state.
     """
+    xi, lam, s_z, s_z_settled, gain_now, s_theta, theta_hat, y_prev = state
+    dt, a, c_t_sigma, sigma, sz_half_map, sz_half_input, forgetting, floor_input, omega, m1, m2 = consts
     # 1. S_z exactly at the start, middle and end of the period (until it has settled).
     gains = np.empty((3, 4, 2))
     gains[0] = gain_now
@@ -147,27 +169,47 @@ def observer_step(
     x = rk4_step(_observer_rhs, t0, x, dt, (t0, dt, gains, a, y_prev, y_now - y_prev, u, omega, m1, m2))
     innovation = np.zeros(2)
     if not np.isfinite(x).all():
-        return 1, xi, lam, s_z, s_z_settled, gain_now, s_theta, theta_hat, innovation
+        return 1, state, innovation
     xi_new = x[:, 0].copy()
     lam_new = x[:, 1:].copy()
 
     # 3. RLS: implicit Euler of the theta_hat / S_theta equations.
     phi_reg = lam_new[:2, :].copy()  # Phi = C Lambda (2x3)
-    weighted = phi_reg.T @ sigma  # Phi^T Sigma (3x2)
-    s_theta_new = forgetting * s_theta + dt * (weighted @ phi_reg) + floor_input * np.eye(3)
-    innovation = y_now - xi_new[:2] - phi_reg @ theta_hat  # a priori, y - C z_hat
-    rhs = (dt * (weighted @ innovation)).reshape((3, 1))
+    weighted = matmul(phi_reg.T, sigma)  # Phi^T Sigma (3x2)
+    s_theta_new = forgetting * s_theta + dt * matmul(weighted, phi_reg) + floor_input * np.eye(3)
+    innovation = y_now - xi_new[:2] - matvec(phi_reg, theta_hat)  # a priori, y - C z_hat
+    rhs = (dt * matvec(weighted, innovation)).reshape((3, 1))
     ok, step = cholesky_solve(s_theta_new, rhs)
     if not ok:
-        return 2, xi, lam, s_z, s_z_settled, gain_now, s_theta, theta_hat, innovation
+        return 2, state, innovation
     theta_new = theta_hat + step[:, 0]
     if not np.isfinite(theta_new).all():
-        return 3, xi, lam, s_z, s_z_settled, gain_now, s_theta, theta_hat, innovation
+        return 3, state, innovation
 
     settled = s_z_settled
     if not s_z_settled:
         settled = np.max(np.abs(s_z_end - s_z)) <= 1e-13 * np.max(np.abs(s_z_end))
-    return 0, xi_new, lam_new, s_z_end, settled, gains[2].copy(), s_theta_new, theta_new, innovation
+    new = (xi_new, lam_new, s_z_end, settled, gains[2].copy(), s_theta_new, theta_new, y_now.copy())
+    return 0, new, innovation
+
+
+@njit(cache=True, error_model="numpy")
+def observer_advance(tick: int, state, y_now: np.ndarray, gap: int, u: float, consts):
+    """From ``tick`` to ``tick + gap``: ``gap`` periods, y interpolated linearly from y_prev, u held.
+
+    Returns (status, tick reached or failed at, state, a priori innovation of the last period);
+    on failure the returned state is the input state.
+    """
+    dt = consts[0]
+    y_start = state[7]
+    new = state
+    innovation = np.zeros(2)
+    for j in range(1, gap + 1):
+        y_j = y_start + (j / gap) * (y_now - y_start)
+        status, new, innovation = observer_step((tick + j - 1) * dt, new, y_j, u, consts)
+        if status:
+            return status, tick + j, state, innovation
+    return 0, tick + gap, new, innovation
 
 
 class ObserverDivergedError(RuntimeError):
@@ -225,6 +267,15 @@ class AdaptiveObserver:
         # contact) cannot let S_theta underflow; floor is ~1e6 times below the information
         # a 100 N contact gives (docs/numerics.md).
         self._floor_input = (1.0 - self._theta_forgetting) * params.s_theta_floor
+        #: What the compiled functions take as ``consts``.
+        # C-contiguous float64 everywhere: one compiled specialisation, the one the cache holds.
+        c_arr = np.ascontiguousarray
+        self.consts = (
+            float(dt), c_arr(a, dtype=np.float64), c_arr(self._c_t_sigma, dtype=np.float64),
+            c_arr(sigma, dtype=np.float64), c_arr(self._sz_half_map, dtype=np.float64),
+            c_arr(self._sz_half_input, dtype=np.float64), float(self._theta_forgetting),
+            float(self._floor_input), float(self.omega), float(pantograph.m1), float(pantograph.m2),
+        )
         self.reset()
 
     # -- state -----------------------------------------------------------------
@@ -232,25 +283,28 @@ class AdaptiveObserver:
         """Back to the initial conditions of :class:`ObserverParameters` (tick 0)."""
         p = self.params
         self.tick = -1  # no sample processed yet
-        self.theta_hat = np.array(p.theta_hat0, dtype=float)
-        self.lam = np.zeros((4, 3))  # Lambda(0) = 0: z_hat(0) carries no theta information
-        self.xi = np.array(p.z_hat0, dtype=float)
-        self.s_z = p.s_z0 * np.eye(4)
-        self.s_theta = p.s_theta0 * np.eye(3)
-        self._gain_now = self._gain(self.s_z)
-        self._s_z_settled = False
-        self._y_prev = np.zeros(2)
+        self._set_state(
+            observer_initial_state(
+                np.array(p.z_hat0, dtype=float), np.array(p.theta_hat0, dtype=float), float(p.s_z0),
+                float(p.s_theta0), self.consts,
+            )
+        )
 
     @property
     def z_hat(self) -> np.ndarray:
-        return self.xi + self.lam @ self.theta_hat
+        return observer_output(self._state())
 
-    def _gain(self, s_z: np.ndarray) -> np.ndarray:
-        """Output injection L = S_z^-1 C^T Sigma (4x2)."""
-        ok, gain = cholesky_solve(s_z, self._c_t_sigma)
-        if not ok:
-            raise ValueError("S_z must be positive definite")
-        return gain
+    def _state(self) -> tuple:
+        return (
+            self.xi, self.lam, self.s_z, self._s_z_settled, self._gain_now, self.s_theta, self.theta_hat,
+            self._y_prev,
+        )
+
+    def _set_state(self, state: tuple) -> None:
+        (
+            self.xi, self.lam, self.s_z, self._s_z_settled, self._gain_now, self.s_theta, self.theta_hat,
+            self._y_prev,
+        ) = state
 
     # -- one tick ----------------------------------------------------------------
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
@@ -258,9 +312,9 @@ class AdaptiveObserver:
 
         The first call initialises and returns the initial estimate.  Ticks must
         increase; a gap (lost samples) is bridged period by period with y
-        interpolated linearly across it and the force held.  Raises
-        :class:`ObserverDivergedError` and leaves the state untouched if the update
-        is not finite or S_theta is not positive definite.
+        interpolated linearly across it and the force held (compiled
+        :func:`observer_advance`).  Raises :class:`ObserverDivergedError` and leaves
+        the state untouched if the update is not finite or S_theta is not positive definite.
         """
         y_now = np.array(y, dtype=float)
         if self.tick < 0:
@@ -270,53 +324,14 @@ class AdaptiveObserver:
         gap = tick - self.tick
         if gap < 1:
             raise ValueError(f"observer expects a tick after {self.tick}, got {tick}")
-        saved = self._snapshot()
-        y_start = self._y_prev
-        try:
-            for j in range(1, gap + 1):
-                innovation = self._step(y_start + (j / gap) * (y_now - y_start), actuator_force)
-        except ObserverDivergedError:
-            self._restore(saved)
-            raise
-        return self._estimate(y_now, innovation)
-
-    #: Everything an update changes (each is replaced, never mutated in place, so a snapshot is cheap).
-    _STATE = (
-        "tick",
-        "xi",
-        "lam",
-        "s_z",
-        "s_theta",
-        "theta_hat",
-        "_gain_now",
-        "_s_z_settled",
-        "_y_prev",
-    )
-
-    def _snapshot(self) -> tuple:
-        return tuple(getattr(self, name) for name in self._STATE)
-
-    def _restore(self, saved: tuple) -> None:
-        for name, value in zip(self._STATE, saved, strict=True):
-            setattr(self, name, value)
-
-    def _step(self, y_now: np.ndarray, actuator_force: float) -> np.ndarray:
-        """One sample period to tick + 1 (compiled :func:`observer_step`); returns the a priori innovation."""
-        tick = self.tick + 1
-        p = self.pantograph
-        status, xi, lam, s_z, settled, gain, s_theta, theta_hat, innovation = observer_step(
-            self.tick * self.sample_period, self.sample_period, self.xi, self.lam, self.s_z,
-            self._s_z_settled, self._gain_now, self.s_theta, self.theta_hat, self._y_prev, y_now,
-            float(actuator_force), self._a, self._c_t_sigma, self._sigma, self._sz_half_map,
-            self._sz_half_input, self._theta_forgetting, self._floor_input, self.omega, p.m1, p.m2,
+        status, reached, state, innovation = observer_advance(
+            self.tick, self._state(), y_now, gap, float(actuator_force), self.consts
         )
         if status:
-            raise ObserverDivergedError(tick, _DIVERGED_REASONS[status])
-        self.xi, self.lam, self.s_z, self._s_z_settled, self._gain_now = xi, lam, s_z, settled, gain
-        self.s_theta, self.theta_hat = s_theta, theta_hat
-        self.tick = tick
-        self._y_prev = y_now
-        return innovation
+            raise ObserverDivergedError(reached, _DIVERGED_REASONS[status])
+        self._set_state(state)
+        self.tick = reached
+        return self._estimate(y_now, innovation)
 
     def _estimate(self, y_now: np.ndarray, innovation: np.ndarray) -> Estimate:
         t = self.tick * self.sample_period
