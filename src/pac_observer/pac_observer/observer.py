@@ -106,13 +106,14 @@ def _observer_rhs(
     """
     frac = (t - t0) / dt
     gain = gains[round(2.0 * frac)]
-    y_s = y0 + frac * dy
+    y1_s, y2_s = y0[0] + frac * dy[0], y0[1] + frac * dy[1]  # y at t (scalars: no allocation)
     closed = a.copy()  # A - L C
     closed[:, :2] -= gain
     out = matmul(closed, x)
-    out[:, 0] += matvec(gain, y_s)  # + L y
+    for i in range(4):
+        out[i, 0] += gain[i, 0] * y1_s + gain[i, 1] * y2_s  # + L y
     out[3, 0] += model.actuator_acceleration(u, m2)  # + phi(u), eq. (14)
-    out[2, 1:] += model.regressor_row(y_s[0], t, omega, m1)  # + psi(y), eq. (15)
+    out[2, 1:] += model.regressor_row(y1_s, t, omega, m1)  # + psi(y), eq. (15)
     return out
 
 
