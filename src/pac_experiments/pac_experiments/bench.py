@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     if runs:
         print(timing_table(runs), end="")
     names = list(runs)
-    for node in ("plant", "observer", "controller", "recorder"):
+    for node in ("plant", "observer", "controller", "recorder") if runs else ():
         print(
             f"| CPU {node} [%] | "
             + " | ".join(f"{cpus[n].get(node, float('nan')):.0f}" for n in names)
