@@ -9,6 +9,7 @@
 #     _ROS_WHEELS_BOOTSTRAP_COMPLETE=1, which is exactly what the wheels' .pth hook would do by
 #     re-executing every Python process once; install/<pkg>/lib (generated message libraries)
 #     comes from install/setup.bash. Child processes inherit all of it.
+#   - NUMBA_CACHE_DIR=<repo>/build/numba_cache (the compiled cores, warmed by `make setup`)
 #   - ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, RMW_IMPLEMENTATION=rmw_fastrtps_cpp,
 #     FASTRTPS_DEFAULT_PROFILES_FILE=<repo>/config/fastdds_profile.xml
 #   - <repo>/scripts/bin (a stand-in `ros2` with the daily verbs) appended to PATH, unless a real
@@ -65,6 +66,9 @@ _pac_env_main() {
     fi
 
     export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+    # numba's on-disk cache of the compiled cores: outside install/ (colcon rewrites it), git-ignored
+    # (build/), filled by `make setup` (python -m pac_rig.warm) so no process compiles at start.
+    export NUMBA_CACHE_DIR="$root/build/numba_cache"
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
     export FASTRTPS_DEFAULT_PROFILES_FILE="$root/config/fastdds_profile.xml"
 

@@ -137,8 +137,27 @@ without_install() {
     printf '%s' "$out"
 }
 
+# 5. numba cache of the compiled cores (build/numba_cache, NUMBA_CACHE_DIR in env.sh): emptied and
+#    refilled by `python -m pac_rig.warm` whenever the build signature changes. Emptied first
+#    because numba keys a cached function on its own file only: a changed callee in another file
+#    (e.g. pac_model/model.py) would otherwise leave its callers' cached code stale.
+WARM_DIR="$ROOT/build/numba_cache"
+WARM_STAMP="$WARM_DIR/.pac-warm-stamp"
+warm_numba_cache() {
+    local t
+    [ "$(cat "$WARM_STAMP" 2>/dev/null)" = "$1" ] && return 0
+    t="$(now)"
+    rm -rf "$WARM_DIR"
+    mkdir -p "$WARM_DIR"
+    log "compiling the cores into $WARM_DIR (numba; ~1 min, longer on a busy machine)"
+    "$ROOT/scripts/with_env.sh" python -m pac_rig.warm >&2 || die "python -m pac_rig.warm failed"
+    printf '%s\n' "$1" >"$WARM_STAMP"
+    log "numba cache: $(since "$t")"
+}
+
 sig="$(src_signature)"
 if [ -f "$ROOT/install/setup.bash" ] && [ "$(cat "$BUILD_STAMP" 2>/dev/null)" = "$sig" ]; then
+    warm_numba_cache "$sig"
     log "up to date (nothing under src/ changed) — $(since "$T0")"
     exit 0
 fi
@@ -167,4 +186,6 @@ env -u PYTHONDONTWRITEBYTECODE "$VENV/bin/colcon" --log-base "$ROOT/log" build \
     --event-handlers desktop_notification- status- \
     --cmake-args -DPython3_EXECUTABLE="$VENV/bin/python" -DBUILD_TESTING=OFF
 printf '%s\n' "$sig" >"$BUILD_STAMP"
-log "colcon build: $(since "$t"); total $(since "$T0")"
+log "colcon build: $(since "$t")"
+warm_numba_cache "$sig"
+log "total $(since "$T0")"

@@ -18,7 +18,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
+from pac_common.smallmat import matvec
 from pac_model import model
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
@@ -27,9 +29,10 @@ from .parameters import ControllerParameters, ReferenceParameters
 from .reference import ForceReference
 
 
+@njit(cache=True, error_model="numpy")
 def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
     """Derivatives 0..3 of g = 1 / k from those of k (Faa di Bruno)."""
-    k0, k1, k2, k3 = k
+    k0, k1, k2, k3 = k[0], k[1], k[2], k[3]
     g0 = 1.0 / k0
     g1 = -k1 * g0**2
     g2 = -k2 * g0**2 + 2.0 * k1**2 * g0**3
@@ -37,6 +40,7 @@ def reciprocal_derivatives(k: np.ndarray) -> np.ndarray:
     return np.array([g0, g1, g2, g3])
 
 
+@njit(cache=True)
 def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
     """Derivatives 0..3 of f g (Leibniz)."""
     return np.array(
@@ -47,6 +51,63 @@ def product_derivatives(f: np.ndarray, g: np.ndarray) -> np.ndarray:
             f[3] * g[0] + 3.0 * f[2] * g[1] + 3.0 * f[1] * g[2] + f[0] * g[3],
         ]
     )
+
+
+@njit(cache=True)
+def stiffness_hat_derivatives(t: float, omega: float, theta_hat: np.ndarray, k_min: float) -> np.ndarray:
+    """k_hat = v(t)^T theta_hat (eq. (8)) and its derivatives 1..3 with theta_hat frozen, clamped at k_min."""
+    k = matvec(model.stiffness_regressor_derivatives(t, omega, 3), theta_hat)
+    if k[0] < k_min:
+        return np.array([k_min, 0.0, 0.0, 0.0])
+    return k
+
+
+@njit(cache=True, error_model="numpy")
+def backstepping_law(
+    t: float,
+    f_r: np.ndarray,
+    z_hat: np.ndarray,
+    theta_hat: np.ndarray,
+    omega: float,
+    m1: float,
+    b1: float,
+    k1: float,
+    m2: float,
+    b2: float,
+    c1: float,
+    c2: float,
+    c3: float,
+    k_min: float,
+) -> tuple[float, float, float, float]:
+    """Eqs. (23)-(43) on numbers: (u, e1, e2, e3), u unsaturated."""
+    z1, z2, z3, z4 = z_hat[0], z_hat[1], z_hat[2], z_hat[3]
+    k = stiffness_hat_derivatives(t, omega, theta_hat, k_min)
+    r = product_derivatives(f_r, reciprocal_derivatives(k))  # z1r and derivatives, eq. (23)
+
+    # Observer model (21) without injection; z1 in psi replaced by z_hat_1.
+    f1 = -(k1 / m1) * z1 + (k1 / m1) * z2 - (b1 / m1) * z3  # eq. (22)
+    f2 = (k1 / m2) * (z1 - z2) + (b1 / m2) * z3 - ((b1 + b2) / m2) * z4  # eq. (22)
+    force_term = z1 * k[0] / m1  # (z1/m1) v^T theta_hat
+    dz1, dz2 = z3, z4
+    dz3 = f1 + (b1 / m1) * z4 - force_term
+
+    e1 = z1 - r[0]  # eq. (24)
+    alpha1 = r[1] - c1 * e1  # eq. (28)
+    de1 = dz1 - r[1]
+    dalpha1 = r[2] - c1 * de1
+    e2 = z3 - alpha1  # eq. (29)
+    alpha2 = (m1 / b1) * (-c2 * e2 - e1 - f1 + force_term + dalpha1)  # eq. (35)
+    e3 = z4 - alpha2  # eq. (36)
+
+    # alpha_2' along the model: needs e2', f1', (z1 k_hat)' and alpha_1''.
+    de2 = dz3 - dalpha1
+    df1 = -(k1 / m1) * dz1 + (k1 / m1) * dz2 - (b1 / m1) * dz3
+    dforce_term = (dz1 * k[0] + z1 * k[1]) / m1
+    ddalpha1 = r[3] - c1 * (dz3 - r[2])
+    dalpha2 = (m1 / b1) * (-c2 * de2 - de1 - df1 + dforce_term + ddalpha1)
+
+    u = m2 * (-c3 * e3 + dalpha2 - f2 - (b1 / m1) * e2)  # eq. (43)
+    return u, e1, e2, e3
 
 
 class BacksteppingController:
@@ -77,10 +138,9 @@ class BacksteppingController:
 
     def stiffness_hat_derivatives(self, t: float, theta_hat: np.ndarray) -> np.ndarray:
         """k_hat and its derivatives 1..3 with theta_hat frozen, clamped at stiffness_hat_min."""
-        k = model.stiffness_regressor_derivatives(t, self.omega, 3) @ theta_hat
-        if k[0] < self.params.stiffness_hat_min:
-            return np.array([self.params.stiffness_hat_min, 0.0, 0.0, 0.0])
-        return k
+        theta_hat = np.array(theta_hat, dtype=np.float64)
+        k_min = float(self.params.stiffness_hat_min)
+        return stiffness_hat_derivatives(float(t), self.omega, theta_hat, k_min)
 
     def restart(self, u_applied: float | None) -> None:
         """Nothing to forget: the law is stateless."""
@@ -96,36 +156,24 @@ class BacksteppingController:
     def law(
         self, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
     ) -> tuple[float, tuple[float, float, float]]:
-        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3)."""
-        p = self.pantograph
-        c1, c2, c3 = self.params.c1, self.params.c2, self.params.c3
-        z1, z2, z3, z4 = z_hat
-        k = self.stiffness_hat_derivatives(t, theta_hat)
-        r = product_derivatives(f_r, reciprocal_derivatives(k))  # z1r and derivatives, eq. (23)
-
-        # Observer model (21) without injection; z1 in psi replaced by z_hat_1.
-        f1 = -(p.k1 / p.m1) * z1 + (p.k1 / p.m1) * z2 - (p.b1 / p.m1) * z3  # eq. (22)
-        f2 = (p.k1 / p.m2) * (z1 - z2) + (p.b1 / p.m2) * z3 - ((p.b1 + p.b2) / p.m2) * z4  # eq. (22)
-        force_term = z1 * k[0] / p.m1  # (z1/m1) v^T theta_hat
-        dz1, dz2 = z3, z4
-        dz3 = f1 + (p.b1 / p.m1) * z4 - force_term
-
-        e1 = z1 - r[0]  # eq. (24)
-        alpha1 = r[1] - c1 * e1  # eq. (28)
-        de1 = dz1 - r[1]
-        dalpha1 = r[2] - c1 * de1
-        e2 = z3 - alpha1  # eq. (29)
-        alpha2 = (p.m1 / p.b1) * (-c2 * e2 - e1 - f1 + force_term + dalpha1)  # eq. (35)
-        e3 = z4 - alpha2  # eq. (36)
-
-        # alpha_2' along the model: needs e2', f1', (z1 k_hat)' and alpha_1''.
-        de2 = dz3 - dalpha1
-        df1 = -(p.k1 / p.m1) * dz1 + (p.k1 / p.m1) * dz2 - (p.b1 / p.m1) * dz3
-        dforce_term = (dz1 * k[0] + z1 * k[1]) / p.m1
-        ddalpha1 = r[3] - c1 * (dz3 - r[2])
-        dalpha2 = (p.m1 / p.b1) * (-c2 * de2 - de1 - df1 + dforce_term + ddalpha1)
-
-        u = p.m2 * (-c3 * e3 + dalpha2 - f2 - (p.b1 / p.m1) * e2)  # eq. (43)
+        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3) (compiled :func:`backstepping_law`)."""
+        p, c = self.pantograph, self.params
+        u, e1, e2, e3 = backstepping_law(
+            float(t),
+            np.array(f_r, dtype=np.float64),
+            np.array(z_hat, dtype=np.float64),
+            np.array(theta_hat, dtype=np.float64),
+            self.omega,
+            p.m1,
+            p.b1,
+            p.k1,
+            p.m2,
+            p.b2,
+            float(c.c1),
+            float(c.c2),
+            float(c.c3),
+            float(c.stiffness_hat_min),
+        )
         return u, (e1, e2, e3)
 
 

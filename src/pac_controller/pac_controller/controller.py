@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+from numba import njit
 
 from pac_model import model
 
@@ -68,6 +69,27 @@ class Law(Protocol):
 def contact_force_estimate(t: float, omega: float, z_hat: np.ndarray, theta_hat: np.ndarray) -> float:
     """F_hat = k_hat z_hat_1, k_hat = v(t)^T theta_hat (eqs. (6), (8))."""
     return model.contact_force(model.stiffness(t, omega, theta_hat), float(z_hat[0]), unilateral=False)
+
+
+@njit(cache=True)
+def limit_command(
+    u: float,
+    last_u: float,
+    has_last: bool,
+    ticks_since: int,
+    slew_rate_max: float,
+    sample_period: float,
+    u_min: float,
+    u_max: float,
+) -> float:
+    """The actuator limits: slew rate from the last command (over at least one period), then saturation."""
+    applied = u
+    if has_last:
+        # At least one period: a command whose tick is not after the last one (a fallback
+        # tick extrapolated ahead of a returning estimate) is still rate limited.
+        step = slew_rate_max * sample_period * max(1, ticks_since)
+        applied = min(max(applied, last_u - step), last_u + step)
+    return min(max(applied, u_min), u_max)
 
 
 class Controller:
@@ -125,13 +147,17 @@ class Controller:
     ) -> Command:
         """Slew-rate limit from the last command, then saturation; updates the actuator state."""
         p = self.params
-        applied = u
-        if self.last_u is not None:
-            # At least one period: a command whose tick is not after the last one (a fallback
-            # tick extrapolated ahead of a returning estimate) is still rate limited.
-            step = p.slew_rate_max * self.sample_period * max(1, tick - self.last_tick)
-            applied = min(max(applied, self.last_u - step), self.last_u + step)
-        applied = min(max(applied, p.u_min), p.u_max)
+        has_last = self.last_u is not None
+        applied = limit_command(
+            float(u),
+            float(self.last_u) if has_last else 0.0,
+            has_last,
+            tick - self.last_tick,
+            float(p.slew_rate_max),
+            self.sample_period,
+            float(p.u_min),
+            float(p.u_max),
+        )
         self.last_u, self.last_tick = applied, tick
         return Command(
             tick=tick,

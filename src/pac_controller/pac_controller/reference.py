@@ -5,6 +5,7 @@ has continuous derivatives up to the third order, which the backstepping law
 needs (z1r = F_r / k_hat and alpha_2' need z1r''', PAPER_NOTES item 4).  The
 response is written in closed form as a sum of filtered steps, so F_r at any
 tick is a pure function of time: no filter state to drift, lose or replay.
+Compiled (numba): the batch closed loop evaluates it inside compiled code.
 """
 
 from __future__ import annotations
@@ -12,13 +13,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .parameters import ReferenceParameters
 
 #: A step older than this many filter time constants contributes below 1e-15 of its size.
 _FORGET_AFTER = 60.0
 
+#: ReferenceParameters.shape as the integer the compiled functions take.
+SHAPE_CODES = {"constant": 0, "step": 1, "square": 2}
 
+
+@njit(cache=True)
 def filtered_step(tau: float, p: float) -> np.ndarray:
     """Unit step through p^4/(s+p)^4, and derivatives 1..3, at tau >= 0 after the step.
 
@@ -35,43 +41,87 @@ def filtered_step(tau: float, p: float) -> np.ndarray:
     return np.array([s0, s1, s2, s3])
 
 
+@njit(cache=True)
+def reference_steps(
+    t: float, shape: int, amplitude: float, initial: float, step_time: float, period: float, bandwidth: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(times, sizes) of the command's steps at or before t that still matter.
+
+    A time of -inf stands for "the command was at this level since long ago".
+    """
+    if shape == 0:
+        times, sizes = np.array([0.0]), np.array([amplitude])
+    elif shape == 1:
+        times, sizes = np.array([0.0, step_time]), np.array([initial, amplitude - initial])
+    else:
+        half = 0.5 * period
+        horizon = t - _FORGET_AFTER / bandwidth
+        first = max(0, math.floor(horizon / half))
+        last = math.floor(t / half)
+        # Levels before the first kept step: the command was at its level since long ago.
+        lead = 1 if (first > 0 and first % 2 == 1) else 0
+        n = max(0, last - first + 1)
+        times, sizes = np.empty(lead + n), np.empty(lead + n)
+        if lead:
+            times[0], sizes[0] = -math.inf, amplitude
+        for i in range(n):
+            j = first + i
+            times[lead + i] = j * half
+            sizes[lead + i] = amplitude if j % 2 == 0 else -amplitude
+    keep = times <= t
+    return times[keep], sizes[keep]
+
+
+@njit(cache=True)
+def reference_at(
+    t: float, shape: int, amplitude: float, initial: float, step_time: float, period: float, bandwidth: float
+) -> np.ndarray:
+    """(F_r, F_r', F_r'', F_r''') at time t: the sum of the filtered steps."""
+    times, sizes = reference_steps(t, shape, amplitude, initial, step_time, period, bandwidth)
+    out = np.zeros(4)
+    for i in range(times.size):
+        if times[i] == -math.inf:
+            out[0] += sizes[i]
+        else:
+            out += sizes[i] * filtered_step(t - times[i], bandwidth)
+    return out
+
+
+def reference_args(p: ReferenceParameters) -> tuple[int, float, float, float, float, float]:
+    """The numbers :func:`reference_at` takes after t."""
+    return (
+        SHAPE_CODES[p.shape],
+        float(p.force_amplitude),
+        float(p.force_initial),
+        float(p.step_time),
+        float(p.period),
+        float(p.filter_bandwidth),
+    )
+
+
 class ForceReference:
     """F_r and its derivatives (F_r, F_r', F_r'', F_r''') at time t."""
 
     def __init__(self, params: ReferenceParameters) -> None:
         self.params = params
+        self._args_of: ReferenceParameters | None = None
+        self._args: tuple = ()
+
+    @property
+    def args(self) -> tuple[int, float, float, float, float, float]:
+        """:func:`reference_args` of the current ``params`` (recomputed when they are replaced)."""
+        if self._args_of is not self.params:
+            self._args, self._args_of = reference_args(self.params), self.params
+        return self._args
 
     def steps_before(self, t: float) -> list[tuple[float, float]]:
         """(time, size) of the command's steps at or before t that still matter."""
-        p = self.params
-        horizon = t - _FORGET_AFTER / p.filter_bandwidth
-        if p.shape == "constant":
-            steps = [(0.0, p.force_amplitude)]
-        elif p.shape == "step":
-            steps = [(0.0, p.force_initial), (p.step_time, p.force_amplitude - p.force_initial)]
-        else:
-            half = 0.5 * p.period
-            first = max(0, math.floor(horizon / half))
-            last = math.floor(t / half)
-            steps = [
-                (j * half, p.force_amplitude if j % 2 == 0 else -p.force_amplitude)
-                for j in range(first, last + 1)
-            ]
-            # Levels before the first kept step: the command was at its level since long ago.
-            if first > 0 and first % 2 == 1:
-                steps.insert(0, (-math.inf, p.force_amplitude))
-        return [(ts, size) for ts, size in steps if ts <= t]
+        times, sizes = reference_steps(float(t), *self.args)
+        return [(float(ts), float(size)) for ts, size in zip(times, sizes, strict=True)]
 
     def at(self, t: float) -> np.ndarray:
         """(F_r, F_r', F_r'', F_r''') at time t [N, N/s, N/s^2, N/s^3]."""
-        p = self.params.filter_bandwidth
-        out = np.zeros(4)
-        for ts, size in self.steps_before(t):
-            if ts == -math.inf:
-                out[0] += size
-            else:
-                out += size * filtered_step(t - ts, p)
-        return out
+        return reference_at(float(t), *self.args)
 
     def command(self, t: float) -> float:
         """The unfiltered command F_c(t) [N]."""

@@ -2,8 +2,11 @@
 
 Runs (1) a real-time rig for ``--realtime-seconds`` (default 30), (2) a lock-step rig
 for ``--lockstep-seconds`` of simulated time, (3) the offline simulator for 10 s
-with and without bag writing, and prints one table.  Timing is measured, never
-asserted: the machine is shared and noisy.
+with and without bag writing, (4) the compiled batch closed loop (``--batch-runs``
+scenarios of 10 s, ``--batch-threads`` threads), (5) the start-up time of each loop node
+(process start to its first published message), and prints one table.  Timing is
+measured, never asserted: the machine is shared and noisy.  ``--offline-only`` skips
+the live rigs (1, 2).
 """
 
 from __future__ import annotations
@@ -20,9 +23,17 @@ from pathlib import Path
 from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
 from pac_common import messages
 from pac_rig.bag import read_bag
+from pac_rig.batch import run_batch
 from pac_rig.closed_loop import Scenario, run
 from pac_rig.launcher import Rig
 from pac_rig.simulate import simulate_to_bag
+
+#: Node -> (topic it answers on, topic it needs an input on, input message type).
+_STARTUP = {
+    "plant": ("measurement", "command", None),
+    "observer": ("estimate", "measurement", "FrameMeasurement"),
+    "controller": ("command", "estimate", "ObserverEstimate"),
+}
 
 
 def live_run(mode: str, seconds: float, workdir: Path, priority: int) -> tuple:
@@ -112,6 +123,73 @@ def bag_writing(workdir: Path, seconds: float = 10.0) -> list[tuple[str, float, 
     return results
 
 
+def batch_speed(runs: int, threads: int) -> tuple[float, float]:
+    """(scenario-seconds per wall-second, wall seconds) of ``runs`` default 10 s scenarios in one batch."""
+    result = run_batch([Scenario()] * runs, threads=threads)
+    return result.simulated_seconds / result.wall_seconds, result.wall_seconds
+
+
+def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
+    """Seconds from ``Popen`` of each loop node to the first message it publishes.
+
+    The bench process stands in for the node's peers: it offers the input the node needs
+    (the plant only needs a command publisher to exist before it sends tick 0) and listens
+    for the output.
+    """
+    import domain_coordinator
+
+    from pac_common.node import LOOP_QOS, PUBLISH_QOS, rclpy
+    from pac_interfaces import msg as pac_msg
+
+    out: dict[str, list[float]] = {name: [] for name in _STARTUP}
+    with domain_coordinator.domain_id() as domain_id:
+        context = rclpy.Context()
+        rclpy.init(context=context, domain_id=domain_id)
+        node = rclpy.create_node("bench_startup", context=context)
+        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        first: dict[str, float] = {}
+        types = {
+            "measurement": "FrameMeasurement",
+            "estimate": "ObserverEstimate",
+            "command": "ActuatorCommand",
+        }
+        pubs = {}
+        for topic, typename in types.items():
+            cls = getattr(pac_msg, typename)
+            node.create_subscription(
+                cls, topic, lambda _m, t=topic: first.setdefault(t, time.monotonic()), LOOP_QOS
+            )
+            pubs[topic] = node.create_publisher(cls, topic, PUBLISH_QOS)
+        try:
+            for _ in range(repeats):
+                for name, (answer, needs, input_type) in _STARTUP.items():
+                    rig = Rig(
+                        workdir / f"startup_{name}",
+                        duration=0.0,
+                        timing_mode="lockstep",
+                        domain_id=domain_id,
+                        record=False,
+                    )
+                    try:
+                        first.pop(answer, None)
+                        proc = rig.start_node(name)
+                        deadline = proc.started + 120.0
+                        while answer not in first and time.monotonic() < deadline and proc.poll() is None:
+                            if input_type is not None:
+                                pubs[needs].publish(getattr(pac_msg, input_type)())
+                            executor.spin_once(timeout_sec=0.005)
+                        if answer in first:
+                            out[name].append(first[answer] - proc.started)
+                    finally:
+                        rig.stop(grace=5.0)
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.shutdown(context=context)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench", description=__doc__)
     parser.add_argument("--realtime-seconds", type=float, default=30.0)
@@ -119,17 +197,37 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--realtime-priority", type=int, default=0, help="SCHED_FIFO priority for the loop nodes (0: off)"
     )
+    parser.add_argument("--offline-only", action="store_true", help="skip the live rigs")
+    parser.add_argument("--batch-runs", type=int, default=16)
+    parser.add_argument("--batch-threads", type=int, default=2)
+    parser.add_argument("--startup-repeats", type=int, default=3)
     args = parser.parse_args(argv)
+    for name, value, low, high in (
+        ("--batch-runs", args.batch_runs, 1, 100000),
+        ("--batch-threads", args.batch_threads, 1, 64),
+        ("--startup-repeats", args.startup_repeats, 0, 100),
+    ):
+        if not low <= value <= high:
+            print(f"bench: invalid {name} {value!r}: allowed {low}..{high}", file=sys.stderr)
+            return 2
     workdir = Path(tempfile.mkdtemp(prefix="pac_bench_"))
     try:
         runs, cpus, quality = {}, {}, {}
-        for mode, seconds in (("realtime", args.realtime_seconds), ("lockstep", args.lockstep_seconds)):
+        live = (("realtime", args.realtime_seconds), ("lockstep", args.lockstep_seconds))
+        if args.offline_only:
+            live = ()
+        for mode, seconds in live:
             print(f"bench: {mode} rig, {seconds:g} s ...", flush=True)
             runs[mode], cpus[mode], quality[mode] = live_run(mode, seconds, workdir, args.realtime_priority)
         print("bench: offline simulator ...", flush=True)
         speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
         print("bench: bag writing ...", flush=True)
         writing = bag_writing(workdir)
+        print("bench: batch ...", flush=True)
+        run_batch([Scenario()])  # loads the compiled kernel: not part of the measurement
+        speed_batch, batch_wall = batch_speed(args.batch_runs, args.batch_threads)
+        print("bench: node start-up ...", flush=True)
+        startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
     print(
@@ -137,17 +235,21 @@ def main(argv: list[str] | None = None) -> int:
         f"{platform.machine()}, {__import__('os').cpu_count()} cores, realtime_priority "
         f"{args.realtime_priority}\n"
     )
-    print(timing_table(runs), end="")
+    if runs:
+        print(timing_table(runs), end="")
     names = list(runs)
-    for node in ("plant", "observer", "controller", "recorder"):
+    for node in ("plant", "observer", "controller", "recorder") if runs else ():
         print(
             f"| CPU {node} [%] | "
             + " | ".join(f"{cpus[n].get(node, float('nan')):.0f}" for n in names)
             + " |"
         )
-    print(
-        "| contact-force std [N] | " + " | ".join(f"{quality[n].contact_force_std:.3g}" for n in names) + " |"
-    )
+    if runs:
+        print(
+            "| contact-force std [N] | "
+            + " | ".join(f"{quality[n].contact_force_std:.3g}" for n in names)
+            + " |"
+        )
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
         f"{speed_bag:.1f}x with bag writing"
@@ -158,6 +260,13 @@ def main(argv: list[str] | None = None) -> int:
     )
     for name, wall, cpu, size in writing:
         print(f"| {name} | {wall:.1f} | {cpu:.1f} | {size / 1e6:.2f} |")
+    print(
+        f"Batch (compiled closed loop): {args.batch_runs} x 10 s scenarios in {batch_wall:.2f} s = "
+        f"{speed_batch:.0f} scenario-s per wall-s ({args.batch_threads} threads)"
+    )
+    for name, times in startup.items():
+        shown = ", ".join(f"{t:.2f}" for t in times) or "no message"
+        print(f"Start-up {name}_node (process start -> first published message): {shown} s")
     return 0
 
 

@@ -4,6 +4,10 @@ State z = (z1, z2, z1', z2') (eq. 4): head and frame positions [m] and velocitie
 [m/s], positive upwards, measured from the unloaded rest position; z1 > 0 presses
 the head into the wire.  Every formula of the model lives here once; the plant,
 the observer and the controller all import it.
+
+The formulas the cores evaluate at every tick are compiled (numba, ``njit``) and take
+plain numbers and arrays, so the compiled plant, observer and controller call them
+directly; the functions taking a :class:`PantographParameters` are thin wrappers.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from .parameters import PantographParameters
 
@@ -23,6 +28,7 @@ def stiffness_regressor(t: float, omega: float) -> np.ndarray:
     return np.array([1.0, math.cos(omega * t), math.sin(omega * t)])
 
 
+@njit(cache=True)
 def stiffness_regressor_derivatives(t: float, omega: float, order: int) -> np.ndarray:
     """Rows d^n v / dt^n for n = 0..order, v of eq. (9)."""
     c, s = math.cos(omega * t), math.sin(omega * t)
@@ -36,6 +42,7 @@ def stiffness_regressor_derivatives(t: float, omega: float, order: int) -> np.nd
     return out
 
 
+@njit(cache=True)
 def stiffness(t: float, omega: float, theta: np.ndarray) -> float:
     """k(t) = v(t)^T theta, eq. (8) (equal to eq. (7) for theta of eq. (9)) [N/m]."""
     wt = omega * t
@@ -56,7 +63,19 @@ def state_matrix(p: PantographParameters) -> np.ndarray:
 
 def input_vector(u: float, p: PantographParameters) -> np.ndarray:
     """phi(u) of eq. (14): the actuator force acts on the lower frame."""
-    return np.array([0.0, 0.0, 0.0, u / p.m2])
+    return actuator_input(float(u), p.m2)
+
+
+@njit(cache=True)
+def actuator_input(u: float, m2: float) -> np.ndarray:
+    """phi(u) of eq. (14) (m2 as a number)."""
+    return np.array([0.0, 0.0, 0.0, actuator_acceleration(u, m2)])
+
+
+@njit(cache=True)
+def actuator_acceleration(u: float, m2: float) -> float:
+    """u / m2, the only non-zero entry of phi(u), eq. (14)."""
+    return u / m2
 
 
 def output_regressor(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
@@ -68,11 +87,18 @@ def output_regressor(y1: float, t: float, omega: float, p: PantographParameters)
 
 def output_regressor_row(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
     """The only non-zero row of psi(y), eq. (15): -(y1 / m1) v(t)^T."""
+    return regressor_row(y1, t, omega, p.m1)
+
+
+@njit(cache=True)
+def regressor_row(y1: float, t: float, omega: float, m1: float) -> np.ndarray:
+    """The only non-zero row of psi(y), eq. (15): -(y1 / m1) v(t)^T (m1 as a number)."""
     wt = omega * t
-    c = -y1 / p.m1
+    c = -y1 / m1
     return np.array([c, c * math.cos(wt), c * math.sin(wt)])
 
 
+@njit(cache=True)
 def contact_force(k: float, z1: float, unilateral: bool) -> float:
     """F = k z1, eq. (6); with ``unilateral`` the wire can only push (F >= 0)."""
     f = k * z1
@@ -84,9 +110,17 @@ def dynamics(z: np.ndarray, u: float, force: float, a: np.ndarray, p: Pantograph
 
     With F = k z1 this is exactly eq. (5) and eq. (11): A z + phi(u) + psi(y) theta.
     """
-    dz = a @ z
-    dz[2] -= force / p.m1
-    dz[3] += u / p.m2
+    return pantograph_rhs(np.asarray(z, dtype=np.float64), float(u), float(force), a, p.m1, p.m2)
+
+
+@njit(cache=True)
+def pantograph_rhs(z: np.ndarray, u: float, force: float, a: np.ndarray, m1: float, m2: float) -> np.ndarray:
+    """:func:`dynamics` on numbers: A z + phi(u) - F e3 / m1, eqs. (3)/(5)/(14)."""
+    dz = np.zeros(4)
+    for i in range(4):
+        dz[i] = a[i, 0] * z[0] + a[i, 1] * z[1] + a[i, 2] * z[2] + a[i, 3] * z[3]
+    dz[2] -= force / m1
+    dz[3] += actuator_acceleration(u, m2)
     return dz
 
 

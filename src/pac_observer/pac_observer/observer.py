@@ -35,12 +35,192 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+from numba import njit
 
 from pac_common.integrate import rk4_step
+from pac_common.smallmat import matmul, matvec
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
 from .parameters import ObserverParameters
+
+# Status codes of the compiled step (0: fine); the text is the ObserverDivergedError reason.
+_DIVERGED_REASONS = {
+    1: "xi or Lambda is not finite",
+    2: "S_theta not positive definite (Cholesky failed)",
+    3: "theta_hat is not finite",
+}
+
+
+@njit(cache=True, error_model="numpy")
+def cholesky_solve(a: np.ndarray, b: np.ndarray) -> tuple[bool, np.ndarray]:
+    """x = a^-1 b for a symmetric positive definite a (n x n), b (n x m); False if a is not.
+
+    The Cholesky factor doubles as the positive-definiteness check (a pivot <= 0 or NaN fails,
+    as LAPACK's potrf does).
+    """
+    n = a.shape[0]
+    lo = np.zeros((n, n))
+    for j in range(n):
+        d = a[j, j]
+        for k in range(j):
+            d -= lo[j, k] * lo[j, k]
+        if not d > 0.0:
+            return False, np.zeros_like(b)
+        lo[j, j] = math.sqrt(d)
+        for i in range(j + 1, n):
+            s = a[i, j]
+            for k in range(j):
+                s -= lo[i, k] * lo[j, k]
+            lo[i, j] = s / lo[j, j]
+    x = b.copy()
+    for c in range(b.shape[1]):  # L w = b, then L^T x = w
+        for i in range(n):
+            s = x[i, c]
+            for k in range(i):
+                s -= lo[i, k] * x[k, c]
+            x[i, c] = s / lo[i, i]
+        for i in range(n - 1, -1, -1):
+            s = x[i, c]
+            for k in range(i + 1, n):
+                s -= lo[k, i] * x[k, c]
+            x[i, c] = s / lo[i, i]
+    return True, x
+
+
+@njit(cache=True, error_model="numpy")
+def _half_step_s_z(s_z: np.ndarray, half_map: np.ndarray, half_input: np.ndarray) -> np.ndarray:
+    """S_z half a period later, exactly: E^T S_z E + Q_h (docs/numerics.md, observer step 1)."""
+    return matmul(matmul(half_map.T, s_z), half_map) + half_input
+
+
+@njit(cache=True, error_model="numpy")
+def _observer_rhs(
+    t: float,
+    x: np.ndarray,
+    t0: float,
+    dt: float,
+    gains: np.ndarray,
+    a: np.ndarray,
+    y0: np.ndarray,
+    dy: np.ndarray,
+    u: float,
+    omega: float,
+    m1: float,
+    m2: float,
+) -> np.ndarray:
+    """X' = (A - L C) X + [phi(u) + L y, psi(y)] for X = [xi | Lambda], eq. (17) in xi form.
+
+    L is known exactly at the RK4 stage times (start, middle, end of the period:
+    ``gains[0..2]``); y is interpolated linearly between the samples.
+    """
+    frac = (t - t0) / dt
+    gain = gains[round(2.0 * frac)]
+    y1_s, y2_s = y0[0] + frac * dy[0], y0[1] + frac * dy[1]  # y at t (scalars: no allocation)
+    closed = a.copy()  # A - L C
+    closed[:, :2] -= gain
+    out = matmul(closed, x)
+    for i in range(4):
+        out[i, 0] += gain[i, 0] * y1_s + gain[i, 1] * y2_s  # + L y
+    out[3, 0] += model.actuator_acceleration(u, m2)  # + phi(u), eq. (14)
+    out[2, 1:] += model.regressor_row(y1_s, t, omega, m1)  # + psi(y), eq. (15)
+    return out
+
+
+# The observer's state and constants travel through the compiled functions as tuples:
+#   state  = (xi, Lambda, S_z, S_z settled, L, S_theta, theta_hat, y_prev)
+#   consts = (dt, A, C^T Sigma, Sigma, E, Q_h, exp(-rho_theta dt), (1 - exp(-rho_theta dt)) s_floor,
+#             omega, m1, m2)
+
+
+@njit(cache=True, error_model="numpy")
+def observer_initial_state(xi0: np.ndarray, theta_hat0: np.ndarray, s_z0: float, s_theta0: float, consts):
+    """The state at the initial conditions: Lambda(0) = 0 (z_hat(0) carries no theta information)."""
+    s_z = s_z0 * np.eye(4)
+    ok, gain = cholesky_solve(s_z, consts[2])  # L = S_z^-1 C^T Sigma
+    if not ok:
+        gain[:] = np.nan
+    s_theta = s_theta0 * np.eye(3)
+    return (xi0.copy(), np.zeros((4, 3)), s_z, False, gain, s_theta, theta_hat0.copy(), np.zeros(2))
+
+
+@njit(cache=True, error_model="numpy")
+def observer_output(state) -> np.ndarray:
+    """z_hat = xi + Lambda theta_hat (docs/numerics.md)."""
+    xi, lam, theta_hat = state[0], state[1], state[6]
+    return xi + matvec(lam, theta_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def observer_step(t0: float, state, y_now: np.ndarray, u: float, consts):
+    """One sample period of the observer from t0 to t0 + dt (docs/numerics.md, steps 1-3).
+
+    Pure: the inputs are not modified.  Returns (status, state, innovation); status 0 is
+    fine, otherwise a key of ``_DIVERGED_REASONS`` and the returned state is the input state.
+    """
+    xi, lam, s_z, s_z_settled, gain_now, s_theta, theta_hat, y_prev = state
+    dt, a, c_t_sigma, sigma, sz_half_map, sz_half_input, forgetting, floor_input, omega, m1, m2 = consts
+    # 1. S_z exactly at the start, middle and end of the period (until it has settled).
+    gains = np.empty((3, 4, 2))
+    gains[0] = gain_now
+    if s_z_settled:
+        s_z_end = s_z
+        gains[1] = gain_now
+        gains[2] = gain_now
+    else:
+        s_z_mid = _half_step_s_z(s_z, sz_half_map, sz_half_input)
+        s_z_end = _half_step_s_z(s_z_mid, sz_half_map, sz_half_input)
+        _, gains[1] = cholesky_solve(s_z_mid, c_t_sigma)  # L = S_z^-1 C^T Sigma
+        _, gains[2] = cholesky_solve(s_z_end, c_t_sigma)
+
+    # 2. X = [xi | Lambda], one RK4 step.
+    x = np.empty((4, 4))
+    x[:, 0] = xi
+    x[:, 1:] = lam
+    x = rk4_step(_observer_rhs, t0, x, dt, (t0, dt, gains, a, y_prev, y_now - y_prev, u, omega, m1, m2))
+    innovation = np.zeros(2)
+    if not np.isfinite(x).all():
+        return 1, state, innovation
+    xi_new = x[:, 0].copy()
+    lam_new = x[:, 1:].copy()
+
+    # 3. RLS: implicit Euler of the theta_hat / S_theta equations.
+    phi_reg = lam_new[:2, :].copy()  # Phi = C Lambda (2x3)
+    weighted = matmul(phi_reg.T, sigma)  # Phi^T Sigma (3x2)
+    s_theta_new = forgetting * s_theta + dt * matmul(weighted, phi_reg) + floor_input * np.eye(3)
+    innovation = y_now - xi_new[:2] - matvec(phi_reg, theta_hat)  # a priori, y - C z_hat
+    rhs = (dt * matvec(weighted, innovation)).reshape((3, 1))
+    ok, step = cholesky_solve(s_theta_new, rhs)
+    if not ok:
+        return 2, state, innovation
+    theta_new = theta_hat + step[:, 0]
+    if not np.isfinite(theta_new).all():
+        return 3, state, innovation
+
+    settled = s_z_settled
+    if not s_z_settled:
+        settled = np.max(np.abs(s_z_end - s_z)) <= 1e-13 * np.max(np.abs(s_z_end))
+    new = (xi_new, lam_new, s_z_end, settled, gains[2].copy(), s_theta_new, theta_new, y_now.copy())
+    return 0, new, innovation
+
+
+@njit(cache=True, error_model="numpy")
+def observer_advance(tick: int, state, y_now: np.ndarray, gap: int, u: float, consts):
+    """From ``tick`` to ``tick + gap``: ``gap`` periods, y interpolated linearly from y_prev, u held.
+
+    Returns (status, tick reached or failed at, state, a priori innovation of the last period);
+    on failure the returned state is the input state.
+    """
+    dt = consts[0]
+    y_start = state[7]
+    new = state
+    innovation = np.zeros(2)
+    for j in range(1, gap + 1):
+        y_j = y_start + (j / gap) * (y_now - y_start)
+        status, new, innovation = observer_step((tick + j - 1) * dt, new, y_j, u, consts)
+        if status:
+            return status, tick + j, state, innovation
+    return 0, tick + gap, new, innovation
 
 
 class ObserverDivergedError(RuntimeError):
@@ -97,7 +277,23 @@ class AdaptiveObserver:
         # initial S_theta has been forgotten, so a long run without excitation (z1 = 0, no
         # contact) cannot let S_theta underflow; floor is ~1e6 times below the information
         # a 100 N contact gives (docs/numerics.md).
-        self._floor_input = (1.0 - self._theta_forgetting) * params.s_theta_floor * np.eye(3)
+        self._floor_input = (1.0 - self._theta_forgetting) * params.s_theta_floor
+        #: What the compiled functions take as ``consts``.
+        # C-contiguous float64 everywhere: one compiled specialisation, the one the cache holds.
+        c_arr = np.ascontiguousarray
+        self.consts = (
+            float(dt),
+            c_arr(a, dtype=np.float64),
+            c_arr(self._c_t_sigma, dtype=np.float64),
+            c_arr(sigma, dtype=np.float64),
+            c_arr(self._sz_half_map, dtype=np.float64),
+            c_arr(self._sz_half_input, dtype=np.float64),
+            float(self._theta_forgetting),
+            float(self._floor_input),
+            float(self.omega),
+            float(pantograph.m1),
+            float(pantograph.m2),
+        )
         self.reset()
 
     # -- state -----------------------------------------------------------------
@@ -105,29 +301,43 @@ class AdaptiveObserver:
         """Back to the initial conditions of :class:`ObserverParameters` (tick 0)."""
         p = self.params
         self.tick = -1  # no sample processed yet
-        self.theta_hat = np.array(p.theta_hat0, dtype=float)
-        self.lam = np.zeros((4, 3))  # Lambda(0) = 0: z_hat(0) carries no theta information
-        self.xi = np.array(p.z_hat0, dtype=float)
-        self.s_z = p.s_z0 * np.eye(4)
-        self.s_theta = p.s_theta0 * np.eye(3)
-        self._gain_now = self._gain(self.s_z)
-        self._closed_now = self._closed(self._gain_now)
-        self._s_z_settled = False
-        self._y_prev = np.zeros(2)
+        self._set_state(
+            observer_initial_state(
+                np.array(p.z_hat0, dtype=float),
+                np.array(p.theta_hat0, dtype=float),
+                float(p.s_z0),
+                float(p.s_theta0),
+                self.consts,
+            )
+        )
 
     @property
     def z_hat(self) -> np.ndarray:
-        return self.xi + self.lam @ self.theta_hat
+        return observer_output(self._state())
 
-    def _closed(self, gain: np.ndarray) -> np.ndarray:
-        """A - L C: the observer's homogeneous dynamics (eq. (17), Lambda' and xi')."""
-        out = self._a.copy()
-        out[:, :2] -= gain
-        return out
+    def _state(self) -> tuple:
+        return (
+            self.xi,
+            self.lam,
+            self.s_z,
+            self._s_z_settled,
+            self._gain_now,
+            self.s_theta,
+            self.theta_hat,
+            self._y_prev,
+        )
 
-    def _gain(self, s_z: np.ndarray) -> np.ndarray:
-        """Output injection L = S_z^-1 C^T Sigma (4x2)."""
-        return np.linalg.solve(s_z, self._c_t_sigma)
+    def _set_state(self, state: tuple) -> None:
+        (
+            self.xi,
+            self.lam,
+            self.s_z,
+            self._s_z_settled,
+            self._gain_now,
+            self.s_theta,
+            self.theta_hat,
+            self._y_prev,
+        ) = state
 
     # -- one tick ----------------------------------------------------------------
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
@@ -135,9 +345,9 @@ class AdaptiveObserver:
 
         The first call initialises and returns the initial estimate.  Ticks must
         increase; a gap (lost samples) is bridged period by period with y
-        interpolated linearly across it and the force held.  Raises
-        :class:`ObserverDivergedError` and leaves the state untouched if the update
-        is not finite or S_theta is not positive definite.
+        interpolated linearly across it and the force held (compiled
+        :func:`observer_advance`).  Raises :class:`ObserverDivergedError` and leaves
+        the state untouched if the update is not finite or S_theta is not positive definite.
         """
         y_now = np.array(y, dtype=float)
         if self.tick < 0:
@@ -147,103 +357,14 @@ class AdaptiveObserver:
         gap = tick - self.tick
         if gap < 1:
             raise ValueError(f"observer expects a tick after {self.tick}, got {tick}")
-        saved = self._snapshot()
-        y_start = self._y_prev
-        try:
-            with np.errstate(all="ignore"):  # non-finite results are checked and reported
-                for j in range(1, gap + 1):
-                    innovation = self._step(y_start + (j / gap) * (y_now - y_start), actuator_force)
-        except ObserverDivergedError:
-            self._restore(saved)
-            raise
+        status, reached, state, innovation = observer_advance(
+            self.tick, self._state(), y_now, gap, float(actuator_force), self.consts
+        )
+        if status:
+            raise ObserverDivergedError(reached, _DIVERGED_REASONS[status])
+        self._set_state(state)
+        self.tick = reached
         return self._estimate(y_now, innovation)
-
-    #: Everything an update changes (each is replaced, never mutated in place, so a snapshot is cheap).
-    _STATE = (
-        "tick",
-        "xi",
-        "lam",
-        "s_z",
-        "s_theta",
-        "theta_hat",
-        "_gain_now",
-        "_closed_now",
-        "_s_z_settled",
-        "_y_prev",
-    )
-
-    def _snapshot(self) -> tuple:
-        return tuple(getattr(self, name) for name in self._STATE)
-
-    def _restore(self, saved: tuple) -> None:
-        for name, value in zip(self._STATE, saved, strict=True):
-            setattr(self, name, value)
-
-    def _step(self, y_now: np.ndarray, actuator_force: float) -> np.ndarray:
-        """One sample period to tick + 1; returns the a priori innovation."""
-        tick = self.tick + 1
-        dt = self.sample_period
-        t0 = self.tick * dt
-
-        # 1. S_z, exact, at the start, middle and end of the period (until it has settled).
-        if self._s_z_settled:
-            s_z_end = self.s_z
-            m0 = m_mid = m_end = self._closed_now
-            gain0 = gain_mid = gain_end = self._gain_now
-        else:
-            s_z_mid = self._sz_half_map.T @ self.s_z @ self._sz_half_map + self._sz_half_input
-            s_z_end = self._sz_half_map.T @ s_z_mid @ self._sz_half_map + self._sz_half_input
-            gain0, gain_mid, gain_end = self._gain_now, self._gain(s_z_mid), self._gain(s_z_end)
-            m0, m_mid, m_end = self._closed_now, self._closed(gain_mid), self._closed(gain_end)
-
-        # 2. X = [xi | Lambda], one RK4 step of X' = (A - L C) X + [phi(u) + L y, psi(y)].
-        y0 = self._y_prev
-        dy = y_now - y0
-        phi = model.input_vector(actuator_force, self.pantograph)
-        x = np.empty((4, 4))
-        x[:, 0] = self.xi
-        x[:, 1:] = self.lam
-        omega, panto = self.omega, self.pantograph
-
-        # S_z is known exactly at the stage times of RK4 (start, middle, end of the period).
-        stage_gains = {0: (m0, gain0), 1: (m_mid, gain_mid), 2: (m_end, gain_end)}
-
-        def f(t: float, xx: np.ndarray) -> np.ndarray:
-            frac = (t - t0) / dt
-            closed, gain = stage_gains[round(2.0 * frac)]
-            y_s = y0 + frac * dy
-            out = closed @ xx
-            out[:, 0] += phi + gain @ y_s
-            out[2, 1:] += model.output_regressor_row(y_s[0], t, omega, panto)
-            return out
-
-        x = rk4_step(f, t0, x, dt)
-        if not np.isfinite(x).all():
-            raise ObserverDivergedError(tick, "xi or Lambda is not finite")
-        xi, lam = x[:, 0], x[:, 1:]
-
-        # 3. RLS: implicit Euler of the theta_hat / S_theta equations.
-        phi_reg = lam[:2, :]  # Phi = C Lambda (2x3)
-        weighted = phi_reg.T @ self._sigma  # Phi^T Sigma (3x2)
-        s_theta = self._theta_forgetting * self.s_theta + dt * (weighted @ phi_reg) + self._floor_input
-        innovation = y_now - xi[:2] - phi_reg @ self.theta_hat  # a priori, y - C z_hat
-        try:
-            np.linalg.cholesky(s_theta)  # positive definiteness check (raises otherwise)
-            step = np.linalg.solve(s_theta, dt * (weighted @ innovation))
-        except np.linalg.LinAlgError as exc:
-            raise ObserverDivergedError(tick, f"S_theta not positive definite ({exc})") from None
-        theta_hat = self.theta_hat + step
-        if not np.isfinite(theta_hat).all():
-            raise ObserverDivergedError(tick, "theta_hat is not finite")
-
-        # Commit.
-        if not self._s_z_settled:
-            settled = np.max(np.abs(s_z_end - self.s_z)) <= 1e-13 * np.max(np.abs(s_z_end))
-            self.s_z, self._gain_now, self._closed_now, self._s_z_settled = s_z_end, gain_end, m_end, settled
-        self.xi, self.lam, self.s_theta, self.theta_hat = xi, lam, s_theta, theta_hat
-        self.tick = tick
-        self._y_prev = y_now
-        return innovation
 
     def _estimate(self, y_now: np.ndarray, innovation: np.ndarray) -> Estimate:
         t = self.tick * self.sample_period

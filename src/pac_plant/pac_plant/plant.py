@@ -6,6 +6,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from pac_common.integrate import rk4_integrate
 from pac_model import model
@@ -43,6 +44,48 @@ class Truth:
     support_uplift: float = math.nan
     #: Distance of the contact point along the line [m] (FE line only).
     contact_position: float = math.nan
+
+
+@njit(cache=True)
+def plant_rhs(
+    t: float,
+    z: np.ndarray,
+    u: float,
+    a: np.ndarray,
+    theta: np.ndarray,
+    omega: float,
+    m1: float,
+    m2: float,
+    unilateral: bool,
+) -> np.ndarray:
+    """f(t, z) with the actuator force u held: eq. (5), k(t) of eq. (7)/(8), F of eq. (6)."""
+    k = model.stiffness(t, omega, theta)
+    force = model.contact_force(k, z[0], unilateral)
+    return model.pantograph_rhs(z, u, force, a, m1, m2)
+
+
+@njit(cache=True)
+def plant_advance(
+    z: np.ndarray,
+    t0: float,
+    period: float,
+    substeps: int,
+    u: float,
+    a: np.ndarray,
+    theta: np.ndarray,
+    omega: float,
+    m1: float,
+    m2: float,
+    unilateral: bool,
+) -> np.ndarray:
+    """z at t0 + period from z at t0, u held (ZOH): ``substeps`` RK4 steps of :func:`plant_rhs`."""
+    return rk4_integrate(plant_rhs, t0, z, period, substeps, (u, a, theta, omega, m1, m2, unilateral))
+
+
+@njit(cache=True)
+def quantise(x: float, q: float) -> float:
+    """x rounded to the sensor resolution q (q = 0: unchanged)."""
+    return q * round(x / q) if q > 0.0 else x
 
 
 class Plant:
@@ -93,9 +136,9 @@ class Plant:
 
     def derivative(self, t: float, z: np.ndarray, u: float) -> np.ndarray:
         """f(t, z) with the actuator force u held: eq. (5) (or its unilateral variant)."""
-        k = model.stiffness(t, self._omega, self._theta)
-        force = model.contact_force(k, z[0], self._unilateral)
-        return model.dynamics(z, u, force, self._a, self.pantograph)
+        p = self.pantograph
+        z = np.asarray(z, dtype=np.float64)
+        return plant_rhs(t, z, float(u), self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
 
     def measurement(self) -> Measurement:
         """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
@@ -104,8 +147,7 @@ class Plant:
             n1, n2 = self._noise(self.tick)
             z1, z2 = z1 + n1, z2 + n2
         q = self.options.quantisation
-        if q > 0.0:
-            z1, z2 = q * round(z1 / q), q * round(z2 / q)
+        z1, z2 = quantise(z1, q), quantise(z2, q)
         return Measurement(self.tick, self.time, z1, z2, self.u_applied)
 
     _NOISE_BLOCK = 4096
@@ -138,9 +180,19 @@ class Plant:
         """Apply ``u`` [N] over [t_k, t_{k+1}] and move to tick k + 1."""
         if not math.isfinite(u):
             raise ValueError(f"actuator force must be finite, got {u!r}")
-        t0 = self.time
-        self.z = rk4_integrate(
-            lambda t, z: self.derivative(t, z, u), t0, self.z, self.sample_period, self.options.substeps
+        p = self.pantograph
+        self.z = plant_advance(
+            self.z,
+            self.time,
+            self.sample_period,
+            self.options.substeps,
+            float(u),
+            self._a,
+            self._theta,
+            self._omega,
+            p.m1,
+            p.m2,
+            self._unilateral,
         )
         self.tick += 1
         self.u_applied = float(u)
