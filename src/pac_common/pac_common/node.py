@@ -24,6 +24,7 @@ from .parameters import (
     ParameterSet,
     ParameterSpec,
     RunEndOptions,
+    SchedulingOptions,
     UnknownParameterError,
 )
 
@@ -177,8 +178,9 @@ class PacNode(Node):
         self.factory = messages.RclpyFactory()
         options = self._sets.get(NodeOptions)
         self.node_options: NodeOptions | None = options  # type: ignore[assignment]
-        if options is not None:
-            set_realtime_priority(self, options.realtime_priority)
+        scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
+        if scheduling:
+            set_realtime_priority(self, scheduling[0].realtime_priority)
 
     def _unknown_hint(self) -> str:
         return f"a parameter of {self.get_name()} (`ros2 run <pkg> {self.get_name()} --help` lists them)"
@@ -290,16 +292,35 @@ class PacNode(Node):
         self.wait_for_acknowledgements()
 
 
+def process_threads() -> list[int]:
+    """Thread ids of this process (Linux); ``[0]`` (the calling thread) where /proc is missing."""
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
+
+
 def set_realtime_priority(node: Node, priority: int) -> bool:
-    """SCHED_FIFO at ``priority`` for this process; warn and carry on when it is refused."""
+    """SCHED_FIFO at ``priority`` for every thread of this process; one warning line if refused.
+
+    Every thread, not only the caller: the node is created first, so Fast DDS's receive and
+    event threads already exist, and a sample reaches the executor through them (threads
+    started later, e.g. the recorder's writer, inherit the policy).
+    """
     if priority <= 0:
         return False
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        for tid in process_threads():
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
     except (PermissionError, OSError) as exc:
+        for tid in process_threads():  # all or nothing: no half real-time process
+            try:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            except OSError:
+                pass
         node.get_logger().warning(f"realtime_priority {priority} refused ({exc}): normal scheduling")
         return False
-    node.get_logger().info(f"running with SCHED_FIFO priority {priority}")
+    node.get_logger().info(f"running with SCHED_FIFO priority {priority} ({len(process_threads())} threads)")
     return True
 
 

@@ -72,13 +72,15 @@ class ControllerNode(PacNode):
         EstimateLimits,
     ]
     FROZEN_REASON = "fixed for a run (model, speed, rate): restart the node to change it"
+    #: The core; ``controller_relay`` swaps in one that does no work (the floor of ``make bench``).
+    CORE: type[BacksteppingController] = BacksteppingController
 
     def __init__(self) -> None:
         super().__init__("controller_node")
         self.limits = self.parameters(EstimateLimits)
         self.loop = self.parameters(RateParameters)
         self.pantograph, self.track = self.parameters(PantographParameters), self.parameters(TrackParameters)
-        self.core = BacksteppingController(
+        self.core = self.CORE(
             self.pantograph,
             self.track,
             self.parameters(ControllerParameters),
@@ -109,9 +111,7 @@ class ControllerNode(PacNode):
         reference = changed.get(ReferenceParameters, self.core.reference.params)
         self.limits = changed.get(EstimateLimits, self.limits)
         state = (self.core.last_u, self.core.last_tick)
-        self.core = BacksteppingController(
-            self.pantograph, self.track, params, reference, self.loop.sample_period
-        )
+        self.core = self.CORE(self.pantograph, self.track, params, reference, self.loop.sample_period)
         self.core.last_u, self.core.last_tick = state  # the actuator does not jump on a retune
         self.get_logger().info(
             f"parameters changed: mode {params.mode}, c = ({params.c1:g}, {params.c2:g}, "

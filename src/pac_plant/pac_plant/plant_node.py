@@ -76,12 +76,14 @@ class PlantNode(PacNode):
         PlantNodeOptions,
     ]
     FROZEN_REASON = "the plant's model and timing are fixed for a run: restart the node to change it"
+    #: The core; ``plant_relay`` swaps in one that does no work (the floor of ``make bench``).
+    CORE: type[Plant] = Plant
 
     def __init__(self) -> None:
         super().__init__("plant_node")
         loop = self.loop = self.parameters(LoopParameters)
         self.options = self.parameters(PlantNodeOptions)
-        self.plant = Plant(
+        self.plant = self.CORE(
             self.parameters(PantographParameters),
             self.parameters(TrackParameters),
             self.parameters(CatenaryParameters),

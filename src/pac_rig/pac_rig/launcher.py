@@ -24,6 +24,18 @@ NODES = {
     "controller": ("pac_controller", "controller_node"),
     "plant": ("pac_plant", "plant_node"),
 }
+#: The floor of ``make bench``: the same nodes with cores that do no work (``relay=True``).
+RELAY_NODES = {
+    "recorder": ("pac_rig", "recorder"),
+    "observer": ("pac_observer", "observer_relay"),
+    "controller": ("pac_controller", "controller_relay"),
+    "plant": ("pac_plant", "plant_relay"),
+}
+#: SCHED_FIFO priorities the rig asks for by default: the loop above the recorder (a starved
+#: recorder catches up from the publishers' reliable history; a starved loop misses its ticks),
+#: both above every normal process. Refused (no root or CAP_SYS_NICE): one warning line per
+#: node, which then runs with normal scheduling. ``priorities={}`` asks for nothing.
+REALTIME_PRIORITIES = {"plant": 60, "observer": 60, "controller": 60, "recorder": 50}
 
 
 def ros_args(params: dict[str, Any]) -> list[str]:
@@ -99,12 +111,21 @@ class Rig:
         domain_id: int | None = None,
         log_dir: Path | str | None = None,
         record: bool = True,
+        relay: bool = False,
+        priorities: dict[str, int] | None = None,
+        prefix: str | None = None,
     ) -> None:
+        """``relay``: the floor rig (cores that do no work); ``priorities``: SCHED_FIFO priority per
+        node (default :data:`REALTIME_PRIORITIES`; ``params`` override it); ``prefix``: a command
+        that wraps every node (``ros2 run --prefix``, e.g. ``setpriv --bounding-set=-sys_nice``)."""
         self.bag_path = Path(bag_path)
         self.duration = duration
         self.domain_id = domain_id
         self.log_dir = Path(log_dir) if log_dir else self.bag_path.parent / f"{self.bag_path.name}_logs"
         self.record = record
+        self.executables = RELAY_NODES if relay else NODES
+        self.prefix = prefix
+        priorities = REALTIME_PRIORITIES if priorities is None else priorities
         shared = {"wait_for_recorder": record, **(params or {}).get("all", {})}
 
         def common(name: str) -> dict[str, Any]:
@@ -130,6 +151,9 @@ class Rig:
             "controller": {**common("controller"), "stop_after_run": True},
             "plant": {**common("plant"), "timing_mode": timing_mode, "duration": duration},
         }
+        for name, priority in priorities.items():
+            if "realtime_priority" not in shared:
+                self.params[name]["realtime_priority"] = priority
         if timing_mode == "lockstep":
             # The plant waits for every command: a wall-clock watchdog has nothing to guard
             # and would perturb an exact run when a sample is re-sent.
@@ -141,12 +165,13 @@ class Rig:
 
     def start_node(self, name: str, life: int = 1) -> Process:
         """Start one node; ``life`` > 1 names the log of a restart (name.2.log, ...)."""
-        pkg, exe = NODES[name]
+        pkg, exe = self.executables[name]
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / (f"{name}.log" if life == 1 else f"{name}.{life}.log")
+        prefix = ["--prefix", self.prefix] if self.prefix else []
         with open(log_path, "wb") as log:
             popen = subprocess.Popen(
-                ["ros2", "run", pkg, exe, *ros_args(self.params[name])],
+                ["ros2", "run", *prefix, pkg, exe, *ros_args(self.params[name])],
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
