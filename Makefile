@@ -7,7 +7,7 @@ ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
 
-.PHONY: setup test lint clean demo reproduce bench report info replay re-estimate recover sweep
+.PHONY: setup test lint clean demo reproduce bench soak report info replay re-estimate recover sweep
 
 setup:
 	bash scripts/setup.sh
@@ -32,6 +32,10 @@ reproduce: setup
 
 bench: setup
 	scripts/with_env.sh ros2 run pac_experiments bench $(ARGS)
+
+# The real-time rig for 10 min (ARGS="--minutes 3" shortens it): RSS, CPU, every tick, sigma per minute.
+soak: setup
+	scripts/with_env.sh ros2 run pac_experiments soak $(ARGS)
 
 report: setup
 	@if [ -z "$(BAG)" ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi

@@ -9,11 +9,15 @@ asserted: the machine is shared and noisy.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import platform
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from datetime import datetime
 from pathlib import Path
 
@@ -24,17 +28,29 @@ from pac_rig.launcher import Rig
 from pac_rig.simulate import simulate_to_bag
 
 
-def live_run(mode: str, seconds: float, workdir: Path, priority: int) -> tuple:
+def live_run(
+    mode: str,
+    seconds: float,
+    workdir: Path,
+    priority: int | None,
+    *,
+    relay: bool = False,
+    label: str | None = None,
+) -> tuple:
+    """One live rig (``relay``: the floor); ``priority`` None: the launcher's default priorities,
+    0: normal scheduling, else SCHED_FIFO ``priority`` on the loop nodes (the recorder at normal)."""
     import domain_coordinator
 
-    bag_path = workdir / mode
+    bag_path = workdir / (label or mode)
     with domain_coordinator.domain_id() as domain_id:
         rig = Rig(
             bag_path,
             duration=seconds,
             timing_mode=mode,
             domain_id=domain_id,
-            params={"all": {"realtime_priority": priority}},
+            params={} if priority is None else {"all": {"realtime_priority": priority}},
+            relay=relay,
+            priorities=None if priority is None else {},
         )
         try:
             rig.start()
@@ -49,7 +65,48 @@ def live_run(mode: str, seconds: float, workdir: Path, priority: int) -> tuple:
         for n, p in rig.processes.items()
         if p.cpu_seconds is not None and p.wall_seconds
     }
-    return loop_timing(bag), cpu, compute_metrics(bag, min(3.0, seconds / 2))
+    # The floor's physics is meaningless (no plant): only its timing is read.
+    quality = None if relay else compute_metrics(bag, min(3.0, seconds / 2))
+    return loop_timing(bag), cpu, quality
+
+
+@contextlib.contextmanager
+def busy_loops(n: int) -> Iterator[list[subprocess.Popen]]:
+    """``n`` processes spinning at normal priority (the load), killed by PID on exit."""
+    procs = [
+        subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL)
+        for _ in range(n)
+    ]
+    try:
+        yield procs
+    finally:
+        for proc in procs:
+            proc.kill()
+            proc.wait()
+
+
+#: The measures whose pac/floor ratio the floor table prints (higher is worse for all but steps/s).
+FLOOR_RATIOS = (
+    ("steps_per_second", "steps/s"),
+    ("period_p99_ms", "period p99"),
+    ("latency_p50_ms", "y -> u latency p50"),
+    ("latency_p99_ms", "y -> u latency p99"),
+)
+
+
+def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
+    """pac / floor for each (pac column, floor column) measured in the same bench run."""
+    lines = [
+        "| pac / floor | " + " | ".join(p for p, _ in pairs) + " |",
+        "|---|" + "---:|" * len(pairs),
+    ]
+    for key, label in FLOOR_RATIOS:
+        cells = [getattr(runs[p], key) / getattr(runs[f], key) for p, f in pairs]
+        lines.append(f"| {label} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+    for node in ("plant", "observer", "controller", "recorder"):
+        cells = [cpus[p].get(node, math.nan) / cpus[f].get(node, math.nan) for p, f in pairs]
+        lines.append(f"| CPU {node} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def offline_speed(with_bag: bool, workdir: Path) -> float:
@@ -68,15 +125,42 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--realtime-seconds", type=float, default=30.0)
     parser.add_argument("--lockstep-seconds", type=float, default=10.0)
     parser.add_argument(
-        "--realtime-priority", type=int, default=0, help="SCHED_FIFO priority for the loop nodes (0: off)"
+        "--realtime-priority",
+        type=int,
+        default=None,
+        help="SCHED_FIFO priority for the loop nodes, recorder at normal (0: all normal; "
+        "default: the launcher's, loop 60 above recorder 50)",
+    )
+    parser.add_argument(
+        "--load", type=int, default=0, help="also run the real-time pac and floor rigs under N busy loops"
     )
     args = parser.parse_args(argv)
+    if args.load < 0:
+        print(f"bench: invalid --load {args.load}: allowed an integer >= 0", file=sys.stderr)
+        return 2
     workdir = Path(tempfile.mkdtemp(prefix="pac_bench_"))
     try:
         runs, cpus, quality = {}, {}, {}
-        for mode, seconds in (("realtime", args.realtime_seconds), ("lockstep", args.lockstep_seconds)):
-            print(f"bench: {mode} rig, {seconds:g} s ...", flush=True)
-            runs[mode], cpus[mode], quality[mode] = live_run(mode, seconds, workdir, args.realtime_priority)
+        plan = [
+            ("realtime", "realtime", args.realtime_seconds, False, 0),
+            ("realtime floor", "realtime", args.realtime_seconds, True, 0),
+        ]
+        if args.load:
+            plan += [
+                (f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load),
+                (f"floor load {args.load}", "realtime", args.realtime_seconds, True, args.load),
+            ]
+        plan += [
+            ("lockstep", "lockstep", args.lockstep_seconds, False, 0),
+            ("lockstep floor", "lockstep", args.lockstep_seconds, True, 0),
+        ]
+        pairs = [(plan[i][0], plan[i + 1][0]) for i in range(0, len(plan), 2)]  # (pac, its floor)
+        for name, mode, seconds, relay, load in plan:
+            print(f"bench: {name} rig, {seconds:g} s ...", flush=True)
+            with busy_loops(load):
+                runs[name], cpus[name], quality[name] = live_run(
+                    mode, seconds, workdir, args.realtime_priority, relay=relay, label=name.replace(" ", "_")
+                )
         print("bench: offline simulator ...", flush=True)
         speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
     finally:
@@ -84,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"\n## pac bench, {datetime.now():%Y-%m-%d %H:%M}, {platform.node()}, "
         f"{platform.machine()}, {__import__('os').cpu_count()} cores, realtime_priority "
-        f"{args.realtime_priority}\n"
+        f"{'launcher default' if args.realtime_priority is None else args.realtime_priority}\n"
     )
     print(timing_table(runs), end="")
     names = list(runs)
@@ -95,8 +179,12 @@ def main(argv: list[str] | None = None) -> int:
             + " |"
         )
     print(
-        "| contact-force std [N] | " + " | ".join(f"{quality[n].contact_force_std:.3g}" for n in names) + " |"
+        "| contact-force std [N] | "
+        + " | ".join(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names)
+        + " |"
     )
+    print("\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n")
+    print(floor_table(runs, cpus, pairs), end="")
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
         f"{speed_bag:.1f}x with bag writing"
