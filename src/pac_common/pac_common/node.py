@@ -440,10 +440,21 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
     parameter value or ``ROS_DOMAIN_ID`` is one line on stderr and exit status 2.
     ``EventsExecutor.spin()`` busy-loops in these rclpy wheels; a ``spin_once`` loop does not.
     """
+    return run_nodes(program, [node_class], args)
+
+
+def run_nodes(program: str, node_classes: Sequence[type[PacNode]], args: list[str] | None = None) -> int:
+    """:func:`run_node` for several nodes in one process and one executor (a component container).
+
+    The process runs until every node is ``finished`` (or a signal); each node is then closed
+    in order; the status is the first non-zero one.  Parameters reach each node by name
+    (``--params-file`` with one section per node): a global ``-p`` would reach all of them,
+    and each refuses the names it does not declare.
+    """
     argv = list(sys.argv if args is None else args)[1:]
     outside = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv
     if "--help" in outside or "-h" in outside:
-        print(node_help(program, node_class))
+        print("\n\n".join(node_help(program, cls) for cls in node_classes))
         return 0
     try:
         check_domain_id()
@@ -457,18 +468,21 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"{program}: cannot start: {first}", file=sys.stderr)
         return 2
-    node = None
+    nodes: list[PacNode] = []
     executor = None
     status = 0
     try:
         try:
-            node = node_class()
+            for cls in node_classes:
+                nodes.append(cls())
         except ParameterError as exc:
             print(f"{program}: {exc}", file=sys.stderr)
+            status = 2
             return 2
         executor = make_executor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.finished:
+        for node in nodes:
+            executor.add_node(node)
+        while rclpy.ok() and not all(node.finished for node in nodes):
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -482,9 +496,10 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
             print(f"{program}: fatal: {exc!r}", file=sys.stderr)
             status = 1
     finally:
-        if node is not None:
-            node.close()  # the node's own results (bag, counters) are final from here on
-            status = status or node.exit_status
+        if nodes and status != 2:
+            for node in nodes:
+                node.close()  # the node's own results (bag, counters) are final from here on
+                status = status or node.exit_status
             # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
             # stops; everything that matters is done, so a stuck teardown ends the process.
             final = status
@@ -493,6 +508,7 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
             guard.start()
             if executor is not None:
                 executor.shutdown(timeout_sec=1.0)
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
     return status

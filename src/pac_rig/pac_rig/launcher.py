@@ -114,10 +114,14 @@ class Rig:
         relay: bool = False,
         priorities: dict[str, int] | None = None,
         prefix: str | None = None,
+        composed: bool = False,
     ) -> None:
         """``relay``: the floor rig (cores that do no work); ``priorities``: SCHED_FIFO priority per
         node (default :data:`REALTIME_PRIORITIES`; ``params`` override it); ``prefix``: a command
-        that wraps every node (``ros2 run --prefix``, e.g. ``setpriv --bounding-set=-sys_nice``)."""
+        that wraps every node (``ros2 run --prefix``, e.g. ``setpriv --bounding-set=-sys_nice``);
+        ``composed``: the three loop nodes in one process ``loop`` (``ros2 run pac_rig composed``)."""
+        self.composed = composed
+        self.relay = relay
         self.bag_path = Path(bag_path)
         self.duration = duration
         self.domain_id = domain_id
@@ -163,15 +167,41 @@ class Rig:
                 self.params[name].update(extra)
         self.processes: dict[str, Process] = {}
 
+    LOOP_NODES = ("observer", "controller", "plant")
+
+    def composed_command(self) -> list[str]:
+        """``composed`` with a params file holding one section per node (by node name)."""
+        import yaml
+
+        def values(name: str) -> dict[str, Any]:
+            return {k: list(v) if isinstance(v, tuple) else v for k, v in self.params[name].items()}
+
+        # The node name is the real node's executable name (the relays keep it).
+        sections = {NODES[name][1]: {"ros__parameters": values(name)} for name in self.LOOP_NODES}
+        path = self.log_dir / "composed_params.yaml"
+        path.write_text(yaml.safe_dump(sections))
+        return [
+            "pac_rig",
+            "composed",
+            *(["--relay"] if self.relay else []),
+            "--ros-args",
+            "--params-file",
+            str(path),
+        ]
+
     def start_node(self, name: str, life: int = 1) -> Process:
-        """Start one node; ``life`` > 1 names the log of a restart (name.2.log, ...)."""
-        pkg, exe = self.executables[name]
+        """Start one node (``loop``: the composed loop); ``life`` > 1 names the log of a restart."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / (f"{name}.log" if life == 1 else f"{name}.{life}.log")
         prefix = ["--prefix", self.prefix] if self.prefix else []
+        if name == "loop":
+            command = self.composed_command()
+        else:
+            pkg, exe = self.executables[name]
+            command = [pkg, exe, *ros_args(self.params[name])]
         with open(log_path, "wb") as log:
             popen = subprocess.Popen(
-                ["ros2", "run", *prefix, pkg, exe, *ros_args(self.params[name])],
+                ["ros2", "run", *prefix, *command],
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
@@ -181,11 +211,9 @@ class Rig:
         return proc
 
     def start(self) -> Rig:
-        names = (
-            ["recorder", "observer", "controller", "plant"]
-            if self.record
-            else ["observer", "controller", "plant"]
-        )
+        names = ["loop"] if self.composed else list(self.LOOP_NODES)
+        if self.record:
+            names.insert(0, "recorder")
         for name in names:
             self.start_node(name)
         return self
@@ -193,7 +221,7 @@ class Rig:
     def wait_finished(self, timeout: float) -> None:
         """Wait for the run to end by itself (every node stops after the plant's last tick)."""
         deadline = time.monotonic() + timeout
-        for name in ("plant", "recorder", "observer", "controller"):
+        for name in ("plant", "loop", "recorder", "observer", "controller"):
             proc = self.processes.get(name)
             if proc is not None:
                 proc.wait(max(0.0, deadline - time.monotonic()))
