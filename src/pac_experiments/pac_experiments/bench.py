@@ -35,6 +35,7 @@ def live_run(
     priority: int | None,
     *,
     relay: bool = False,
+    composed: bool = False,
     label: str | None = None,
 ) -> tuple:
     """One live rig (``relay``: the floor); ``priority`` None: the launcher's default priorities,
@@ -50,6 +51,7 @@ def live_run(
             domain_id=domain_id,
             params={} if priority is None else {"all": {"realtime_priority": priority}},
             relay=relay,
+            composed=composed,
             priorities=None if priority is None else {},
         )
         try:
@@ -103,7 +105,7 @@ def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
     for key, label in FLOOR_RATIOS:
         cells = [getattr(runs[p], key) / getattr(runs[f], key) for p, f in pairs]
         lines.append(f"| {label} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
-    for node in ("plant", "observer", "controller", "recorder"):
+    for node in ("plant", "observer", "controller", "loop", "recorder"):
         cells = [cpus[p].get(node, math.nan) / cpus[f].get(node, math.nan) for p, f in pairs]
         lines.append(f"| CPU {node} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
     return "\n".join(lines) + "\n"
@@ -134,6 +136,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--load", type=int, default=0, help="also run the real-time pac and floor rigs under N busy loops"
     )
+    parser.add_argument(
+        "--composed",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also run the loop composed in one process (ros2 run pac_rig composed), pac and floor",
+    )
     args = parser.parse_args(argv)
     if args.load < 0:
         print(f"bench: invalid --load {args.load}: allowed an integer >= 0", file=sys.stderr)
@@ -141,26 +149,30 @@ def main(argv: list[str] | None = None) -> int:
     workdir = Path(tempfile.mkdtemp(prefix="pac_bench_"))
     try:
         runs, cpus, quality = {}, {}, {}
-        plan = [
-            ("realtime", "realtime", args.realtime_seconds, False, 0),
-            ("realtime floor", "realtime", args.realtime_seconds, True, 0),
-        ]
+        # (column, timing mode, seconds, composed, busy loops): each is run as pac, then as its floor.
+        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)]
         if args.load:
+            plan.append((f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load))
+        plan.append(("lockstep", "lockstep", args.lockstep_seconds, False, 0))
+        if args.composed:
             plan += [
-                (f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load),
-                (f"floor load {args.load}", "realtime", args.realtime_seconds, True, args.load),
+                ("composed realtime", "realtime", args.realtime_seconds, True, 0),
+                ("composed lockstep", "lockstep", args.lockstep_seconds, True, 0),
             ]
-        plan += [
-            ("lockstep", "lockstep", args.lockstep_seconds, False, 0),
-            ("lockstep floor", "lockstep", args.lockstep_seconds, True, 0),
-        ]
-        pairs = [(plan[i][0], plan[i + 1][0]) for i in range(0, len(plan), 2)]  # (pac, its floor)
-        for name, mode, seconds, relay, load in plan:
-            print(f"bench: {name} rig, {seconds:g} s ...", flush=True)
-            with busy_loops(load):
-                runs[name], cpus[name], quality[name] = live_run(
-                    mode, seconds, workdir, args.realtime_priority, relay=relay, label=name.replace(" ", "_")
-                )
+        pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
+        for name, mode, seconds, composed, load in plan:
+            for relay, column in ((False, name), (True, f"{name} floor")):
+                print(f"bench: {column} rig, {seconds:g} s ...", flush=True)
+                with busy_loops(load):
+                    runs[column], cpus[column], quality[column] = live_run(
+                        mode,
+                        seconds,
+                        workdir,
+                        args.realtime_priority,
+                        relay=relay,
+                        composed=composed,
+                        label=column.replace(" ", "_"),
+                    )
         print("bench: offline simulator ...", flush=True)
         speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
     finally:
@@ -172,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(timing_table(runs), end="")
     names = list(runs)
-    for node in ("plant", "observer", "controller", "recorder"):
+    for node in ("plant", "observer", "controller", "loop", "recorder"):
         print(
             f"| CPU {node} [%] | "
             + " | ".join(f"{cpus[n].get(node, float('nan')):.0f}" for n in names)

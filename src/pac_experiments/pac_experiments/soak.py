@@ -10,6 +10,7 @@ and its figures are measured, never asserted.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 import tempfile
 import time
@@ -103,13 +104,27 @@ def main(argv: list[str] | None = None) -> int:
         cpu = 100.0 * proc.cpu_seconds / proc.wall_seconds if proc.cpu_seconds is not None else float("nan")
         print(f"| {name} | {start:.1f} | {end:.1f} | {end - start:+.1f} | {cpu:.0f} |")
     print(f"\nticks in the run: {timing.ticks}")
-    for topic, lost in timing.messages_lost.items():
-        print(f"ticks without {topic} in the bag: {lost}")
+    for topic in ("measurement", "plant_truth"):
+        print(f"ticks without {topic} in the bag: {timing.messages_lost[topic]}")
+    # Real time: a node that falls behind skips to the newest sample; what it published is all
+    # in the bag (the skipped ticks were never answered, they are not recording losses).
+    for name, topic, pattern in (
+        ("observer", "estimate", r"processed (\d+) measurements"),
+        ("controller", "command", r"sent (\d+) commands"),
+    ):
+        match = re.search(pattern, rig.processes[name].log())
+        published = int(match.group(1)) if match else -1
+        in_bag = int(np.unique(bag.topics[topic]["tick"]).size)
+        print(
+            f"{topic}: {published} published by the {name}, {in_bag} ticks in the bag "
+            f"({timing.messages_lost[topic]} ticks skipped under load, never published)"
+        )
     print(
         f"periods <= 1.5 ms: {timing.periods_under_1_5_ms_percent:.2f} %, y -> u latency p50 / p99: "
         f"{timing.latency_p50_ms:.2f} / {timing.latency_p99_ms:.2f} ms, u applied one tick after y: "
         f"{timing.commands_on_time_percent:.1f} %\n"
     )
+    print("Contact force per minute of simulated time (minute 1 holds the start: F_r filtered from 0)\n")
     print("| minute | mean contact force [N] | sigma [N] |")
     print("|---:|---:|---:|")
     for minute, mean, std in sigma_per_minute(bag, LoopParameters().rate_hz):
