@@ -82,6 +82,10 @@ def test_floor_lockstep_answers_every_tick(rigs):
     bag = read_bag(rig.bag_path)
     for topic in ("measurement", "plant_truth", "estimate", "command"):
         np.testing.assert_array_equal(ticks_of(bag, topic), np.arange(1000), err_msg=topic)
+    # Lock step runs flat out: the launcher asks for no real-time priority (it would starve the recorder).
+    for name, proc in rig.processes.items():
+        log = proc.log()
+        assert "SCHED_FIFO" not in log and not re.search(r"realtime_priority \d+ refused", log), name
 
 
 @pytest.mark.skipif(shutil.which("setpriv") is None, reason="needs setpriv (util-linux)")

@@ -96,6 +96,11 @@ FLOOR_RATIOS = (
 )
 
 
+def number(value: float, fmt: str) -> str:
+    """A table cell; "-" where the column has no such process (composed: one ``loop``)."""
+    return "-" if math.isnan(value) else fmt.format(value)
+
+
 def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
     """pac / floor for each (pac column, floor column) measured in the same bench run."""
     lines = [
@@ -107,7 +112,7 @@ def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
         lines.append(f"| {label} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
     for node in ("plant", "observer", "controller", "loop", "recorder"):
         cells = [cpus[p].get(node, math.nan) / cpus[f].get(node, math.nan) for p, f in pairs]
-        lines.append(f"| CPU {node} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+        lines.append(f"| CPU {node} | " + " | ".join(number(c, "{:.2f}") for c in cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -187,7 +192,7 @@ def main(argv: list[str] | None = None) -> int:
     for node in ("plant", "observer", "controller", "loop", "recorder"):
         print(
             f"| CPU {node} [%] | "
-            + " | ".join(f"{cpus[n].get(node, float('nan')):.0f}" for n in names)
+            + " | ".join(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)
             + " |"
         )
     print(

@@ -34,7 +34,8 @@ RELAY_NODES = {
 #: SCHED_FIFO priorities the rig asks for by default: the loop above the recorder (a starved
 #: recorder catches up from the publishers' reliable history; a starved loop misses its ticks),
 #: both above every normal process. Refused (no root or CAP_SYS_NICE): one warning line per
-#: node, which then runs with normal scheduling. ``priorities={}`` asks for nothing.
+#: node, which then runs with normal scheduling. ``priorities={}`` asks for nothing; lock step
+#: (a simulation, no deadlines) asks for nothing by default.
 REALTIME_PRIORITIES = {"plant": 60, "observer": 60, "controller": 60, "recorder": 50}
 
 
@@ -117,8 +118,9 @@ class Rig:
         composed: bool = False,
     ) -> None:
         """``relay``: the floor rig (cores that do no work); ``priorities``: SCHED_FIFO priority per
-        node (default :data:`REALTIME_PRIORITIES`; ``params`` override it); ``prefix``: a command
-        that wraps every node (``ros2 run --prefix``, e.g. ``setpriv --bounding-set=-sys_nice``);
+        node (default: :data:`REALTIME_PRIORITIES` in real time, none in lock step; ``params``
+        override it); ``prefix``: a command that wraps every node (``ros2 run --prefix``, e.g.
+        ``setpriv --bounding-set=-sys_nice``);
         ``composed``: the three loop nodes in one process ``loop`` (``ros2 run pac_rig composed``)."""
         self.composed = composed
         self.relay = relay
@@ -129,7 +131,11 @@ class Rig:
         self.record = record
         self.executables = RELAY_NODES if relay else NODES
         self.prefix = prefix
-        priorities = REALTIME_PRIORITIES if priorities is None else priorities
+        if priorities is None:
+            # Lock step is a simulation that runs flat out: at SCHED_FIFO it would starve the
+            # recorder (seen: two lock-step rigs at once lost the last third of a bag) and has no
+            # deadline to meet anyway.
+            priorities = REALTIME_PRIORITIES if timing_mode == "realtime" else {}
         shared = {"wait_for_recorder": record, **(params or {}).get("all", {})}
 
         def common(name: str) -> dict[str, Any]:
