@@ -5,7 +5,7 @@ nodes) in one process with one executor, as a ROS 2 component container does: th
 nodes, topics, QoS and messages, delivered by Fast DDS within one participant, with no
 process switch between plant, observer and controller.  Parameters go to each node by name
 (one ``<node>:`` section per node in the params file); the process ends when every node has
-(the plant's run and, with ``stop_after_run``, the followers).
+finished (the plant its run; the observer and controller, with ``stop_after_run``, its last tick).
 """
 
 from __future__ import annotations
@@ -27,6 +27,8 @@ def main(args: list[str] | None = None) -> int:
     relay = "--relay" in argv[1:end]
     if relay:
         argv.remove("--relay")
+    if "--help" in argv[1:end] or "-h" in argv[1:end]:
+        print((__doc__ or "").strip() + "\n\nThe nodes and their parameters:\n")
     classes = (
         [ObserverRelay, ControllerRelay, PlantRelay] if relay else [ObserverNode, ControllerNode, PlantNode]
     )
