@@ -9,7 +9,7 @@ BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs (laws_speeds needs the `law` parameter).
 CAMPAIGNS ?= robustness modes_speeds
 
-.PHONY: setup test lint clean demo reproduce catenary bench report info replay re-estimate recover sweep campaigns
+.PHONY: setup test lint clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -37,6 +37,10 @@ catenary: setup
 
 bench: setup
 	scripts/with_env.sh ros2 run pac_experiments bench $(ARGS)
+
+# The real-time rig for 10 min (ARGS="--minutes 3" shortens it): RSS, CPU, every tick, sigma per minute.
+soak: setup
+	scripts/with_env.sh ros2 run pac_experiments soak $(ARGS)
 
 report: setup
 	@if [ -z "$(BAG)" ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi

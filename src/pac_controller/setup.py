@@ -25,6 +25,7 @@ setup(
     entry_points={
         "console_scripts": [
             "controller_node = pac_controller.controller_node:main",
+            "controller_relay = pac_controller.relay:main",
         ],
     },
 )

@@ -21,6 +21,7 @@ setup(
         "console_scripts": [
             "demo = pac_experiments.demo:main",
             "bench = pac_experiments.bench:main",
+            "soak = pac_experiments.soak:main",
             "sweep = pac_experiments.sweep:main",
             "reproduce = pac_experiments.reproduce:main",
             "campaign = pac_experiments.campaign:main",

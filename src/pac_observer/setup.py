@@ -25,6 +25,7 @@ setup(
     entry_points={
         "console_scripts": [
             "observer_node = pac_observer.observer_node:main",
+            "observer_relay = pac_observer.relay:main",
         ],
     },
 )

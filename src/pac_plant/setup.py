@@ -25,6 +25,7 @@ setup(
     entry_points={
         "console_scripts": [
             "plant_node = pac_plant.plant_node:main",
+            "plant_relay = pac_plant.relay:main",
         ],
     },
 )

@@ -25,6 +25,7 @@ setup(
     entry_points={
         "console_scripts": [
             "recorder = pac_rig.recorder:main",
+            "composed = pac_rig.composed:main",
             "simulate = pac_rig.simulate:main",
             "replay = pac_rig.replay:main",
             "live_view = pac_rig.live_view:main",

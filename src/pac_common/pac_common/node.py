@@ -24,6 +24,7 @@ from .parameters import (
     ParameterSet,
     ParameterSpec,
     RunEndOptions,
+    SchedulingOptions,
     UnknownParameterError,
 )
 
@@ -177,8 +178,9 @@ class PacNode(Node):
         self.factory = messages.RclpyFactory()
         options = self._sets.get(NodeOptions)
         self.node_options: NodeOptions | None = options  # type: ignore[assignment]
-        if options is not None:
-            set_realtime_priority(self, options.realtime_priority)
+        scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
+        if scheduling:
+            set_realtime_priority(self, scheduling[0].realtime_priority)
 
     def _unknown_hint(self) -> str:
         return f"a parameter of {self.get_name()} (`ros2 run <pkg> {self.get_name()} --help` lists them)"
@@ -290,16 +292,35 @@ class PacNode(Node):
         self.wait_for_acknowledgements()
 
 
+def process_threads() -> list[int]:
+    """Thread ids of this process (Linux); ``[0]`` (the calling thread) where /proc is missing."""
+    try:
+        return [int(t) for t in os.listdir("/proc/self/task")]
+    except OSError:
+        return [0]
+
+
 def set_realtime_priority(node: Node, priority: int) -> bool:
-    """SCHED_FIFO at ``priority`` for this process; warn and carry on when it is refused."""
+    """SCHED_FIFO at ``priority`` for every thread of this process; one warning line if refused.
+
+    Every thread, not only the caller: the node is created first, so Fast DDS's receive and
+    event threads already exist, and a sample reaches the executor through them (threads
+    started later, e.g. the recorder's writer, inherit the policy).
+    """
     if priority <= 0:
         return False
     try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        for tid in process_threads():
+            os.sched_setscheduler(tid, os.SCHED_FIFO, os.sched_param(priority))
     except (PermissionError, OSError) as exc:
+        for tid in process_threads():  # all or nothing: no half real-time process
+            try:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+            except OSError:
+                pass
         node.get_logger().warning(f"realtime_priority {priority} refused ({exc}): normal scheduling")
         return False
-    node.get_logger().info(f"running with SCHED_FIFO priority {priority}")
+    node.get_logger().info(f"running with SCHED_FIFO priority {priority} ({len(process_threads())} threads)")
     return True
 
 
@@ -419,10 +440,21 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
     parameter value or ``ROS_DOMAIN_ID`` is one line on stderr and exit status 2.
     ``EventsExecutor.spin()`` busy-loops in these rclpy wheels; a ``spin_once`` loop does not.
     """
+    return run_nodes(program, [node_class], args)
+
+
+def run_nodes(program: str, node_classes: Sequence[type[PacNode]], args: list[str] | None = None) -> int:
+    """:func:`run_node` for several nodes in one process and one executor (a component container).
+
+    The process runs until every node is ``finished`` (or a signal); each node is then closed
+    in order; the status is the first non-zero one.  Parameters reach each node by name
+    (``--params-file`` with one section per node): a global ``-p`` would reach all of them,
+    and each refuses the names it does not declare.
+    """
     argv = list(sys.argv if args is None else args)[1:]
     outside = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv
     if "--help" in outside or "-h" in outside:
-        print(node_help(program, node_class))
+        print("\n\n".join(node_help(program, cls) for cls in node_classes))
         return 0
     try:
         check_domain_id()
@@ -436,18 +468,21 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         print(f"{program}: cannot start: {first}", file=sys.stderr)
         return 2
-    node = None
+    nodes: list[PacNode] = []
     executor = None
     status = 0
     try:
         try:
-            node = node_class()
+            for cls in node_classes:
+                nodes.append(cls())
         except ParameterError as exc:
             print(f"{program}: {exc}", file=sys.stderr)
+            status = 2
             return 2
         executor = make_executor()
-        executor.add_node(node)
-        while rclpy.ok() and not node.finished:
+        for node in nodes:
+            executor.add_node(node)
+        while rclpy.ok() and not all(node.finished for node in nodes):
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
@@ -461,9 +496,10 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
             print(f"{program}: fatal: {exc!r}", file=sys.stderr)
             status = 1
     finally:
-        if node is not None:
-            node.close()  # the node's own results (bag, counters) are final from here on
-            status = status or node.exit_status
+        if nodes and status != 2:
+            for node in nodes:
+                node.close()  # the node's own results (bag, counters) are final from here on
+                status = status or node.exit_status
             # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
             # stops; everything that matters is done, so a stuck teardown ends the process.
             final = status
@@ -472,6 +508,7 @@ def run_node(program: str, node_class: type[PacNode], args: list[str] | None = N
             guard.start()
             if executor is not None:
                 executor.shutdown(timeout_sec=1.0)
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
     return status

@@ -253,18 +253,24 @@ class LoopParameters(RateParameters):
 
 
 @dataclass(frozen=True)
-class NodeOptions(ParameterSet):
-    """Start-up behaviour shared by the loop nodes."""
+class SchedulingOptions(ParameterSet):
+    """How the OS schedules a node's process (every thread of it): the loop nodes and the recorder."""
 
-    wait_for_recorder: bool = parameter(
-        False, "do not start the loop until a recorder is subscribed to this node's outputs too"
-    )
     realtime_priority: int = parameter(
         0,
         "SCHED_FIFO priority of this process (0: normal scheduling). Needs root or CAP_SYS_NICE; "
         "when refused the node warns and runs with normal scheduling",
         low=0,
         high=99,
+    )
+
+
+@dataclass(frozen=True)
+class NodeOptions(SchedulingOptions):
+    """Start-up behaviour shared by the loop nodes (and their scheduling)."""
+
+    wait_for_recorder: bool = parameter(
+        False, "do not start the loop until a recorder is subscribed to this node's outputs too"
     )
 
 

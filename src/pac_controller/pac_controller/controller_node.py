@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,7 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .controller import Controller
 from .laws import NEEDS_CATENARY, make_controller
 from .parameters import ControllerParameters, LawParameters, ReferenceParameters
 
@@ -79,6 +81,9 @@ class ControllerNode(PacNode):
         EstimateLimits,
     ]
     FROZEN_REASON = "fixed for a run (model, speed, rate, control law): restart the node to change it"
+    #: The core's factory; ``controller_relay`` swaps in one that does no work (the floor of
+    #: ``make bench``).
+    CORE: Callable[..., Controller] = staticmethod(make_controller)
 
     def __init__(self) -> None:
         super().__init__("controller_node")
@@ -93,7 +98,7 @@ class ControllerNode(PacNode):
         self.catenary = (
             self.parameters(CatenaryParameters) if params.effective_law in NEEDS_CATENARY else None
         )
-        self.core = make_controller(
+        self.core = self.CORE(
             self.pantograph,
             self.track,
             params,
@@ -127,7 +132,7 @@ class ControllerNode(PacNode):
         reference = changed.get(ReferenceParameters, self.core.reference.params)
         self.limits = changed.get(EstimateLimits, self.limits)
         state = (self.core.last_u, self.core.last_tick)
-        self.core = make_controller(
+        self.core = self.CORE(
             self.pantograph, self.track, params, reference, self.loop.sample_period, self.laws, self.catenary
         )
         # The actuator does not jump on a retune; a law with state restarts bumplessly from it.
@@ -190,7 +195,9 @@ class ControllerNode(PacNode):
         if self.last_estimate_tick >= 0:
             self.skipped += tick - self.last_estimate_tick - 1
         self.last_estimate_tick = tick
-        self.last_estimate_wall = time.monotonic()
+        # Tick 0 is the plant's start-up handshake (re-sent until answered, the real-time loop
+        # starts after it): the watchdog arms with the loop itself, from tick 1.
+        self.last_estimate_wall = time.monotonic() if tick > 0 else None
         cmd = self.core.compute(tick, z_hat, theta_hat)
         if self.in_fallback:
             self.in_fallback = False

@@ -85,8 +85,9 @@ def make_controller(
     sample_period: float,
     laws: LawParameters | None = None,
     catenary: CatenaryParameters | None = None,
+    controller_class: type[Controller] = Controller,
 ) -> Controller:
     """The controller running ``params.effective_law`` (``law``, or passive by the deprecated ``mode``)."""
     name = params.effective_law
     law = make_law(name, pantograph, track, params, reference, sample_period, laws, catenary)
-    return Controller(law, params, reference, sample_period, name=name)
+    return controller_class(law, params, reference, sample_period, name=name)

@@ -12,11 +12,15 @@ the live rigs (1, 2).
 from __future__ import annotations
 
 import argparse
+import contextlib
+import math
 import platform
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from datetime import datetime
 from pathlib import Path
 
@@ -36,17 +40,31 @@ _STARTUP = {
 }
 
 
-def live_run(mode: str, seconds: float, workdir: Path, priority: int) -> tuple:
+def live_run(
+    mode: str,
+    seconds: float,
+    workdir: Path,
+    priority: int | None,
+    *,
+    relay: bool = False,
+    composed: bool = False,
+    label: str | None = None,
+) -> tuple:
+    """One live rig (``relay``: the floor); ``priority`` None: the launcher's default priorities,
+    0: normal scheduling, else SCHED_FIFO ``priority`` on the loop nodes (the recorder at normal)."""
     import domain_coordinator
 
-    bag_path = workdir / mode
+    bag_path = workdir / (label or mode)
     with domain_coordinator.domain_id() as domain_id:
         rig = Rig(
             bag_path,
             duration=seconds,
             timing_mode=mode,
             domain_id=domain_id,
-            params={"all": {"realtime_priority": priority}},
+            params={} if priority is None else {"all": {"realtime_priority": priority}},
+            relay=relay,
+            composed=composed,
+            priorities=None if priority is None else {},
         )
         try:
             rig.start()
@@ -61,7 +79,53 @@ def live_run(mode: str, seconds: float, workdir: Path, priority: int) -> tuple:
         for n, p in rig.processes.items()
         if p.cpu_seconds is not None and p.wall_seconds
     }
-    return loop_timing(bag), cpu, compute_metrics(bag, min(3.0, seconds / 2))
+    # The floor's physics is meaningless (no plant): only its timing is read.
+    quality = None if relay else compute_metrics(bag, min(3.0, seconds / 2))
+    return loop_timing(bag), cpu, quality
+
+
+@contextlib.contextmanager
+def busy_loops(n: int) -> Iterator[list[subprocess.Popen]]:
+    """``n`` processes spinning at normal priority (the load), killed by PID on exit."""
+    procs = [
+        subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL)
+        for _ in range(n)
+    ]
+    try:
+        yield procs
+    finally:
+        for proc in procs:
+            proc.kill()
+            proc.wait()
+
+
+#: The measures whose pac/floor ratio the floor table prints (higher is worse for all but steps/s).
+FLOOR_RATIOS = (
+    ("steps_per_second", "steps/s"),
+    ("period_p99_ms", "period p99"),
+    ("latency_p50_ms", "y -> u latency p50"),
+    ("latency_p99_ms", "y -> u latency p99"),
+)
+
+
+def number(value: float, fmt: str) -> str:
+    """A table cell; "-" where the column has no such process (composed: one ``loop``)."""
+    return "-" if math.isnan(value) else fmt.format(value)
+
+
+def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
+    """pac / floor for each (pac column, floor column) measured in the same bench run."""
+    lines = [
+        "| pac / floor | " + " | ".join(p for p, _ in pairs) + " |",
+        "|---|" + "---:|" * len(pairs),
+    ]
+    for key, label in FLOOR_RATIOS:
+        cells = [getattr(runs[p], key) / getattr(runs[f], key) for p, f in pairs]
+        lines.append(f"| {label} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+    for node in ("plant", "observer", "controller", "loop", "recorder"):
+        cells = [cpus[p].get(node, math.nan) / cpus[f].get(node, math.nan) for p, f in pairs]
+        lines.append(f"| CPU {node} | " + " | ".join(number(c, "{:.2f}") for c in cells) + " |")
+    return "\n".join(lines) + "\n"
 
 
 def offline_speed(with_bag: bool, workdir: Path) -> float:
@@ -195,7 +259,20 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--realtime-seconds", type=float, default=30.0)
     parser.add_argument("--lockstep-seconds", type=float, default=10.0)
     parser.add_argument(
-        "--realtime-priority", type=int, default=0, help="SCHED_FIFO priority for the loop nodes (0: off)"
+        "--realtime-priority",
+        type=int,
+        default=None,
+        help="SCHED_FIFO priority for the loop nodes, recorder at normal (0: all normal; "
+        "default: the launcher's, loop 60 above recorder 50)",
+    )
+    parser.add_argument(
+        "--load", type=int, default=0, help="also run the real-time pac and floor rigs under N busy loops"
+    )
+    parser.add_argument(
+        "--composed",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="also run the loop composed in one process (ros2 run pac_rig composed), pac and floor",
     )
     parser.add_argument("--offline-only", action="store_true", help="skip the live rigs")
     parser.add_argument("--batch-runs", type=int, default=16)
@@ -210,15 +287,39 @@ def main(argv: list[str] | None = None) -> int:
         if not low <= value <= high:
             print(f"bench: invalid {name} {value!r}: allowed {low}..{high}", file=sys.stderr)
             return 2
+    if args.load < 0:
+        print(f"bench: invalid --load {args.load}: allowed an integer >= 0", file=sys.stderr)
+        return 2
     workdir = Path(tempfile.mkdtemp(prefix="pac_bench_"))
     try:
         runs, cpus, quality = {}, {}, {}
-        live = (("realtime", args.realtime_seconds), ("lockstep", args.lockstep_seconds))
+        # (column, timing mode, seconds, composed, busy loops): each is run as pac, then as its floor.
+        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)]
         if args.offline_only:
-            live = ()
-        for mode, seconds in live:
-            print(f"bench: {mode} rig, {seconds:g} s ...", flush=True)
-            runs[mode], cpus[mode], quality[mode] = live_run(mode, seconds, workdir, args.realtime_priority)
+            plan = []
+        elif args.load:
+            plan.append((f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load))
+        if not args.offline_only:
+            plan.append(("lockstep", "lockstep", args.lockstep_seconds, False, 0))
+        if args.composed and not args.offline_only:
+            plan += [
+                ("composed realtime", "realtime", args.realtime_seconds, True, 0),
+                ("composed lockstep", "lockstep", args.lockstep_seconds, True, 0),
+            ]
+        pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
+        for name, mode, seconds, composed, load in plan:
+            for relay, column in ((False, name), (True, f"{name} floor")):
+                print(f"bench: {column} rig, {seconds:g} s ...", flush=True)
+                with busy_loops(load):
+                    runs[column], cpus[column], quality[column] = live_run(
+                        mode,
+                        seconds,
+                        workdir,
+                        args.realtime_priority,
+                        relay=relay,
+                        composed=composed,
+                        label=column.replace(" ", "_"),
+                    )
         print("bench: offline simulator ...", flush=True)
         speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
         print("bench: bag writing ...", flush=True)
@@ -233,23 +334,25 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"\n## pac bench, {datetime.now():%Y-%m-%d %H:%M}, {platform.node()}, "
         f"{platform.machine()}, {__import__('os').cpu_count()} cores, realtime_priority "
-        f"{args.realtime_priority}\n"
+        f"{'launcher default' if args.realtime_priority is None else args.realtime_priority}\n"
     )
     if runs:
         print(timing_table(runs), end="")
     names = list(runs)
-    for node in ("plant", "observer", "controller", "recorder") if runs else ():
+    for node in ("plant", "observer", "controller", "loop", "recorder") if runs else ():
         print(
             f"| CPU {node} [%] | "
-            + " | ".join(f"{cpus[n].get(node, float('nan')):.0f}" for n in names)
+            + " | ".join(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)
             + " |"
         )
     if runs:
         print(
             "| contact-force std [N] | "
-            + " | ".join(f"{quality[n].contact_force_std:.3g}" for n in names)
+            + " | ".join(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names)
             + " |"
         )
+        print("\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n")
+        print(floor_table(runs, cpus, pairs), end="")
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
         f"{speed_bag:.1f}x with bag writing"

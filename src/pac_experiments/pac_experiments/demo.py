@@ -35,8 +35,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--realtime-priority",
         type=int,
-        default=0,
-        help="SCHED_FIFO priority for plant, observer and controller (0: off; needs root or CAP_SYS_NICE)",
+        default=None,
+        help="SCHED_FIFO priority for plant, observer and controller, recorder at normal (0: all normal; "
+        "default: the launcher's, loop 60 above recorder 50; needs root or CAP_SYS_NICE, else a warning)",
+    )
+    parser.add_argument(
+        "--composed",
+        action="store_true",
+        help="plant, observer and controller in one process (ros2 run pac_rig composed)",
     )
     args = parser.parse_args(argv)
     bag_path = args.bag or Path("bags") / f"demo_{datetime.now():%Y%m%d_%H%M%S}"
@@ -51,7 +57,10 @@ def main(argv: list[str] | None = None) -> int:
             duration=args.duration,
             timing_mode=args.timing_mode,
             domain_id=domain_id,
-            params={"all": {"realtime_priority": args.realtime_priority}},
+            composed=args.composed,
+            params={}
+            if args.realtime_priority is None
+            else {"all": {"realtime_priority": args.realtime_priority}},
         )
         try:
             rig.start()

@@ -64,12 +64,14 @@ class ObserverNode(PacNode):
         MeasurementLimits,
     ]
     FROZEN_REASON = "the observer's model and tuning are fixed for a run: restart the node"
+    #: The core; ``observer_relay`` swaps in one that does no work (the floor of ``make bench``).
+    CORE: type[AdaptiveObserver] = AdaptiveObserver
 
     def __init__(self) -> None:
         super().__init__("observer_node")
         self.limits = self.parameters(MeasurementLimits)
         self.loop = self.parameters(RateParameters)
-        self.core = AdaptiveObserver(
+        self.core = self.CORE(
             self.parameters(PantographParameters),
             self.parameters(TrackParameters),
             self.parameters(ObserverParameters),

@@ -22,6 +22,7 @@ import math
 import sys
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pac_common import messages
@@ -31,6 +32,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .fe_plant import make_plant
 from .parameters import PlantOptions
+from .plant import Plant
 
 
 @dataclass(frozen=True)
@@ -76,12 +78,16 @@ class PlantNode(PacNode):
         PlantNodeOptions,
     ]
     FROZEN_REASON = "the plant's model and timing are fixed for a run: restart the node to change it"
+    #: The core; ``plant_relay`` swaps in one that does no work (the floor of ``make bench``).
+    #: The plant's factory (lumped k(t) or the FE line, by catenary_model); ``plant_relay`` swaps in
+    #: one that does no work (the floor of ``make bench``).
+    CORE: Callable[..., Plant] = staticmethod(make_plant)
 
     def __init__(self) -> None:
         super().__init__("plant_node")
         loop = self.loop = self.parameters(LoopParameters)
         self.options = self.parameters(PlantNodeOptions)
-        self.plant = make_plant(  # catenary_model: lumped | fe
+        self.plant = self.CORE(  # catenary_model: lumped | fe
             self.parameters(PantographParameters),
             self.parameters(TrackParameters),
             self.parameters(CatenaryParameters),

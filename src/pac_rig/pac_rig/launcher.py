@@ -24,6 +24,19 @@ NODES = {
     "controller": ("pac_controller", "controller_node"),
     "plant": ("pac_plant", "plant_node"),
 }
+#: The floor of ``make bench``: the same nodes with cores that do no work (``relay=True``).
+RELAY_NODES = {
+    "recorder": ("pac_rig", "recorder"),
+    "observer": ("pac_observer", "observer_relay"),
+    "controller": ("pac_controller", "controller_relay"),
+    "plant": ("pac_plant", "plant_relay"),
+}
+#: SCHED_FIFO priorities the rig asks for by default: the loop above the recorder (a starved
+#: recorder catches up from the publishers' reliable history; a starved loop misses its ticks),
+#: both above every normal process. Refused (no root or CAP_SYS_NICE): one warning line per
+#: node, which then runs with normal scheduling. ``priorities={}`` asks for nothing; lock step
+#: (a simulation, no deadlines) asks for nothing by default.
+REALTIME_PRIORITIES = {"plant": 60, "observer": 60, "controller": 60, "recorder": 50}
 
 
 def ros_args(params: dict[str, Any]) -> list[str]:
@@ -99,12 +112,30 @@ class Rig:
         domain_id: int | None = None,
         log_dir: Path | str | None = None,
         record: bool = True,
+        relay: bool = False,
+        priorities: dict[str, int] | None = None,
+        prefix: str | None = None,
+        composed: bool = False,
     ) -> None:
+        """``relay``: the floor rig (cores that do no work); ``priorities``: SCHED_FIFO priority per
+        node (default: :data:`REALTIME_PRIORITIES` in real time, none in lock step; ``params``
+        override it); ``prefix``: a command that wraps every node (``ros2 run --prefix``, e.g.
+        ``setpriv --bounding-set=-sys_nice``);
+        ``composed``: the three loop nodes in one process ``loop`` (``ros2 run pac_rig composed``)."""
+        self.composed = composed
+        self.relay = relay
         self.bag_path = Path(bag_path)
         self.duration = duration
         self.domain_id = domain_id
         self.log_dir = Path(log_dir) if log_dir else self.bag_path.parent / f"{self.bag_path.name}_logs"
         self.record = record
+        self.executables = RELAY_NODES if relay else NODES
+        self.prefix = prefix
+        if priorities is None:
+            # Lock step is a simulation that runs flat out: at SCHED_FIFO it would starve the
+            # recorder (seen: two lock-step rigs at once lost the last third of a bag) and has no
+            # deadline to meet anyway.
+            priorities = REALTIME_PRIORITIES if timing_mode == "realtime" else {}
         shared = {"wait_for_recorder": record, **(params or {}).get("all", {})}
 
         def common(name: str) -> dict[str, Any]:
@@ -130,6 +161,9 @@ class Rig:
             "controller": {**common("controller"), "stop_after_run": True},
             "plant": {**common("plant"), "timing_mode": timing_mode, "duration": duration},
         }
+        for name, priority in priorities.items():
+            if "realtime_priority" not in shared:
+                self.params[name]["realtime_priority"] = priority
         if timing_mode == "lockstep":
             # The plant waits for every command: a wall-clock watchdog has nothing to guard
             # and would perturb an exact run when a sample is re-sent.
@@ -139,14 +173,41 @@ class Rig:
                 self.params[name].update(extra)
         self.processes: dict[str, Process] = {}
 
+    LOOP_NODES = ("observer", "controller", "plant")
+
+    def composed_command(self) -> list[str]:
+        """``composed`` with a params file holding one section per node (by node name)."""
+        import yaml
+
+        def values(name: str) -> dict[str, Any]:
+            return {k: list(v) if isinstance(v, tuple) else v for k, v in self.params[name].items()}
+
+        # The node name is the real node's executable name (the relays keep it).
+        sections = {NODES[name][1]: {"ros__parameters": values(name)} for name in self.LOOP_NODES}
+        path = self.log_dir / "composed_params.yaml"
+        path.write_text(yaml.safe_dump(sections))
+        return [
+            "pac_rig",
+            "composed",
+            *(["--relay"] if self.relay else []),
+            "--ros-args",
+            "--params-file",
+            str(path),
+        ]
+
     def start_node(self, name: str, life: int = 1) -> Process:
-        """Start one node; ``life`` > 1 names the log of a restart (name.2.log, ...)."""
-        pkg, exe = NODES[name]
+        """Start one node (``loop``: the composed loop); ``life`` > 1 names the log of a restart."""
         self.log_dir.mkdir(parents=True, exist_ok=True)
         log_path = self.log_dir / (f"{name}.log" if life == 1 else f"{name}.{life}.log")
+        prefix = ["--prefix", self.prefix] if self.prefix else []
+        if name == "loop":
+            command = self.composed_command()
+        else:
+            pkg, exe = self.executables[name]
+            command = [pkg, exe, *ros_args(self.params[name])]
         with open(log_path, "wb") as log:
             popen = subprocess.Popen(
-                ["ros2", "run", pkg, exe, *ros_args(self.params[name])],
+                ["ros2", "run", *prefix, *command],
                 stdout=log,
                 stderr=subprocess.STDOUT,
                 stdin=subprocess.DEVNULL,
@@ -156,11 +217,9 @@ class Rig:
         return proc
 
     def start(self) -> Rig:
-        names = (
-            ["recorder", "observer", "controller", "plant"]
-            if self.record
-            else ["observer", "controller", "plant"]
-        )
+        names = ["loop"] if self.composed else list(self.LOOP_NODES)
+        if self.record:
+            names.insert(0, "recorder")
         for name in names:
             self.start_node(name)
         return self
@@ -168,7 +227,7 @@ class Rig:
     def wait_finished(self, timeout: float) -> None:
         """Wait for the run to end by itself (every node stops after the plant's last tick)."""
         deadline = time.monotonic() + timeout
-        for name in ("plant", "recorder", "observer", "controller"):
+        for name in ("plant", "loop", "recorder", "observer", "controller"):
             proc = self.processes.get(name)
             if proc is not None:
                 proc.wait(max(0.0, deadline - time.monotonic()))

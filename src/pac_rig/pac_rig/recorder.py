@@ -21,7 +21,14 @@ from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 from pac_common import messages
 from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
-from pac_common.parameters import ParameterError, ParameterSet, RunEndOptions, check_new_directory, parameter
+from pac_common.parameters import (
+    ParameterError,
+    ParameterSet,
+    RunEndOptions,
+    SchedulingOptions,
+    check_new_directory,
+    parameter,
+)
 
 from .bag import DEFAULT_COMPRESSION, BagWriter, qos_dict
 from .mcap_writer import COMPRESSIONS
@@ -51,7 +58,7 @@ class RecorderParameters(ParameterSet):
 
 
 class RecorderNode(PacNode):
-    PARAMETER_SETS = [RecorderParameters, RunEndOptions]
+    PARAMETER_SETS = [RecorderParameters, RunEndOptions, SchedulingOptions]
     FROZEN_REASON = "fixed for a recording: start another recorder"
 
     def __init__(self) -> None:
