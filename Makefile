@@ -6,8 +6,8 @@ SHELL := /bin/bash
 ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
-# SPECs of config/campaigns/ that `make campaigns` runs (laws_speeds needs the `law` parameter).
-CAMPAIGNS ?= robustness modes_speeds
+# SPECs of config/campaigns/ that `make campaigns` runs.
+CAMPAIGNS ?= laws_speeds robustness
 
 .PHONY: setup test lint clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
 

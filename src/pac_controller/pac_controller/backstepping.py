@@ -3,7 +3,7 @@
 Output feedback with certainty equivalence: the law runs on the observer's z_hat
 and theta_hat.  Choices the paper leaves open (docs/design.md):
 
-* z1r = +F_r / k_hat (eq. (23) with its sign fixed, PAPER_NOTES item 2),
+* z1r = +F_r / k_hat (eq. (23) with its sign fixed, docs/paper_errata.md #2),
   k_hat = v(t)^T theta_hat clamped below at ``stiffness_hat_min``.
 * The output injection terms g_ij * (y - C z_hat) of eq. (21) contain the unknown
   estimation error; they are dropped from alpha_1' and alpha_2' (they vanish as the

@@ -76,7 +76,7 @@ class ControllerParameters(ParameterSet):
         100000.0,
         "actuator force rate limit. The nominal loop needs <= 4.6 kN/s, but after a large transient "
         "(an observer restart) a limit below ~40 kN/s locks the loop in a rate-limit cycle "
-        "(tests/test_offline.py::test_restart_transient_and_rate_limit)",
+        "(docs/design.md, safety chain)",
         "N/s",
         low=0.0,
         low_open=True,

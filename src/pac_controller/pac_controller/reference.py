@@ -2,7 +2,7 @@
 
 The command F_c(t) is piecewise constant; the filter is p^4 / (s + p)^4, so F_r
 has continuous derivatives up to the third order, which the backstepping law
-needs (z1r = F_r / k_hat and alpha_2' need z1r''', PAPER_NOTES item 4).  The
+needs (z1r = F_r / k_hat and alpha_2' need z1r''', docs/paper_errata.md #4).  The
 response is written in closed form as a sum of filtered steps, so F_r at any
 tick is a pure function of time: no filter state to drift, lose or replay.
 Compiled (numba): the batch closed loop evaluates it inside compiled code.

@@ -23,11 +23,6 @@ from .parameters import PantographParameters
 OUTPUT_MATRIX = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
-def stiffness_regressor(t: float, omega: float) -> np.ndarray:
-    """v(t) = (1, cos omega t, sin omega t), eq. (9)."""
-    return np.array([1.0, math.cos(omega * t), math.sin(omega * t)])
-
-
 @njit(cache=True)
 def stiffness_regressor_derivatives(t: float, omega: float, order: int) -> np.ndarray:
     """Rows d^n v / dt^n for n = 0..order, v of eq. (9)."""
@@ -76,13 +71,6 @@ def actuator_input(u: float, m2: float) -> np.ndarray:
 def actuator_acceleration(u: float, m2: float) -> float:
     """u / m2, the only non-zero entry of phi(u), eq. (14)."""
     return u / m2
-
-
-def output_regressor(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:
-    """psi(y) of eq. (15), a 4x3 matrix: psi(y) theta = (0, 0, -k z1 / m1, 0)."""
-    psi = np.zeros((4, 3))
-    psi[2] = output_regressor_row(y1, t, omega, p)
-    return psi
 
 
 def output_regressor_row(y1: float, t: float, omega: float, p: PantographParameters) -> np.ndarray:

@@ -25,7 +25,7 @@ Per sample period [t_{k-1}, t_k] the observer
 3. updates S_theta and theta_hat by the implicit-Euler step of the RLS equations, which is
    the exact discrete RLS with forgetting factor exp(-rho_theta dt): the parameter error
    contracts in the S_theta norm at every step however small S_theta has become, which is
-   what a naive explicit step fails to do (PAPER_NOTES item 5).
+   what a naive explicit step fails to do (docs/paper_errata.md #5).
 """
 
 from __future__ import annotations

@@ -28,7 +28,11 @@ def main(args: list[str] | None = None) -> int:
     if relay:
         argv.remove("--relay")
     if "--help" in argv[1:end] or "-h" in argv[1:end]:
-        print((__doc__ or "").strip() + "\n\nThe nodes and their parameters:\n")
+        print(
+            "usage: composed [--help] [--relay] [--ros-args --params-file FILE ...]\n\n"
+            + (__doc__ or "").strip()
+            + "\n\nThe nodes and their parameters:\n"
+        )
     classes = (
         [ObserverRelay, ControllerRelay, PlantRelay] if relay else [ObserverNode, ControllerNode, PlantNode]
     )
