@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from pac_common import messages
 from pac_rig.bag import BagData, TopicData
 
 
@@ -252,11 +253,14 @@ def loop_timing(bag: BagData) -> LoopTiming:
     latency = latency[np.isfinite(latency)] * 1e3
     age = truth["command_age_ticks"][first]
     applied = truth["applied_command_tick"][first] >= 0
-    # The run is the plant's ticks (fallback commands after its end carry extrapolated ticks).
+    # The run is the plant's ticks (fallback commands after its end carry extrapolated ticks);
+    # only the loop's topics have one message per tick (run_status has two per run).
     first_tick, last_tick = int(truth["tick"].min()), int(truth["tick"].max())
     span = last_tick - first_tick + 1
     lost = {}
     for topic, data in bag.topics.items():
+        if topic not in messages.LOOP_TOPICS:
+            continue
         ticks = data["tick"] if len(data) else np.zeros(0, dtype=np.int64)
         in_run = ticks[(ticks >= first_tick) & (ticks <= last_tick)]
         lost[topic] = span - int(np.unique(in_run).size)
