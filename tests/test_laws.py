@@ -6,13 +6,12 @@ observer, one tick of command delay) unless a test says otherwise.
 
 import dataclasses
 import math
-import signal
 import subprocess
-import time
 
 import numpy as np
 import pytest
 import scipy.signal
+from node_process import assert_starts_and_stops_cleanly
 
 from pac_common.parameters import ParameterError
 from pac_controller.laws import LAWS, make_controller
@@ -307,26 +306,12 @@ def run_node(domain_id, *params, timeout=60):
 
 
 def test_controller_node_starts_with_the_pid_law(domain_id, tmp_path):
-    log = tmp_path / "controller.log"
-    with open(log, "wb") as out:
-        proc = subprocess.Popen(
-            ["ros2", "run", "pac_controller", "controller_node", "--ros-args", "-p", "law:=pid"],
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            env=node_env(domain_id),
-        )
-    try:
-        deadline = time.monotonic() + 30
-        while "control law: pid" not in log.read_text() and time.monotonic() < deadline:
-            assert proc.poll() is None, log.read_text()
-            time.sleep(0.05)
-        assert "control law: pid" in log.read_text()
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=20) == 0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    assert_starts_and_stops_cleanly(
+        ["ros2", "run", "pac_controller", "controller_node", "--ros-args", "-p", "law:=pid"],
+        "control law: pid",
+        node_env(domain_id),
+        tmp_path / "controller.log",
+    )
 
 
 @pytest.mark.parametrize(

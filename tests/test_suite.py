@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mcap.reader import make_reader
+from node_process import assert_starts_and_stops_cleanly
 
 from pac_analysis.metrics import compute_metrics
 from pac_analysis.re_estimate import re_estimate
@@ -137,26 +138,12 @@ def test_shipped_parameter_files_are_the_declared_defaults(node):
 def test_shipped_parameter_file_is_installed_and_accepted(domain_id, tmp_path):
     """The installed share/<pkg>/config YAML starts a node (which then waits for its loop)."""
     path = str(installed_config_path("plant_node"))
-    log = tmp_path / "plant.log"
-    with open(log, "wb") as out:
-        proc = subprocess.Popen(
-            ["ros2", "run", "pac_plant", "plant_node", "--ros-args", "--params-file", path],
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            env=node_env(domain_id),
-        )
-    try:
-        deadline = time.monotonic() + 30
-        while "waiting for the loop" not in log.read_text() and time.monotonic() < deadline:
-            assert proc.poll() is None, log.read_text()
-            time.sleep(0.05)
-        assert "waiting for the loop" in log.read_text()
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=20) == 0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
+    assert_starts_and_stops_cleanly(
+        ["ros2", "run", "pac_plant", "plant_node", "--ros-args", "--params-file", path],
+        "waiting for the loop",
+        node_env(domain_id),
+        tmp_path / "plant.log",
+    )
 
 
 def test_sigint_stops_every_node_cleanly_and_the_bag_reads(rigs):
