@@ -192,7 +192,7 @@ def pack(scenarios: Sequence[Scenario]) -> tuple:
                 f"scenario {i}: the batch runs the lumped line with law adaptive_backstepping or passive "
                 f"only (catenary_model {s.plant.catenary_model}, law {s.controller.effective_law})"
             )
-        p, plant_p = s.pantograph, plant.pantograph  # the plant's may differ (plant_mass_scale)
+        p, plant_p = s.pantograph, plant.pantograph
         is_noisy = any(v > 0.0 for v in s.plant.noise_std)
         plant_f[i] = (
             plant.sample_period,
@@ -235,10 +235,13 @@ def pack(scenarios: Sequence[Scenario]) -> tuple:
 
 
 def batchable(s: Scenario) -> bool:
-    """What the compiled batch loop runs: the lumped line, the adaptive backstepping or passive law."""
-    return s.plant.catenary_model == "lumped" and s.controller.effective_law in (
-        "adaptive_backstepping",
-        "passive",
+    """What the compiled batch loop runs: the lumped line, the adaptive backstepping or passive law,
+    the nominal pantograph (with ``plant_mass_scale`` != 1 its traces drift from ``closed_loop.run``'s
+    from the third tick on, cause not found yet: such runs go tick by tick)."""
+    return (
+        s.plant.catenary_model == "lumped"
+        and s.controller.effective_law in ("adaptive_backstepping", "passive")
+        and s.mismatch.plant_mass_scale == 1.0
     )
 
 
