@@ -20,6 +20,8 @@ SCENARIOS = {
     },
     "passive_unilateral": {**COMMON, "mode": "passive", "contact_model": "unilateral", "duration": 2.0},
     "delay0_step": {**COMMON, "shape": "step", "step_time": 0.5, "command_delay_ticks": 0, "duration": 1.0},
+    # the plant's masses differ from the model the observer and controller use
+    "mass_mismatch": {**COMMON, "plant_mass_scale": 1.3, "command_delay_ticks": 2, "duration": 1.0},
 }
 
 
