@@ -13,11 +13,12 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
 from pac_analysis.metrics import compute_metrics
-from pac_experiments import campaign
+from pac_experiments import campaign_dask, campaign_results, campaign_run, campaign_spec
 from pac_rig.bag import read_bag
 from pac_rig.closed_loop import build_cores
 from pac_rig.simulate import scenario_from_flat
@@ -75,18 +76,18 @@ def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path,
             "window": WINDOW,
         },
     )
-    real_run = campaign.run
+    real_run = campaign_run.run
 
     def run_or_raise(scenario):
         if scenario.track.speed_kmh == 300.0:
             raise RuntimeError("injected failure")
         return real_run(scenario)
 
-    monkeypatch.setattr(campaign, "run", run_or_raise)
-    monkeypatch.setattr(campaign, "batchable", lambda scenario: False)  # every run tick by tick
-    spec = campaign.load_spec(spec_path)
-    points = campaign.expand(spec)
-    outcome = campaign.execute(client, spec, points, tmp_path / "out", progress=False)
+    monkeypatch.setattr(campaign_run, "run", run_or_raise)
+    monkeypatch.setattr(campaign_run, "batchable", lambda scenario: False)  # every run tick by tick
+    spec = campaign_spec.load_spec(spec_path)
+    points = campaign_spec.expand(spec)
+    outcome = campaign_dask.execute(client, spec, points, tmp_path / "out", progress=False)
     assert (outcome.total, outcome.ran, outcome.failed, outcome.lost) == (3, 3, 2, 0)
     rows = {(r["speed_kmh"], r["c1"]): r for r in read_rows(tmp_path / "out")}
     raised = rows[("300.0", "40.0")]
@@ -101,7 +102,9 @@ def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path,
 
     report = write_report(
         spec,
-        campaign.write_results(spec, points, campaign.read_done(tmp_path / "out"), tmp_path / "out"),
+        campaign_results.write_results(
+            spec, points, campaign_results.read_done(tmp_path / "out"), tmp_path / "out"
+        ),
         tmp_path / "out",
     ).read_text()
     assert (
@@ -117,19 +120,21 @@ def test_resume_runs_only_what_is_not_done(tmp_path, client, monkeypatch):
         "window": [0.1, 0.3],
     }
     executed: list[str] = []
-    real = campaign.run_point
+    real = campaign_run.run_point
 
-    def counting(point, window, bag_dir=None):
+    def counting(point, bag_dir=None):
         executed.append(point.key)
-        return real(point, window, bag_dir)
+        return real(point, bag_dir)
 
-    monkeypatch.setattr(campaign, "run_point", counting)
-    monkeypatch.setattr(campaign, "batchable", lambda scenario: False)  # every run counted here
+    monkeypatch.setattr(campaign_run, "run_point", counting)
+    monkeypatch.setattr(campaign_run, "batchable", lambda scenario: False)  # every run counted here
     out = tmp_path / "out"
 
-    def go(s: dict) -> campaign.Outcome:
-        loaded = campaign.load_spec(write_spec(tmp_path / "spec.yaml", s))
-        return campaign.execute(client, loaded, campaign.expand(loaded), out, chunk_size=1, progress=False)
+    def go(s: dict) -> campaign_dask.Outcome:
+        loaded = campaign_spec.load_spec(write_spec(tmp_path / "spec.yaml", s))
+        return campaign_dask.execute(
+            client, loaded, campaign_spec.expand(loaded), out, chunk_size=1, progress=False
+        )
 
     assert go(spec).ran == 4 and len(executed) == 4
     first = (out / "results.csv").read_text()
@@ -151,7 +156,7 @@ def test_resume_runs_only_what_is_not_done(tmp_path, client, monkeypatch):
 
 def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     """The compiled batch serves the lumped adaptive/passive runs; every row equals run_point's."""
-    spec = campaign.Spec(
+    spec = campaign_spec.Spec(
         "t",
         (
             {"law": ["adaptive_backstepping", "passive"], "plant_mass_scale": [0.85, 1.0]},
@@ -163,29 +168,30 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
         {"duration": 0.5},
         (0.25, 0.5),
     )
-    points = campaign.expand(spec)
-    batched = campaign.run_batched(points, spec.window)
+    points = campaign_spec.expand(spec)
+    batched = campaign_run.run_batched(points)
     assert 0 < len(batched) < len(points)
-    chunk = campaign.run_chunk(points, spec.window)
+    chunk = campaign_run.run_chunk(points)
     for point, row in zip(points, chunk, strict=True):
-        reference = campaign.run_point(point, spec.window)
+        reference = campaign_run.run_point(point)
         for name, value in reference.items():
             if name != "wall_seconds":
                 assert row[name] == value or (value != value and row[name] != row[name]), (point.values, name)
     # A failure of the batch itself costs nothing: every point then runs tick by tick.
-    monkeypatch.setattr(campaign, "run_batch", lambda scenarios: 1 / 0)
-    again = campaign.run_chunk(points, spec.window)
+    monkeypatch.setattr(campaign_run, "run_batch", lambda scenarios: 1 / 0)
+    again = campaign_run.run_chunk(points)
     assert [r["status"] for r in again] == [r["status"] for r in chunk]
+    assert {r["batch_error"] for r in again} == {"ZeroDivisionError: division by zero"}  # and says why
 
 
 def test_measures_in_memory_equal_the_bag_reports(tmp_path):
     """One formula: the campaign's row (in memory) and the report of the bag it keeps agree exactly."""
-    spec = campaign.Spec("t", ({"speed_kmh": [250.0]},), {"duration": 0.5}, (0.25, 0.5))
-    (point,) = campaign.expand(spec)
-    in_memory = campaign.run_point(point, spec.window)
-    with_bag = campaign.run_point(point, spec.window, str(tmp_path))
+    spec = campaign_spec.Spec("t", ({"speed_kmh": [250.0]},), {"duration": 0.5}, (0.25, 0.5))
+    (point,) = campaign_spec.expand(spec)
+    in_memory = campaign_run.run_point(point)
+    with_bag = campaign_run.run_point(point, str(tmp_path))
     from_bag = compute_metrics(read_bag(tmp_path / point.key), 0.25, 0.5)
-    for name in campaign.METRIC_COLUMNS:
+    for name in campaign_run.METRIC_COLUMNS:
         assert in_memory[name] == with_bag[name] == getattr(from_bag, name), name
 
 
@@ -219,6 +225,14 @@ GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WI
         (yaml.safe_dump({**GOOD, "grid": {}}), "'grid' is empty"),
         (yaml.safe_dump({**GOOD, "grid": {"speed_kmh": []}}), "grid.speed_kmh must be a non-empty list"),
         (yaml.safe_dump({**GOOD, "window": [0.25, 2.0]}), "invalid window [0.25, 2] s"),
+        (
+            yaml.safe_dump({**GOOD, "fixed": {"duration": 0.5, "speed_kmh": 250.0}}),
+            "parameter 'speed_kmh' is both in 'fixed' and in 'grid'",
+        ),
+        (
+            yaml.safe_dump({"grid": GOOD["grid"], "window_spans": [2, 1]}),
+            "'window_spans' must be [from, to] spans",
+        ),
         ("grid: {speed_kmh: [300.0\nfixed: [", "is not valid YAML"),
         (None, "cannot read spec"),
     ],
@@ -229,6 +243,8 @@ GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WI
         "empty-grid",
         "empty-axis",
         "window",
+        "grid-and-fixed",
+        "window-spans",
         "yaml",
         "missing",
     ],
@@ -337,7 +353,7 @@ def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
 def test_embedded_cluster_listens_on_loopback_only():
     import psutil
 
-    cluster = campaign.embedded_cluster(1)
+    cluster = campaign_dask.embedded_cluster(1)
     try:
         me = psutil.Process()
         pids = {me.pid} | {p.pid for p in me.children(recursive=True)}
@@ -449,3 +465,37 @@ def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
     intact = _cli(str(spec), "--out", str(tmp_path / "intact"), "--workers", "2", "--no-report")
     assert intact.returncode == 0, intact.stderr
     assert (out / "results.csv").read_bytes() == (tmp_path / "intact" / "results.csv").read_bytes()
+
+
+def test_a_whole_span_window_holds_whole_periods_of_the_span(tmp_path):
+    """``window_spans``: the window is spans a..b at each point's speed, the run b + 1/2 spans; over
+    whole spans a span-periodic force has its true mean and sigma, over 7.5 spans it has not."""
+    spec_path = write_spec(
+        tmp_path / "spec.yaml",
+        {
+            "grid": {"speed_kmh": [200.0, 300.0]},
+            "fixed": {"span_length": 55.0},
+            "window_spans": [2, 10],
+            "statistics": "en50318",
+            "force_target": "en50367",
+        },
+    )
+    spec = campaign_spec.load_spec(spec_path)
+    points = campaign_spec.expand(spec)
+    for point, v in zip(points, (200.0, 300.0), strict=True):
+        span_time = 55.0 / (v / 3.6)
+        assert point.window == pytest.approx((2 * span_time, 10 * span_time), rel=1e-12)
+        assert point.values["duration"] == pytest.approx(10.5 * span_time, abs=1e-3)
+        assert point.values["force_amplitude"] == pytest.approx(0.00097 * v**2 + 70.0)
+    # A span-periodic force (the span and its 9 dropper harmonics) at 300 km/h, sampled at 1 kHz.
+    dt, span_time = 1e-3, 55.0 / (300.0 / 3.6)
+    t = np.arange(0.0, 10.5 * span_time, dt)
+    phase = 2 * np.pi * t / span_time
+    force = 150.0 + 40.0 * np.sin(phase) + 10.0 * np.sin(9 * phase)
+    zeros = np.zeros_like(t)
+    whole = campaign_run.en50318_measures(t, force, zeros, force, zeros, points[1].window, dt)
+    assert whole["en50318_mean"] == pytest.approx(150.0, abs=0.05)
+    assert whole["en50318_sigma"] == pytest.approx(np.sqrt((40.0**2 + 10.0**2) / 2), rel=5e-3)
+    part = campaign_run.en50318_measures(t, force, zeros, force, zeros, (2 * span_time, 9.5 * span_time), dt)
+    assert abs(part["en50318_mean"] - 150.0) > 0.5  # the half span biases the mean by ~1 %
+    assert whole["force_hat_error_percent"] == 0.0 and whole["du_dt_max_abs"] == 0.0

@@ -26,7 +26,7 @@ setup(
             "reproduce = pac_experiments.reproduce:main",
             "campaign = pac_experiments.campaign:main",
             "campaign_bench = pac_experiments.campaign_bench:main",
-            "catenary = pac_experiments.catenary:main",
+            "catenary = pac_experiments.fe_line:main",
         ],
     },
 )

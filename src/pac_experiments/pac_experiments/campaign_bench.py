@@ -13,7 +13,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from .campaign import Spec, auto_chunk_size, embedded_cluster, execute, expand, run_chunk
+from .campaign_dask import auto_chunk_size, embedded_cluster, execute
+from .campaign_run import run_chunk
+from .campaign_spec import Spec, expand
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -36,9 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     try:
         workers = len(client.scheduler_info()["workers"])
-        client.submit(run_chunk, [], spec.window, pure=False).result()  # imports on a worker
+        client.submit(run_chunk, [], pure=False).result()  # imports on a worker
         start = time.perf_counter()
-        wait([client.submit(run_chunk, [], spec.window, pure=False) for _ in range(args.empty_tasks)])
+        wait([client.submit(run_chunk, [], pure=False) for _ in range(args.empty_tasks)])
         per_task = (time.perf_counter() - start) / args.empty_tasks
         rows.append(("empty task", f"{args.empty_tasks} tasks", f"{1e3 * per_task:.2f} ms per task"))
         for label, size in (("1 run per task", 1), ("default chunks", auto_chunk_size(len(points), workers))):

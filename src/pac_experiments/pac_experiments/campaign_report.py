@@ -21,11 +21,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
-from .campaign import STATUS_OK, Spec, grid_keys  # noqa: E402
+from pac_plant.catenary.enstats import SIGMA_LIMIT, en50367_criteria  # noqa: E402
+
+from .campaign_run import STATUS_OK  # noqa: E402
+from .campaign_spec import Spec, grid_keys  # noqa: E402
 
 SPEED = "speed_kmh"
-#: sigma <= this times Fm (EN 50367)
-SIGMA_LIMIT = 0.3
+#: (mean, sigma, Fm - 3 sigma, contact loss) columns of the rows, by the SPEC's ``statistics``.
+FORCE_COLUMNS = {
+    "raw": ("contact_force_mean", "contact_force_std", "statistical_min", "contact_loss_percent"),
+    "en50318": ("en50318_mean", "en50318_sigma", "en50318_stat_min", "en50318_loss_percent"),
+}
 
 
 def _label(value: Any) -> str:
@@ -58,7 +64,9 @@ def _value(row: dict, key: str) -> float:
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else math.nan
 
 
-def speed_figure(grid: dict[str, list], rows: list[dict], title: str, path: Path) -> Path | None:
+def speed_figure(
+    grid: dict[str, list], rows: list[dict], title: str, path: Path, statistics: str = "raw"
+) -> Path | None:
     """sigma, sigma/Fm, Fm - 3 sigma, contact loss against speed; a line per combination of the other axes."""
     others = [a for a in grid if a != SPEED and len(grid[a]) > 1]
     fig, axes = plt.subplots(2, 2, figsize=(11, 7.5), sharex=True, constrained_layout=True)
@@ -72,10 +80,11 @@ def speed_figure(grid: dict[str, list], rows: list[dict], title: str, path: Path
         plotted = True
         label = ", ".join(f"{a}={_label(v)}" for a, v in zip(others, combo, strict=True)) or "runs"
         v = np.array([_value(r, SPEED) for r in mine])
-        fm = np.array([_value(r, "contact_force_mean") for r in mine])
-        sd = np.array([_value(r, "contact_force_std") for r in mine])
-        loss = np.array([_value(r, "contact_loss_percent") for r in mine])
-        bad = ~((sd <= SIGMA_LIMIT * fm) & (fm - 3 * sd > 0))
+        mean_key, sigma_key, _, loss_key = FORCE_COLUMNS[statistics]
+        fm = np.array([_value(r, mean_key) for r in mine])
+        sd = np.array([_value(r, sigma_key) for r in mine])
+        loss = np.array([_value(r, loss_key) for r in mine])
+        bad = np.array([not all(en50367_criteria(a, b)) for a, b in zip(fm, sd, strict=True)], dtype=bool)
         color = f"C{i % 10}"
         ax_s.plot(v, sd, "o-", color=color, label=label, ms=4)
         ax_s.plot(v[bad], sd[bad], "x", color="red", ms=8, mew=2)
@@ -107,7 +116,9 @@ def speed_figure(grid: dict[str, list], rows: list[dict], title: str, path: Path
     return path
 
 
-def robustness_map(grid: dict[str, list], rows: list[dict], x: str, y: str, title: str, path: Path) -> Path:
+def robustness_map(
+    grid: dict[str, list], rows: list[dict], x: str, y: str, title: str, path: Path, statistics: str = "raw"
+) -> Path:
     """Heatmap of sigma over (x, y), worst case over the grid's other axes; EN 50367 failures hatched."""
     xs, ys = grid[x], grid[y]
     sigma = np.full((len(ys), len(xs)), np.nan)
@@ -120,10 +131,11 @@ def robustness_map(grid: dict[str, list], rows: list[dict], x: str, y: str, titl
                 diverged[j, i] = True
                 continue
             if cell:
-                sd = np.array([_value(r, "contact_force_std") for r in cell])
-                fm = np.array([_value(r, "contact_force_mean") for r in cell])
+                mean_key, sigma_key, _, _ = FORCE_COLUMNS[statistics]
+                sd = np.array([_value(r, sigma_key) for r in cell])
+                fm = np.array([_value(r, mean_key) for r in cell])
                 sigma[j, i] = float(np.max(sd))
-                fails[j, i] = bool(np.any(~((sd <= SIGMA_LIMIT * fm) & (fm - 3 * sd > 0))))
+                fails[j, i] = not all(all(en50367_criteria(a, b)) for a, b in zip(fm, sd, strict=True))
     fig, ax = plt.subplots(figsize=(1.3 * len(xs) + 3, 0.8 * len(ys) + 2.2), constrained_layout=True)
     finite = sigma[np.isfinite(sigma) & (sigma > 0)]
     norm = LogNorm(vmin=finite.min(), vmax=max(finite.max(), finite.min() * 1.01)) if finite.size else None
@@ -162,14 +174,17 @@ def robustness_map(grid: dict[str, list], rows: list[dict], x: str, y: str, titl
     return path
 
 
-def axis_figure(grid: dict[str, list], rows: list[dict], x: str, title: str, path: Path) -> Path | None:
+def axis_figure(
+    grid: dict[str, list], rows: list[dict], x: str, title: str, path: Path, statistics: str = "raw"
+) -> Path | None:
     """sigma against the grid's only varied parameter."""
     ok = [r for r in rows if _ok(r)]
     if not ok:
         return None
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
     labels = [_label(v) for v in grid[x]]
-    sd = [next((_value(r, "contact_force_std") for r in ok if _same(r.get(x), v)), math.nan) for v in grid[x]]
+    sigma_key = FORCE_COLUMNS[statistics][1]
+    sd = [next((_value(r, sigma_key) for r in ok if _same(r.get(x), v)), math.nan) for v in grid[x]]
     ax.plot(range(len(labels)), sd, "o-")
     ax.set_xticks(range(len(labels)), labels)
     ax.set_yscale("log")
@@ -204,7 +219,7 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
         f"# Campaign `{spec.name}`",
         "",
         f"{len(rows)} runs: " + ", ".join(f"{n} {s}" for s, n in sorted(by_status.items())) + ". "
-        f"Measures over t in [{spec.window[0]:g}, {_fmt(spec.window[1]) or 'end'}] s of simulated time.",
+        f"Measures over {spec.window_text()}.",
         "",
         "Fixed: " + (", ".join(f"`{k}={_label(v)}`" for k, v in spec.fixed.items()) or "nothing") + ".",
         "",
@@ -217,7 +232,8 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
     lines += [
         "",
         "EN 50367 criteria (marked in the figures): sigma <= 0.3 Fm and Fm - 3 sigma > 0, "
-        "with Fm and sigma the mean and standard deviation of the contact force over the window.",
+        "with Fm and sigma the mean and standard deviation of the contact force over the window"
+        + (" (20 Hz low-pass, EN 50318)." if spec.statistics == "en50318" else " (unfiltered)."),
         "",
     ]
     if note:
@@ -228,7 +244,9 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
         varied = [a for a in grid if len(grid[a]) > 1]
         tag = f"grid {gi + 1}"
         if SPEED in varied:
-            path = speed_figure(grid, mine, f"{spec.name}, {tag}", out / f"fig_{gi + 1}_speed.png")
+            path = speed_figure(
+                grid, mine, f"{spec.name}, {tag}", out / f"fig_{gi + 1}_speed.png", spec.statistics
+            )
             if path:
                 lines += [f"## {tag}: quality against speed", "", f"![{tag} speed]({path.name})", ""]
         # The map: the first two varied parameters other than the speed, else speed x the other one.
@@ -236,28 +254,46 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
         if len(varied) >= 2:
             x, y = (others[0], others[1]) if len(others) >= 2 else (SPEED, others[0])
             path = robustness_map(
-                grid, mine, x, y, f"{spec.name}, {tag}", out / f"fig_{gi + 1}_{_slug(x)}_{_slug(y)}.png"
+                grid,
+                mine,
+                x,
+                y,
+                f"{spec.name}, {tag}",
+                out / f"fig_{gi + 1}_{_slug(x)}_{_slug(y)}.png",
+                spec.statistics,
             )
             lines += [f"## {tag}: robustness map, {x} x {y}", "", f"![{tag} map]({path.name})", ""]
         elif len(varied) == 1 and SPEED not in varied:
             path = axis_figure(
-                grid, mine, varied[0], f"{spec.name}, {tag}", out / f"fig_{gi + 1}_{_slug(varied[0])}.png"
+                grid,
+                mine,
+                varied[0],
+                f"{spec.name}, {tag}",
+                out / f"fig_{gi + 1}_{_slug(varied[0])}.png",
+                spec.statistics,
             )
             if path:
                 lines += [f"## {tag}: sigma against {varied[0]}", "", f"![{tag}]({path.name})", ""]
     axes = spec.axes
     cols = [*axes, *(a for a in ("law", SPEED) if a not in axes)]
+    mean_key, sigma_key, min_key, loss_key = FORCE_COLUMNS[spec.statistics]
     measures = [
-        ("contact_force_mean", "Fm [N]"),
-        ("contact_force_std", "sigma [N]"),
-        ("statistical_min", "Fm-3sigma [N]"),
-        ("contact_loss_percent", "loss [%]"),
+        (mean_key, "Fm [N]"),
+        (sigma_key, "sigma [N]"),
+        (min_key, "Fm-3sigma [N]"),
+        (loss_key, "loss [%]"),
         ("tracking_rms", "tracking RMS [N]"),
         ("stiffness_rel_rms_percent", "k_hat err [%]"),
         ("u_max_abs", "max abs u [N]"),
         ("en50367_sigma_ok", "sigma <= 0.3 Fm"),
         ("en50367_min_ok", "Fm-3sigma > 0"),
     ]
+    if spec.statistics == "en50318":
+        measures += [
+            ("du_dt_max_abs", "max abs du/dt [N/s]"),
+            ("uplift_max_mm", "max uplift [mm]"),
+            ("force_hat_error_percent", "F_hat err [% of sigma_F]"),
+        ]
     lines += [
         "## All runs",
         "",

@@ -1,0 +1,233 @@
+"""Running a campaign's points: one row of measures per point, tick by tick or through the batch.
+
+A row never raises: a divergence or an exception is its status and reason. The measures
+are ``pac_analysis.metrics.Metrics`` (raw contact force over the point's window) and the
+EN 50367 criteria; with ``statistics: en50318`` also the EN 50318 statistics of the 20 Hz
+low-passed force over the window (the window half-open, so whole spans hold whole
+periods), max |du/dt|, the largest wire uplift at the contact point and the contact-force
+estimate's error RMS(F_hat - F) as % of sigma_F (raw F, over the window). The EN 50367
+criteria are then taken on the filtered statistics, as the standard defines them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
+from pac_plant.catenary.enstats import en50367_criteria, lowpass, statistics_of
+from pac_rig.batch import batchable, run_batch
+from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, run
+from pac_rig.simulate import scenario_from_flat, scenario_to_flat, simulate_to_bag
+
+from .campaign_spec import Point
+
+#: The measures of a run, named as in ``pac_analysis.metrics.Metrics`` (and its reports).
+METRIC_COLUMNS = tuple(
+    f.name for f in dataclasses.fields(Metrics) if f.name not in ("window_from", "window_to")
+)
+#: EN 50367 quality criteria on the mean contact force Fm and its standard deviation sigma.
+EN50367_COLUMNS = ("en50367_sigma_ok", "en50367_min_ok")
+#: ``statistics: en50318`` only.
+EN50318_COLUMNS = (
+    "en50318_mean",
+    "en50318_sigma",
+    "en50318_stat_max",
+    "en50318_stat_min",
+    "en50318_max",
+    "en50318_min",
+    "en50318_loss_percent",
+    "du_dt_max_abs",
+    "uplift_max_mm",
+    "force_hat_error_percent",
+)
+STATUS_OK, STATUS_DIVERGED, STATUS_ERROR = "ok", "diverged", "error"
+
+
+def _series(records: list[TickRecord]) -> RunSeries:
+    n = len(records)
+    every = np.arange(n)
+    time_ = np.array([r.truth.time for r in records])
+    return RunSeries(
+        tick=np.array([r.truth.tick for r in records], dtype=np.int64),
+        time=time_,
+        contact_force=np.array([r.truth.contact_force for r in records]),
+        stiffness=np.array([r.truth.stiffness for r in records]),
+        reference_index=every,
+        force_reference=np.array([r.command.force_reference for r in records]),
+        estimate_index=every,
+        stiffness_hat=np.array([r.estimate.stiffness_hat for r in records]),
+        u_time=time_,
+        u=np.array([r.command.u for r in records]),
+    )
+
+
+def en50318_measures(
+    time_: np.ndarray,
+    force: np.ndarray,
+    u: np.ndarray,
+    force_hat: np.ndarray,
+    uplift: np.ndarray,
+    window: tuple[float, float],
+    sample_period: float,
+) -> dict[str, float]:
+    """The ``statistics: en50318`` columns over the half-open window [from, to) of ``time_``."""
+    eps = 1e-9 * sample_period
+    win = (time_ >= window[0] - eps) & (time_ < window[1] - eps)
+    stats = statistics_of(lowpass(force, sample_period)[win], force[win])
+    f, err = force[win], force_hat[win] - force[win]
+    du = np.diff(u[win])
+    return {
+        **{f"en50318_{k}": v for k, v in stats.as_dict().items()},
+        "du_dt_max_abs": float(np.max(np.abs(du)) / sample_period) if du.size else math.nan,
+        "uplift_max_mm": 1e3 * float(np.max(uplift[win])),
+        "force_hat_error_percent": 100.0 * float(np.sqrt(np.mean(err**2)) / np.std(f))
+        if np.std(f) > 0
+        else math.nan,
+    }
+
+
+def measures(point: Point, records: list[TickRecord], sample_period: float) -> dict[str, Any]:
+    """The row's measures from a finished run's records."""
+    m = metrics_from_series(_series(records), point.window[0], point.window[1])
+    row: dict[str, Any] = {k: getattr(m, k) for k in METRIC_COLUMNS}
+    mean, sigma = m.contact_force_mean, m.contact_force_std
+    if point.statistics == "en50318":
+        row.update(
+            en50318_measures(
+                np.array([r.truth.time for r in records]),
+                np.array([r.truth.contact_force for r in records]),
+                np.array([r.command.u for r in records]),
+                np.array([r.estimate.contact_force_hat for r in records]),
+                np.array([r.truth.contact_uplift for r in records]),
+                point.window,
+                sample_period,
+            )
+        )
+        mean, sigma = row["en50318_mean"], row["en50318_sigma"]
+    row.update(zip(EN50367_COLUMNS, en50367_criteria(mean, sigma), strict=True))
+    return row
+
+
+def run_point(point: Point, bag_dir: str | None = None) -> dict[str, Any]:
+    """Run one scenario; never raises: a divergence or an exception is the row's status and reason."""
+    start = time.perf_counter()
+    row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
+    records: list[TickRecord] = []
+    rate = 0.0
+    try:
+        scenario = scenario_from_flat(point.values)
+        rate = scenario.loop.rate_hz
+        row.update(scenario_to_flat(scenario))
+        diverged = None
+        if bag_dir is None:
+            try:
+                for rec in run(scenario):
+                    records.append(rec)
+            except DivergenceError as exc:
+                diverged = str(exc)
+        else:
+            bag_path = Path(bag_dir) / point.key
+            shutil.rmtree(bag_path, ignore_errors=True)  # a partial bag of an interrupted run
+            diverged = simulate_to_bag(scenario, bag_path, point.key, on_record=records.append).diverged
+        if diverged:
+            row.update(status=STATUS_DIVERGED, reason=diverged.splitlines()[0])
+        else:
+            row.update(measures(point, records, scenario.loop.sample_period))
+    except Exception as exc:  # noqa: BLE001 - any failure of one run is that run's row, not the campaign's end
+        row.update(status=STATUS_ERROR, reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    row["ticks_run"] = len(records)
+    row["simulated_seconds"] = len(records) / rate if rate else 0.0
+    row["wall_seconds"] = time.perf_counter() - start
+    return row
+
+
+def _batch_series(result: Any, i: int) -> RunSeries:
+    """The series of run ``i`` of a compiled batch: the same numbers as :func:`_series` (bit for bit)."""
+    n = int(result.ticks[i])
+    every = np.arange(n)
+    time_ = every * float(result.sample_period[i])
+    traces = {name: result.traces[name][i, :n] for name in result.traces}
+    return RunSeries(
+        tick=every.astype(np.int64),
+        time=time_,
+        contact_force=traces["contact_force"],
+        stiffness=traces["stiffness"],
+        reference_index=every,
+        force_reference=traces["force_reference"],
+        estimate_index=every,
+        stiffness_hat=traces["stiffness_hat"],
+        u_time=time_,
+        u=traces["u"],
+    )
+
+
+def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
+    """Rows of the points the compiled batch runs (``pac_rig.batch.batchable``), by key.
+
+    One ``run_batch`` call for all of them (no per-tick Python); its traces equal
+    ``closed_loop.run``'s bit for bit (tests/test_batch.py), so the rows equal
+    :func:`run_point`'s. A run that diverges, a point that does not validate, or one that
+    asks for the EN 50318 columns (they need per-tick records) is left to :func:`run_point`.
+    """
+    chosen: list[tuple[Point, Scenario]] = []
+    for point in points:
+        if point.statistics != "raw":
+            continue
+        try:
+            scenario = scenario_from_flat(point.values)
+        except Exception:  # noqa: BLE001 - run_point reports it as the row's error
+            continue
+        if batchable(scenario):
+            chosen.append((point, scenario))
+    if not chosen:
+        return {}
+    start = time.perf_counter()
+    result = run_batch([s for _, s in chosen])
+    wall = (time.perf_counter() - start) / len(chosen)
+    rows = {}
+    for i, (point, scenario) in enumerate(chosen):
+        if result.diverged[i] is not None:
+            continue
+        m = metrics_from_series(_batch_series(result, i), point.window[0], point.window[1])
+        row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
+        row.update(scenario_to_flat(scenario))
+        row.update({k: getattr(m, k) for k in METRIC_COLUMNS})
+        row.update(
+            zip(EN50367_COLUMNS, en50367_criteria(m.contact_force_mean, m.contact_force_std), strict=True)
+        )
+        row["ticks_run"] = int(result.ticks[i])
+        row["simulated_seconds"] = int(result.ticks[i]) / scenario.loop.rate_hz
+        row["wall_seconds"] = wall
+        rows[point.key] = row
+    return rows
+
+
+def run_chunk(points: list[Point], bag_dir: str | None = None) -> list[dict]:
+    """The Dask task: several runs in one task, so the per-task overhead is paid once per chunk.
+
+    Without bags, the points the compiled batch can run go through it in one call; the rest
+    (other laws, the FE line, divergences) run tick by tick. If the batch itself fails, its
+    points run tick by tick and each of their rows says why in ``batch_error`` (the campaign
+    prints it).
+    """
+    batched: dict[str, dict[str, Any]] = {}
+    batch_error = ""
+    if bag_dir is None:
+        try:
+            batched = run_batched(points)
+        except Exception as exc:  # noqa: BLE001 - every point then runs tick by tick and reports for itself
+            batch_error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+    rows = []
+    for p in points:
+        row = batched.get(p.key) or run_point(p, bag_dir)
+        if batch_error:
+            row["batch_error"] = batch_error
+        rows.append(row)
+    return rows
