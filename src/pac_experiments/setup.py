@@ -27,6 +27,7 @@ setup(
             "campaign = pac_experiments.campaign:main",
             "campaign_bench = pac_experiments.campaign_bench:main",
             "catenary = pac_experiments.fe_line:main",
+            "fe_experiment = pac_experiments.fe_experiment:main",
         ],
     },
 )

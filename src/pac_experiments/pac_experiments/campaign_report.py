@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LogNorm  # noqa: E402
 
-from pac_plant.catenary.enstats import SIGMA_LIMIT, en50367_criteria  # noqa: E402
+from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria  # noqa: E402
 
 from .campaign_run import STATUS_OK  # noqa: E402
 from .campaign_spec import Spec, grid_keys  # noqa: E402
@@ -30,7 +30,12 @@ SPEED = "speed_kmh"
 #: (mean, sigma, Fm - 3 sigma, contact loss) columns of the rows, by the SPEC's ``statistics``.
 FORCE_COLUMNS = {
     "raw": ("contact_force_mean", "contact_force_std", "statistical_min", "contact_loss_percent"),
-    "en50318": ("en50318_mean", "en50318_sigma", "en50318_stat_min", "en50318_loss_percent"),
+    "en50318": (
+        "en50318_contact_force_mean",
+        "en50318_contact_force_std",
+        "en50318_statistical_min",
+        "en50318_contact_loss_percent",
+    ),
 }
 
 
@@ -84,7 +89,7 @@ def speed_figure(
         fm = np.array([_value(r, mean_key) for r in mine])
         sd = np.array([_value(r, sigma_key) for r in mine])
         loss = np.array([_value(r, loss_key) for r in mine])
-        bad = np.array([not all(en50367_criteria(a, b)) for a, b in zip(fm, sd, strict=True)], dtype=bool)
+        bad = np.array([not en50367_criteria(a, b).passed for a, b in zip(fm, sd, strict=True)], dtype=bool)
         color = f"C{i % 10}"
         ax_s.plot(v, sd, "o-", color=color, label=label, ms=4)
         ax_s.plot(v[bad], sd[bad], "x", color="red", ms=8, mew=2)
@@ -98,7 +103,7 @@ def speed_figure(
     ax_s.set_ylabel(r"$\sigma$ [N]")
     ax_s.set_title(r"contact-force standard deviation $\sigma$ (red x: fails EN 50367)")
     ax_s.legend(fontsize=7, loc="best")
-    ax_r.axhline(SIGMA_LIMIT, color="red", ls="--", lw=1, label=r"EN 50367: $\sigma \leq 0.3 F_m$")
+    ax_r.axhline(SIGMA_LIMIT_RATIO, color="red", ls="--", lw=1, label=r"EN 50367: $\sigma \leq 0.3 F_m$")
     ax_r.set_yscale("log")
     ax_r.set_ylabel(r"$\sigma / F_m$")
     ax_r.legend(fontsize=7, loc="best")
@@ -135,7 +140,7 @@ def robustness_map(
                 sd = np.array([_value(r, sigma_key) for r in cell])
                 fm = np.array([_value(r, mean_key) for r in cell])
                 sigma[j, i] = float(np.max(sd))
-                fails[j, i] = not all(all(en50367_criteria(a, b)) for a, b in zip(fm, sd, strict=True))
+                fails[j, i] = not all(en50367_criteria(a, b).passed for a, b in zip(fm, sd, strict=True))
     fig, ax = plt.subplots(figsize=(1.3 * len(xs) + 3, 0.8 * len(ys) + 2.2), constrained_layout=True)
     finite = sigma[np.isfinite(sigma) & (sigma > 0)]
     norm = LogNorm(vmin=finite.min(), vmax=max(finite.max(), finite.min() * 1.01)) if finite.size else None

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
-from pac_plant.catenary.enstats import en50367_criteria, lowpass, statistics_of
+from pac_common.contact_statistics import ContactStatistics, en50367_criteria, lowpass, statistics
 from pac_rig.batch import batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, run
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat, simulate_to_bag
@@ -36,13 +36,7 @@ METRIC_COLUMNS = tuple(
 EN50367_COLUMNS = ("en50367_sigma_ok", "en50367_min_ok")
 #: ``statistics: en50318`` only.
 EN50318_COLUMNS = (
-    "en50318_mean",
-    "en50318_sigma",
-    "en50318_stat_max",
-    "en50318_stat_min",
-    "en50318_max",
-    "en50318_min",
-    "en50318_loss_percent",
+    *(f"en50318_{f.name}" for f in dataclasses.fields(ContactStatistics)),
     "du_dt_max_abs",
     "uplift_max_mm",
     "force_hat_error_percent",
@@ -80,7 +74,7 @@ def en50318_measures(
     """The ``statistics: en50318`` columns over the half-open window [from, to) of ``time_``."""
     eps = 1e-9 * sample_period
     win = (time_ >= window[0] - eps) & (time_ < window[1] - eps)
-    stats = statistics_of(lowpass(force, sample_period)[win], force[win])
+    stats = statistics(lowpass(force, sample_period)[win], loss_force=force[win])
     f, err = force[win], force_hat[win] - force[win]
     du = np.diff(u[win])
     return {
@@ -110,8 +104,9 @@ def measures(point: Point, records: list[TickRecord], sample_period: float) -> d
                 sample_period,
             )
         )
-        mean, sigma = row["en50318_mean"], row["en50318_sigma"]
-    row.update(zip(EN50367_COLUMNS, en50367_criteria(mean, sigma), strict=True))
+        mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]
+    verdict = en50367_criteria(mean, sigma)
+    row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))
     return row
 
 
@@ -199,9 +194,8 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
         row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
         row.update(scenario_to_flat(scenario))
         row.update({k: getattr(m, k) for k in METRIC_COLUMNS})
-        row.update(
-            zip(EN50367_COLUMNS, en50367_criteria(m.contact_force_mean, m.contact_force_std), strict=True)
-        )
+        verdict = en50367_criteria(m.contact_force_mean, m.contact_force_std)
+        row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))
         row["ticks_run"] = int(result.ticks[i])
         row["simulated_seconds"] = int(result.ticks[i]) / scenario.loop.rate_hz
         row["wall_seconds"] = wall

@@ -32,9 +32,9 @@ from typing import Any
 
 import yaml
 
+from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.parameters import ParameterError
 from pac_plant.catenary.data import CatenaryData
-from pac_plant.catenary.enstats import target_force
 from pac_rig.closed_loop import Scenario
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
 
@@ -193,9 +193,12 @@ def _scenario(values: dict[str, Any]) -> Scenario:
 
 
 def span_window(scenario: Scenario, spans: tuple[float, float]) -> tuple[float, float]:
-    """Spans a..b of the line as simulated time [s] at the scenario's speed (it starts at a support)."""
-    span_time = scenario.track.span_length / (scenario.track.speed_kmh / 3.6)
-    return spans[0] * span_time, spans[1] * span_time
+    """The whole spans within spans a..b of the line as simulated time [s] at the scenario's speed
+    (the run starts at a support, so position = speed x time from one)."""
+    span = scenario.track.span_length
+    x_from, x_to = whole_spans(spans[0] * span, spans[1] * span, span)
+    v = scenario.track.speed_kmh / 3.6
+    return x_from / v, x_to / v
 
 
 def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any], tuple[float, float]]:
@@ -203,7 +206,7 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     values = dict(values)
     scenario = _scenario(values)
     if spec.force_target == "en50367":
-        values["force_amplitude"] = target_force(scenario.track.speed_kmh)
+        values["force_amplitude"] = target_mean_force(scenario.track.speed_kmh)
     if spec.window_spans is not None:
         if scenario.plant.catenary_model == "fe" and scenario.track.span_length != CatenaryData().span:
             raise SpecError(

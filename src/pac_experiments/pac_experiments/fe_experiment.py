@@ -31,7 +31,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from pac_common import jsonio  # noqa: E402
-from pac_plant.catenary.enstats import lowpass  # noqa: E402
+from pac_common.contact_statistics import lowpass  # noqa: E402
 
 from .campaign_results import read_done  # noqa: E402
 from .campaign_run import STATUS_OK  # noqa: E402
@@ -40,7 +40,7 @@ from .campaign_spec import Point, SpecError, expand, load_spec, span_window  # n
 SPEC = Path("config/campaigns/fe_laws.yaml")
 OUT = Path("reports/catenary/laws")
 JUDGED = "line_adaptive"
-SIGMA, MEAN, LOSS = "en50318_sigma", "en50318_mean", "en50318_loss_percent"
+SIGMA, MEAN, LOSS = "en50318_contact_force_std", "en50318_contact_force_mean", "en50318_contact_loss_percent"
 #: What makes a row not nominal, and the nominal value (the defaults of the rig).
 NOMINAL = {"noise_std": [0.0, 0.0], "command_delay_ticks": 1, "plant_mass_scale": 1.0}
 #: The robustness cases: name -> the values that differ from nominal.
@@ -72,7 +72,9 @@ def case_of(row: dict[str, Any]) -> str | None:
 
 
 def ok(row: dict[str, Any] | None) -> bool:
-    return row is not None and row.get("status") == STATUS_OK and math.isfinite(float(row.get(SIGMA, math.nan)))
+    return (
+        row is not None and row.get("status") == STATUS_OK and math.isfinite(float(row.get(SIGMA, math.nan)))
+    )
 
 
 def passive_for(rows: list[dict[str, Any]], row: dict[str, Any]) -> dict[str, Any] | None:
@@ -106,7 +108,8 @@ class Goal:
 def _rows_of(rows: list[dict], law: str, case: str = "nominal", speeds: tuple[float, float] = (0.0, 1e9)):
     out = [r for r in rows if r.get("law") == law and case_of(r) == case]
     return sorted(
-        (r for r in out if speeds[0] <= float(r["speed_kmh"]) <= speeds[1]), key=lambda r: float(r["speed_kmh"])
+        (r for r in out if speeds[0] <= float(r["speed_kmh"]) <= speeds[1]),
+        key=lambda r: float(r["speed_kmh"]),
     )
 
 
@@ -127,10 +130,16 @@ def goals(rows: list[dict[str, Any]], law: str = JUDGED) -> list[Goal]:
         return bool(chosen) and all(ok(r) and change_percent(rows, r) <= -percent for r in chosen)
 
     at300 = _rows_of(rows, law, speeds=(300.0, 300.0))
-    out.append(Goal("sigma >= 60 % below passive at 300 km/h", below(at300, 60.0), _changes(rows, at300) or "no run"))
+    out.append(
+        Goal("sigma >= 60 % below passive at 300 km/h", below(at300, 60.0), _changes(rows, at300) or "no run")
+    )
     band = _rows_of(rows, law, speeds=(250.0, 360.0))
     out.append(
-        Goal("sigma >= 50 % below passive at every speed 250-360 km/h", below(band, 50.0), _changes(rows, band) or "no run")
+        Goal(
+            "sigma >= 50 % below passive at every speed 250-360 km/h",
+            below(band, 50.0),
+            _changes(rows, band) or "no run",
+        )
     )
     sweep = _rows_of(rows, law, speeds=(160.0, 400.0))
     speeds = {float(r["speed_kmh"]) for r in sweep}
@@ -152,7 +161,10 @@ def goals(rows: list[dict[str, Any]], law: str = JUDGED) -> list[Goal]:
         )
     )
     errors = [
-        (float(r["speed_kmh"]), 100.0 * (float(r[MEAN]) - float(r["force_amplitude"])) / float(r["force_amplitude"]))
+        (
+            float(r["speed_kmh"]),
+            100.0 * (float(r[MEAN]) - float(r["force_amplitude"])) / float(r["force_amplitude"]),
+        )
         for r in sweep
         if ok(r)
     ]
@@ -174,7 +186,8 @@ def goals(rows: list[dict[str, Any]], law: str = JUDGED) -> list[Goal]:
             bool(lossless) and not lost,
             f"{len(lossless)} speeds where passive keeps contact; "
             + (
-                "loss at " + ", ".join(f"{float(r['speed_kmh']):g} ({float(r.get(LOSS, math.nan)):.2f} %)" for r in lost)
+                "loss at "
+                + ", ".join(f"{float(r['speed_kmh']):g} ({float(r.get(LOSS, math.nan)):.2f} %)" for r in lost)
                 if lost
                 else "none lost"
             ),
@@ -203,8 +216,8 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 def laws_table(rows: list[dict[str, Any]], laws: list[str]) -> str:
     """One row per nominal run: speed, law, EN 50318 statistics, change vs passive, actuator, F_hat error."""
     head = (
-        "| v [km/h] | law | target Fm [N] | Fm [N] | σ [N] | σ vs passive | Fm−3σ [N] | max [N] | "
-        "loss [%] | max \\|u\\| [N] | max \\|du/dt\\| [kN/s] | max uplift [mm] | F̂ error [% of σ_F] | status |"
+        "| v [km/h] | law | target Fm [N] | Fm [N] | σ [N] | σ vs passive | Fm−3σ [N] | max [N] | loss [%] | "
+        "max \\|u\\| [N] | max \\|du/dt\\| [kN/s] | max uplift [mm] | F̂ error [% of σ_F] | status |"
     )
     lines = [head, "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     nominal = [r for r in rows if case_of(r) == "nominal" and r.get("law") in laws]
@@ -221,8 +234,8 @@ def laws_table(rows: list[dict[str, Any]], laws: list[str]) -> str:
                     _fmt(r.get(MEAN), ".1f"),
                     _fmt(r.get(SIGMA), ".1f"),
                     "—" if r["law"] == "passive" else (f"{change:+.1f} %" if math.isfinite(change) else "—"),
-                    _fmt(r.get("en50318_stat_min"), ".1f"),
-                    _fmt(r.get("en50318_max"), ".1f"),
+                    _fmt(r.get("en50318_statistical_min"), ".1f"),
+                    _fmt(r.get("en50318_contact_force_max"), ".1f"),
                     _fmt(r.get(LOSS), ".2f"),
                     _fmt(r.get("u_max_abs"), ".0f"),
                     _fmt(float(r.get("du_dt_max_abs", math.nan)) / 1e3, ".1f"),
@@ -237,7 +250,9 @@ def laws_table(rows: list[dict[str, Any]], laws: list[str]) -> str:
 
 
 def robustness_table(rows: list[dict[str, Any]], law: str) -> str:
-    speeds = sorted({float(r["speed_kmh"]) for r in rows if r.get("law") == law and case_of(r) not in (None, "nominal")})
+    speeds = sorted(
+        {float(r["speed_kmh"]) for r in rows if r.get("law") == law and case_of(r) not in (None, "nominal")}
+    )
     lines = [
         "| case | " + " | ".join(f"{v:g} km/h: σ [N], vs passive" for v in speeds) + " |",
         "|---|" + "---:|" * len(speeds),
@@ -313,7 +328,9 @@ def traces_figure(
     chosen = {
         p.values.get("law"): p
         for p in spec_points
-        if p.values.get("law") in ("passive", law) and _same(p.values.get("speed_kmh"), speed) and case_of(p.values) == "nominal"
+        if p.values.get("law") in ("passive", law)
+        and _same(p.values.get("speed_kmh"), speed)
+        and case_of(p.values) == "nominal"
     }
     if set(chosen) != {"passive", law}:
         return None
@@ -332,7 +349,9 @@ def traces_figure(
         axes[1].plot(x, 1e3 * tr["uplift"][w], color, lw=1.0, label=name)
         axes[2].plot(x, tr["u"][w], color, lw=1.0, label=name)
     for ax, label in zip(
-        axes, ("contact force, 20 Hz low-pass [N]", "wire uplift at the contact [mm]", "actuator force u [N]"), strict=True
+        axes,
+        ("contact force, 20 Hz low-pass [N]", "wire uplift at the contact [mm]", "actuator force u [N]"),
+        strict=True,
     ):
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
@@ -360,8 +379,8 @@ def write(spec_path: Path, out: Path, law: str = JUDGED, figures: bool = True) -
         [
             "# The control laws on the FE line",
             "",
-            "Generated by `make fe-experiment` (src/pac_experiments/pac_experiments/fe_experiment.py) from the "
-            f"campaign `{spec_path}` (its rows: results.csv, report.md here); method: docs/catenary.md.",
+            "Generated by `make fe-experiment` (src/pac_experiments/pac_experiments/fe_experiment.py) "
+            f"from the campaign `{spec_path}` (rows: results.csv, report.md here); method: docs/catenary.md.",
             "",
             f"FE line (10-span moving window, endless), the paper's 2-DOF pantograph, z1, z2 from the fixed "
             f"datum, F_r = the EN 50367 target Fm(v); statistics over spans {a:g} to {b:g} of the run "

@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from pac_common.contact_statistics import contact_statistics, en50367_criteria, target_mean_force
 from pac_plant.catenary.data import CatenaryData, NumericalOptions
-from pac_plant.catenary.enstats import contact_statistics, en50367_criteria, target_force
 from pac_plant.catenary.integrator import ContactSimulation
 from pac_plant.catenary.line import Line
 from pac_plant.catenary.pantographs import three_mass_pantograph
@@ -32,14 +32,14 @@ DATA = CatenaryData()
 SPAN = DATA.span
 #: EN 50318:2002 reference bands (CATENARY_DATA §1): quantity -> {speed: (low, high)}.
 EN50318_BANDS = {
-    "mean": {250: (110, 120), 300: (110, 120)},
-    "sigma": {250: (26, 31), 300: (32, 40)},
-    "stat_max": {250: (190, 210), 300: (210, 230)},
-    "stat_min": {250: (20, 40), 300: (-5, 20)},
-    "max": {250: (175, 210), 300: (190, 225)},
-    "min": {250: (50, 75), 300: (30, 55)},
+    "contact_force_mean": {250: (110, 120), 300: (110, 120)},
+    "contact_force_std": {250: (26, 31), 300: (32, 40)},
+    "statistical_max": {250: (190, 210), 300: (210, 230)},
+    "statistical_min": {250: (20, 40), 300: (-5, 20)},
+    "contact_force_max": {250: (175, 210), 300: (190, 225)},
+    "contact_force_min": {250: (50, 75), 300: (30, 55)},
     "support_uplift_mm": {250: (48, 55), 300: (55, 65)},
-    "loss_percent": {250: (0, 0), 300: (0, 0)},
+    "contact_loss_percent": {250: (0, 0), 300: (0, 0)},
 }
 EXPERIMENT_SPEEDS = (250, 300, 320, 360)
 EXPERIMENT_DURATION = 8.0  # s
@@ -88,7 +88,7 @@ def passive_reference(
     numerics = NumericalOptions(element_size=element_size, contact_stiffness=contact_stiffness)
     line = Line(DATA, numerics)
     v = speed_kmh / 3.6
-    force = target_force(speed_kmh) if force is None else force
+    force = target_mean_force(speed_kmh) if force is None else force
     sim = ContactSimulation(line, three_mass_pantograph(), dt, v, SPAN, damping=damping)
     sim.start_static(force)
     x_from, x_to = 4 * SPAN, 6 * SPAN
@@ -133,7 +133,7 @@ def closed_loop_run(job: tuple[float, str, str]) -> dict[str, Any]:
     from pac_rig.simulate import scenario_from_flat
 
     speed, mode, datum = job
-    force = target_force(speed)
+    force = target_mean_force(speed)
     scenario = scenario_from_flat(
         {
             "catenary_model": "fe",
@@ -214,7 +214,7 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
             "max_abs_u": float(np.max(np.abs(r["u"]))) if len(t) else None,
         }
     stats = contact_statistics(r["F"], t, dt, *EXPERIMENT_WINDOW)
-    sigma_ok, min_ok = en50367_criteria(stats.mean, stats.sigma)
+    verdict = en50367_criteria(stats.contact_force_mean, stats.contact_force_std)
     u = r["u"][w]
     k, kh = r["k"][w], r["k_hat"][w]
     corr = float(np.corrcoef(k, kh)[0, 1]) if np.std(kh) > 0 and np.std(k) > 0 else 0.0
@@ -225,8 +225,8 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
         "target_Fm": r["force"],
         **(model_fit(r) if r["mode"] == "passive" else {}),
         **stats.as_dict(),
-        "quality_sigma_le_0.3Fm": sigma_ok,
-        "quality_Fm_minus_3sigma_gt_0": min_ok,
+        "quality_sigma_le_0.3Fm": verdict.sigma_ok,
+        "quality_Fm_minus_3sigma_gt_0": verdict.statistical_min_ok,
         "max_abs_u": float(np.max(np.abs(u))),
         "max_abs_du_dt": float(np.max(np.abs(np.diff(u))) / dt),
         "k_fe_mean": float(np.mean(k)),
@@ -327,5 +327,7 @@ def sigma_reductions(metrics: list[dict[str, Any]]) -> None:
         p = by[(v, "passive", "fixed")]
         for datum in ("fixed", "static_wire"):
             a = by[(v, "active", datum)]
-            if "sigma" in p and "sigma" in a:
-                a["sigma_reduction_percent"] = 100.0 * (p["sigma"] - a["sigma"]) / p["sigma"]
+            if "contact_force_std" in p and "contact_force_std" in a:
+                a["sigma_reduction_percent"] = (
+                    100.0 * (p["contact_force_std"] - a["contact_force_std"]) / p["contact_force_std"]
+                )

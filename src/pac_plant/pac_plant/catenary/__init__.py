@@ -4,6 +4,6 @@ Modules, one concept each: ``data`` (the parameter set of /work/shared/CATENARY_
 ``line`` (mesh, Hermite beam matrices, droppers, static equilibrium, static stiffness),
 ``pantographs`` (the paper's 2-DOF and the benchmark-like 3-mass lumped pantographs),
 ``integrator`` (Newmark average acceleration with a moving unilateral penalty contact and
-slack droppers as low-rank Woodbury corrections of a once-factorised matrix),
-``enstats`` (EN 50318 style contact-force statistics). See docs/catenary.md.
+slack droppers as low-rank Woodbury corrections of a once-factorised matrix). The contact-force
+statistics are ``pac_common.contact_statistics``'s. See docs/catenary.md.
 """
