@@ -9,7 +9,7 @@ BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs.
 CAMPAIGNS ?= laws_speeds robustness
 
-.PHONY: setup test lint clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test lint clean demo reproduce catenary fe-experiment fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -32,8 +32,22 @@ demo: setup
 reproduce: setup
 	scripts/with_env.sh ros2 run pac_experiments reproduce $(ARGS)
 
+# The FE line's checks (reports/catenary/metrics.md), then the laws on it and the live run.
 catenary: setup
 	scripts/with_env.sh ros2 run pac_experiments catenary $(ARGS)
+	$(MAKE) fe-experiment ARGS=
+	$(MAKE) fe-live ARGS=
+
+# The control laws on the FE line: the campaign config/campaigns/fe_laws.yaml from fresh (Dask),
+# then its goals and figures (reports/catenary/laws/laws.md); ARGS="--report-only" rewrites them.
+fe-experiment: setup
+	@if [[ " $(ARGS) " != *" --report-only "* ]]; then rm -f reports/catenary/laws/runs.jsonl; fi
+	scripts/with_env.sh ros2 run pac_experiments fe_experiment $(ARGS)
+
+# The four-process rig in real time on the FE line, line_adaptive at 300 km/h, against the
+# campaign's offline row (reports/catenary/live/live.md).
+fe-live: setup
+	scripts/with_env.sh ros2 run pac_experiments fe_live $(ARGS)
 
 bench: setup
 	scripts/with_env.sh ros2 run pac_experiments bench $(ARGS)

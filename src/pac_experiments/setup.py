@@ -28,6 +28,7 @@ setup(
             "campaign_bench = pac_experiments.campaign_bench:main",
             "catenary = pac_experiments.fe_line:main",
             "fe_experiment = pac_experiments.fe_experiment:main",
+            "fe_live = pac_experiments.fe_live:main",
         ],
     },
 )
