@@ -19,6 +19,7 @@ from pac_controller.controller import Command, Controller
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_observer.contact_force import ContactForceObserver, make_observer
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
 from pac_plant.fe_plant import make_plant
@@ -79,12 +80,12 @@ DIVERGENCE_DISPLACEMENT = 1.0
 DIVERGENCE_FORCE = 1e6
 
 
-def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, Controller]:
+def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
     dt = s.loop.sample_period
     plant = make_plant(
         s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt
     )  # lumped | fe
-    observer = AdaptiveObserver(s.pantograph, s.track, s.observer, dt)
+    observer = make_observer(s.pantograph, s.track, s.observer, dt)  # observer: adaptive | contact_force
     # backstepping_known is told the plant's own catenary: the oracle.
     controller = make_controller(s.pantograph, s.track, s.controller, s.reference, dt, s.laws, s.catenary)
     return plant, observer, controller
@@ -104,7 +105,7 @@ def run(s: Scenario) -> Iterator[TickRecord]:
             est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force)
         except ObserverDivergedError as exc:
             raise DivergenceError(y.tick, exc.reason) from exc
-        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat)
+        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat)
         if not abs(cmd.u_unsaturated) < DIVERGENCE_FORCE:
             raise DivergenceError(
                 y.tick, f"|u| demanded by the law exceeded {DIVERGENCE_FORCE:g} N ({cmd.u_unsaturated:.3g} N)"
