@@ -25,6 +25,7 @@ from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria  #
 
 from .campaign_run import STATUS_OK  # noqa: E402
 from .campaign_spec import Spec, grid_keys  # noqa: E402
+from .campaign_spec import same_value as _same  # noqa: E402
 
 SPEED = "speed_kmh"
 #: (mean, sigma, Fm - 3 sigma, contact loss) columns of the rows, by the SPEC's ``statistics``.
@@ -45,15 +46,6 @@ def _label(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)
-
-
-def _same(a: Any, b: Any) -> bool:
-    """Grid value vs the row's normalised value (ints vs floats, lists vs tuples)."""
-    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
-    if isinstance(a, int | float) and isinstance(b, int | float) and not isinstance(a, bool):
-        return float(a) == float(b)
-    return a == b
 
 
 def _slug(text: str) -> str:

@@ -87,6 +87,15 @@ class Point:
     statistics: str = "raw"
 
 
+def same_value(a: Any, b: Any) -> bool:
+    """A SPEC's value vs a row's normalised one (ints vs floats, lists vs tuples)."""
+    if isinstance(a, list | tuple) and isinstance(b, list | tuple):
+        return len(a) == len(b) and all(same_value(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, int | float) and isinstance(b, int | float) and not isinstance(a, bool):
+        return float(a) == float(b)
+    return a == b
+
+
 def _number_pair(value: Any) -> bool:
     return (
         isinstance(value, list)
@@ -214,8 +223,8 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
                 f"FE line needs its span, {CatenaryData().span:g} m"
             )
         if "duration" not in values:
-            _, end = span_window(scenario, (0.0, spec.window_spans[1] + TAIL_SPANS))
-            values["duration"] = round(end, 3)
+            span_time = scenario.track.span_length / (scenario.track.speed_kmh / 3.6)
+            values["duration"] = round((spec.window_spans[1] + TAIL_SPANS) * span_time, 3)
     scenario = _scenario(values)
     duration = scenario.loop.duration
     if spec.window_spans is not None:
