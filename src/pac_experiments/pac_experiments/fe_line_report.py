@@ -71,8 +71,8 @@ def experiment_table(metrics: list[dict[str, Any]]) -> str:
         ("quality_sigma_le_0.3Fm", "σ ≤ 0.3 Fm"),
         ("quality_Fm_minus_3sigma_gt_0", "Fm−3σ > 0"),
         ("sigma_reduction_percent", "σ reduction [%]"),
-        ("max_abs_u", "max |u| [N]"),
-        ("max_abs_du_dt", "max |du/dt| [N/s]"),
+        ("max_abs_u", "max \\|u\\| [N]"),
+        ("max_abs_du_dt", "max \\|du/dt\\| [N/s]"),
         ("contact_uplift_max_mm", "max uplift [mm]"),
         ("stopped_at_s", "diverged at [s]"),
     ]
