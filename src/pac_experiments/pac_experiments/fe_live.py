@@ -13,6 +13,7 @@ timing. The bag stays in bags/ (not committed).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from datetime import datetime
@@ -94,18 +95,38 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", type=float, default=300.0)
     parser.add_argument("--out", type=Path, default=LIVE_OUT)
     parser.add_argument("--bag", type=Path, default=None, help="default bags/fe_live_<time>")
+    parser.add_argument(
+        "--analyse-only",
+        action="store_true",
+        help="no run: write up the existing --bag (e.g. once the offline row exists)",
+    )
     args = parser.parse_args(argv)
-    from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
-    from pac_rig.bag import read_bag
-    from pac_rig.launcher import Rig
     from pac_rig.simulate import scenario_from_flat
-
-    from .demo import free_domain
 
     point = choose(expand(load_spec(args.spec)), args.law, args.speed)
     scenario = scenario_from_flat(point.values)
     duration = scenario.loop.duration
     bag_path = args.bag or Path("bags") / f"fe_live_{datetime.now():%Y%m%d_%H%M%S}"
+    codes: dict[str, int | None] = {}
+    if args.analyse_only:
+        if args.bag is None:
+            print("fe_live: --analyse-only needs --bag", file=sys.stderr)
+            return 2
+        logs = bag_path.parent / f"{bag_path.name}_logs" / "exit_codes.json"
+        codes = json.loads(logs.read_text()) if logs.exists() else {}
+    else:
+        codes = run_live(bag_path, duration, point, args)
+    return write_up(bag_path, codes, point, scenario, duration, args)
+
+
+def run_live(
+    bag_path: Path, duration: float, point: Point, args: argparse.Namespace
+) -> dict[str, int | None]:
+    """The rig in real time for ``duration`` (s), recording to ``bag_path``; the processes' exit codes."""
+    from pac_rig.launcher import Rig
+
+    from .demo import free_domain
+
     with free_domain() as domain_id:
         print(
             f"fe_live: {args.law} at {args.speed:g} km/h on the FE line, {duration:g} s, domain {domain_id}"
@@ -113,9 +134,25 @@ def main(argv: list[str] | None = None) -> int:
         rig = Rig(bag_path, duration=duration, domain_id=domain_id, params={"all": loop_parameters(point)})
         try:
             rig.start()
-            rig.wait_finished(timeout=120.0 + 10.0 * duration)
+            rig.wait_finished(timeout=180.0 + 20.0 * duration)
         finally:
             codes = rig.stop()
+    jsonio.write(rig.log_dir / "exit_codes.json", codes)
+    return codes
+
+
+def write_up(
+    bag_path: Path,
+    codes: dict[str, int | None],
+    point: Point,
+    scenario: Any,
+    duration: float,
+    args: argparse.Namespace,
+) -> int:
+    """live.md, live.json, live.png from the bag, beside the campaign's offline row."""
+    from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
+    from pac_rig.bag import read_bag
+
     bag = read_bag(bag_path)
     s = bag_series(bag, scenario.loop.rate_hz)
     live = en50318_measures(
