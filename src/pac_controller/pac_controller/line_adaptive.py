@@ -9,7 +9,7 @@ The span makes the line's excitation periodic in time with period T = L / v, sam
 as N = round(T / dt) ticks, w_s = 2 pi / (N dt).  The law is the constant uplift plus a
 periodic feedforward over the harmonics h = 1 .. H of w_s up to ``line_max_frequency``::
 
-    u_k = F_r(t_k) + Re sum_h U_h^j exp(i h w_s (t_k + (d + 1/2) dt))       (span j)
+    u_k = F_r(t_k) + U_0^j + Re sum_h U_h^j exp(i h w_s (t_k + (d + 1/2) dt))       (span j)
 
 (advanced over the d = ``design_delay_ticks`` ticks of command delay and the half
 period of the hold: a feedforward can be, exactly).  Over span j the law accumulates
@@ -26,11 +26,15 @@ At the end of span j (j >= ``line_runin_spans`` - 1) each harmonic takes a secan
     U_h^{j+1} = U_h^j - gamma E_h^j / D_h,   each step clipped to ``line_step_max`` in modulus
 
 (lam = ``line_forgetting``, s0 = ``line_prior_weight``, gamma = ``line_learning_gain``;
-an update with |dU_h| < 0.5 N carries no information and is skipped.)  Why identified:
+an update with |dU_h| < 0.5 N carries no information and is skipped.)  The mean error
+E_0 is learned too, with its exact static response (U_0 += gamma E_0): the estimate's
+mean is unbiased by a mass error, and clipping by the limits would otherwise shift the
+mean force.  After each update the whole span of F_r + u_ff is checked against
+``HEADROOM`` times the actuator's force and rate limits and scaled down to fit.  Why identified:
 the line's response u -> F at the span harmonics differs from any spring model of it by
 up to ~90 deg in phase and a factor 5 in gain (docs/laws.md, measured), and with a wrong
-phase beyond 90 deg a fixed learning filter diverges.  No DC term: in a periodic steady
-state mean(F) = mean(u) (the pantograph's momentum balance), so the mean force stays F_r.
+phase beyond 90 deg a fixed learning filter diverges.  In a periodic steady state
+mean(F) = mean(u) (the pantograph's momentum balance), so U_0 stays ~0 unless limits clip.
 
 Do-no-harm guard: the spans 1 .. ``line_runin_spans`` - 1 run passive (u = F_r) and give
 the passive variance of F_hat, sigma_p^2.  At the end of every learning span the RMS of
@@ -57,6 +61,8 @@ from .parameters import LawParameters
 
 #: An update smaller than this [N] in a harmonic says nothing about its response.
 MIN_INFORMATIVE_STEP = 0.5
+#: Fraction of the actuator's force and rate limits the feedforward may use (the rest: transients).
+HEADROOM = 0.9
 #: The guard judges the RMS of the last this many spans' sigma (learning is not monotone span by span).
 GUARD_SPANS = 3
 #: One span's sigma above this multiple of line_guard_ratio * sigma_passive trips the guard at once.
@@ -67,8 +73,19 @@ class LineAdaptiveLaw:
     uses_estimate = True
     uses_contact_force = True
 
-    def __init__(self, track: TrackParameters, laws: LawParameters, sample_period: float) -> None:
+    def __init__(
+        self,
+        track: TrackParameters,
+        laws: LawParameters,
+        sample_period: float,
+        u_min: float = -500.0,
+        u_max: float = 500.0,
+        slew_rate_max: float = 1e5,
+    ) -> None:
         dt = sample_period
+        # The feedforward is kept within HEADROOM of the actuator's limits (module docstring).
+        self.u_min, self.u_max = HEADROOM * u_min, HEADROOM * u_max
+        self.slew_step = HEADROOM * slew_rate_max * dt
         self.dt = dt
         self.delay = laws.design_delay_ticks
         speed = track.speed_kmh / 3.6
@@ -88,6 +105,7 @@ class LineAdaptiveLaw:
         self.guard_ratio = laws.line_guard_ratio
         self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
         self._pending_error = 0.0
+        self._pending_reference = 0.0
         self.restart(None)
 
     # -- state -----------------------------------------------------------------------
@@ -95,6 +113,8 @@ class LineAdaptiveLaw:
         """Forget everything learned: the next span starts a new run-in (u = F_r, bumpless from rest)."""
         h = self.harmonics
         self.u_ff = np.zeros(h, dtype=np.complex128)  # U_h of the current span
+        self.u_mean = 0.0  # U_0: the mean correction (D_0 = -1 exactly: statics)
+        self.e_mean = 0.0  # E_0 accumulating over the current span
         self.u_prev = np.zeros(h, dtype=np.complex128)
         self.e_acc = np.zeros(h, dtype=np.complex128)  # E_h accumulating over the current span
         self.e_prev = np.zeros(h, dtype=np.complex128)
@@ -117,7 +137,7 @@ class LineAdaptiveLaw:
     def feedforward(self, tick: int) -> float:
         """Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
         phase = (tick + self.delay) % self.period_ticks
-        return float(np.real(np.sum(self.u_ff * self.ahead * self.basis[phase])))
+        return self.u_mean + float(np.real(np.sum(self.u_ff * self.ahead * self.basis[phase])))
 
     # -- the law -------------------------------------------------------------------
     def output(
@@ -130,7 +150,8 @@ class LineAdaptiveLaw:
         contact_force_hat: float = math.nan,
     ) -> tuple[float, Errors]:
         error = float(f_r[0]) - contact_force_hat
-        self._pending_error = error  # the sample commit() accumulates (output itself changes nothing)
+        # The sample commit() accumulates (output itself changes nothing).
+        self._pending_error, self._pending_reference = error, float(f_r[0])
         u_ff = 0.0 if self.tripped else self.feedforward(tick)
         return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
 
@@ -142,6 +163,7 @@ class LineAdaptiveLaw:
         phase = tick % n
         e = self._pending_error
         self.e_acc += (2.0 / n) * e * np.conj(self.basis[phase])
+        self.e_mean += e / n
         self.span_sum += e
         self.span_sum_sq += e * e
         if k % n == n - 1:
@@ -166,9 +188,11 @@ class LineAdaptiveLaw:
             if judged or not span_ratio <= GUARD_HARD_FACTOR * self.guard_ratio:
                 self.tripped = True
                 self.u_ff[:] = 0.0
+                self.u_mean = 0.0
         if span >= self.runin_spans - 1 and not self.tripped:
             self._learn()
         self.e_acc[:] = 0.0
+        self.e_mean = 0.0
 
     def _learn(self) -> None:
         """One secant step per harmonic (module docstring)."""
@@ -189,4 +213,23 @@ class LineAdaptiveLaw:
         self.u_prev = self.u_ff.copy()
         self.e_prev = self.e_acc.copy()
         self.has_prev = True
+        self.u_mean += self.gain * self.e_mean
         self.u_ff = self.u_ff + step
+        self._within_limits()
+
+    def _within_limits(self) -> None:
+        """Scale the feedforward so that one span of F_r + u_ff stays within HEADROOM of the limits."""
+        wave = self.u_mean + np.real(self.basis @ (self.u_ff * self.ahead))
+        f_r = self._pending_reference
+        scale = 1.0
+        high, low = float(np.max(wave)), float(np.min(wave))
+        if f_r + high > self.u_max and high > 0.0:
+            scale = min(scale, max(self.u_max - f_r, 0.0) / high)
+        if f_r + low < self.u_min and low < 0.0:
+            scale = min(scale, max(f_r - self.u_min, 0.0) / -low)
+        rate = float(np.max(np.abs(np.diff(wave))))
+        if rate > self.slew_step:
+            scale = min(scale, self.slew_step / rate)
+        if scale < 1.0:
+            self.u_ff *= scale
+            self.u_mean *= scale
