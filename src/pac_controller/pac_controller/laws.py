@@ -53,7 +53,7 @@ def _passive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
 
 
 def _line_adaptive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
-    return LineAdaptiveLaw(track, laws, dt, params.u_min, params.u_max, params.slew_rate_max)
+    return LineAdaptiveLaw(track, laws, dt)
 
 
 LAWS: dict[str, Callable[..., Law]] = {
