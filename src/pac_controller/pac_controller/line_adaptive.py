@@ -24,6 +24,7 @@ At the end of span j (j >= ``line_runin_spans`` - 1) each harmonic takes a secan
     D_h = (Z_h - s0) / (S_h + s0)                (prior D = -1: F = u at low frequency, weight s0)
     |D_h| floored at ``line_response_min``
     U_h^{j+1} = U_h^j - gamma E_h^j / D_h,   each step clipped to ``line_step_max`` in modulus
+                                             (``line_probe_step`` until D_h has been identified)
 
 (lam = ``line_forgetting``, s0 = ``line_prior_weight``, gamma = ``line_learning_gain``;
 an update with |dU_h| < 0.5 N carries no information and is skipped.)  The mean error
@@ -91,6 +92,7 @@ class LineAdaptiveLaw:
         self.ahead = np.exp(1j * orders * w * 0.5 * dt)  # the hold's half period
         self.gain = laws.line_learning_gain
         self.step_max = laws.line_step_max
+        self.probe_step = min(laws.line_probe_step, laws.line_step_max)
         self.forgetting = laws.line_forgetting
         self.prior_weight = laws.line_prior_weight
         self.response_min = laws.line_response_min
@@ -201,7 +203,10 @@ class LineAdaptiveLaw:
             modulus < self.response_min, self.response_min * np.exp(1j * np.angle(response)), response
         )
         step = -self.gain * self.e_acc / response
-        step /= np.maximum(1.0, np.abs(step) / self.step_max)
+        # A harmonic whose response has not been identified yet (only the prior F = u, which can be
+        # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
+        limit = np.where(self.s > 0.0, self.step_max, self.probe_step)
+        step /= np.maximum(1.0, np.abs(step) / limit)
         self.u_prev = self.u_ff.copy()
         self.e_prev = self.e_acc.copy()
         self.has_prev = True
