@@ -222,6 +222,14 @@ class LawParameters(ParameterSet):
         low_open=True,
         high=1000.0,
     )
+    line_probe_step: float = parameter(
+        10.0,
+        "line_adaptive: largest step of a harmonic whose response has not been identified yet",
+        "N",
+        low=0.0,
+        low_open=True,
+        high=1000.0,
+    )
     line_forgetting: float = parameter(
         0.7,
         "line_adaptive: forgetting factor per span of the identified response of each harmonic",
@@ -262,7 +270,7 @@ class LawParameters(ParameterSet):
         high=10.0,
     )
     line_guard_spans: int = parameter(
-        6,
+        8,
         "line_adaptive: learning spans before the guard judges the RMS sigma of the last 3 spans "
         "(one span above twice the limit trips at once)",
         "spans",

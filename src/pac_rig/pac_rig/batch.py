@@ -190,8 +190,9 @@ def pack(scenarios: Sequence[Scenario]) -> tuple:
         plant, observer, controller = build_cores(s)
         if not batchable(s):
             raise ValueError(
-                f"scenario {i}: the batch runs the lumped line with law adaptive_backstepping or passive "
-                f"only (catenary_model {s.plant.catenary_model}, law {s.controller.effective_law})"
+                f"scenario {i}: the batch runs the lumped line, observer adaptive, law adaptive_backstepping "
+                f"or passive only (catenary_model {s.plant.catenary_model}, observer {s.observer.observer}, "
+                f"law {s.controller.effective_law})"
             )
         p, plant_p = s.pantograph, plant.pantograph
         is_noisy = any(v > 0.0 for v in s.plant.noise_std)
@@ -237,10 +238,12 @@ def pack(scenarios: Sequence[Scenario]) -> tuple:
 
 
 def batchable(s: Scenario) -> bool:
-    """What the compiled batch loop runs: the lumped line, the adaptive backstepping or passive law."""
-    return s.plant.catenary_model == "lumped" and s.controller.effective_law in (
-        "adaptive_backstepping",
-        "passive",
+    """What the compiled batch loop runs: the lumped line, the adaptive observer, the adaptive
+    backstepping or passive law."""
+    return (
+        s.plant.catenary_model == "lumped"
+        and s.observer.observer == "adaptive"
+        and s.controller.effective_law in ("adaptive_backstepping", "passive")
     )
 
 

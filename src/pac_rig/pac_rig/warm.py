@@ -25,6 +25,7 @@ MODULES = (
     "pac_model.model",
     "pac_plant.plant",
     "pac_observer.observer",
+    "pac_observer.contact_force",
     "pac_controller.reference",
     "pac_controller.backstepping",
     "pac_controller.controller",
@@ -56,6 +57,7 @@ def exercise() -> None:
         {"shape": "square", "contact_model": "unilateral", "noise_std": (1e-6, 1e-6), "quantisation": 1e-7},
         {"shape": "step", "law": "passive", "command_delay_ticks": 0},
         {"catenary_model": "fe"},
+        {"law": "line_adaptive", "observer": "contact_force"},
     ]
     scenarios = [scenario_from_flat({**short, **v}) for v in variants]
     for s in scenarios:
