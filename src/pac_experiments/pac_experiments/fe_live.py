@@ -131,7 +131,10 @@ def run_live(
         print(
             f"fe_live: {args.law} at {args.speed:g} km/h on the FE line, {duration:g} s, domain {domain_id}"
         )
-        rig = Rig(bag_path, duration=duration, domain_id=domain_id, params={"all": loop_parameters(point)})
+        # The FE plant's start (assembly, compiled step) can take tens of seconds on a loaded
+        # machine, silent on the topics: the recorder must not take that for the end.
+        params = {"all": loop_parameters(point), "recorder": {"idle_timeout": 120.0}}
+        rig = Rig(bag_path, duration=duration, domain_id=domain_id, params=params)
         try:
             rig.start()
             rig.wait_finished(timeout=180.0 + 20.0 * duration)
