@@ -9,7 +9,10 @@ BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs.
 CAMPAIGNS ?= laws_speeds robustness
 
-.PHONY: setup test lint clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
+# Test kinds: pytest.ini (unit, offline, live); `make test-fast` = unit + offline, no DDS processes.
+FAST_TESTS := (unit or offline) and not live
+
+.PHONY: setup test test-fast lint clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -19,6 +22,10 @@ test: setup
 	scripts/with_env.sh ruff check src tests scripts
 	scripts/with_env.sh ruff format --check src tests scripts
 	bash scripts/run_tests.sh
+
+# The fast kinds only (cores, offline tools): no node process, no DDS.
+test-fast: setup
+	bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 
 lint: setup
 	scripts/with_env.sh ruff check src tests scripts

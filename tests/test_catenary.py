@@ -12,6 +12,8 @@ from pac_plant.catenary.integrator import ContactSimulation
 from pac_plant.catenary.line import DOFS_PER_NODE, WC, Line
 from pac_plant.catenary.pantographs import paper_pantograph, three_mass_pantograph
 
+pytestmark = pytest.mark.offline
+
 DATA = CatenaryData()
 
 
@@ -247,7 +249,7 @@ def test_endless_window_equals_a_long_fixed_line():
 
 def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path):
     """plant_node with catenary_model fe, 4 processes over DDS in lock step == pac_rig.closed_loop."""
-    from pac_rig.bag import read_bag
+    from pac_bag.reader import read_bag
     from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
     duration = 1.0

@@ -12,9 +12,12 @@ import numpy as np
 import pytest
 from websockets.sync.client import connect
 
-from pac_rig.bag import read_bag, typestore
+from pac_bag.reader import read_bag
+from pac_bag.typestore import typestore
 from pac_rig.launcher import node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.live
 
 TOPICS = ("measurement", "plant_truth", "estimate", "command")
 ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")

@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
+from pac_bag.reader import BagError, read_bag
 from pac_common.parameters import ParameterError, RateParameters
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
-from pac_rig.bag import BagError, read_bag
 from pac_rig.cli import OverrideError, add_override_arguments, overrides_from_args
 
 FIELDS = ("z_hat", "theta_hat", "stiffness_hat", "contact_force_hat", "innovation")

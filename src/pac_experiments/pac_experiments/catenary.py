@@ -30,6 +30,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from pac_common import markdown  # noqa: E402
 from pac_common.contact_statistics import (  # noqa: E402
     contact_statistics,
     en50367_criteria,
@@ -43,7 +44,7 @@ from pac_plant.catenary.pantographs import three_mass_pantograph  # noqa: E402
 
 DATA = CatenaryData()
 SPAN = DATA.span
-#: EN 50318:2002 reference bands (CATENARY_DATA §1): quantity -> {speed: (low, high)}.
+#: EN 50318:2002 reference bands (docs/catenary_data.md §1): quantity -> {speed: (low, high)}.
 EN50318_BANDS = {
     "contact_force_mean": {250: (110, 120), 300: (110, 120)},
     "contact_force_std": {250: (26, 31), 300: (32, 40)},
@@ -347,24 +348,23 @@ def _fmt(v: Any) -> str:
 
 
 def reference_table(refs: dict[int, dict[str, Any]]) -> str:
-    head = " | ".join(f"{v} km/h: ours | EN 50318:2002 band | distance" for v in refs)
-    rows = [f"| quantity | {head} |"]
-    rows.append("|---|" + "---:|---:|---:|" * len(refs))
+    header = ["quantity"]
+    for v in refs:
+        header += [f"{v} km/h: ours", "EN 50318:2002 band", "distance"]
+    rows = []
     for q, bands in EN50318_BANDS.items():
-        cells = []
+        cells = [q]
         for v, r in refs.items():
             lo, hi = bands[v]
-            cells.append(f"{r[q]:.1f} | {lo}–{hi} | {band_distance(r[q], bands[v]):+.1f}")
-        rows.append(f"| {q} | " + " | ".join(cells) + " |")
-    return "\n".join(rows)
+            cells += [f"{r[q]:.1f}", f"{lo}–{hi}", f"{band_distance(r[q], bands[v]):+.1f}"]
+        rows.append(cells)
+    return markdown.table(header, rows, ["l"] + ["r"] * (len(header) - 1))
 
 
 def _table(metrics: list[dict[str, Any]], keys: list[tuple[str, str]]) -> str:
     cols = [("speed_kmh", "v [km/h]"), ("mode", "mode"), ("datum", "z datum"), *keys]
-    rows = ["| " + " | ".join(label for _, label in cols) + " |", "|" + "---|" * len(cols)]
-    for m in metrics:
-        rows.append("| " + " | ".join(_fmt(m.get(k, "—")) for k, _ in cols) + " |")
-    return "\n".join(rows)
+    rows = [[_fmt(m.get(k, "—")) for k, _ in cols] for m in metrics]
+    return markdown.table([label for _, label in cols], rows)
 
 
 def experiment_table(metrics: list[dict[str, Any]]) -> str:
@@ -548,17 +548,29 @@ def main(argv: list[str] | None = None) -> int:
     plt.close(fig)
 
     # Tables.
-    num_rows = [
-        "| variant (300 km/h, 3-mass passive) | Fm [N] | σ [N] | max [N] | min [N] | loss [%] | "
-        "support uplift [mm] | µs/step |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    num_header = [
+        "variant (300 km/h, 3-mass passive)",
+        "Fm [N]",
+        "σ [N]",
+        "max [N]",
+        "min [N]",
+        "loss [%]",
+        "support uplift [mm]",
+        "µs/step",
     ]
-    for k, r in numerics.items():
-        num_rows.append(
-            f"| {k} | {r['contact_force_mean']:.2f} | {r['contact_force_std']:.2f} | "
-            f"{r['contact_force_max']:.1f} | {r['contact_force_min']:.1f} | "
-            f"{r['contact_loss_percent']:.2f} | {r['support_uplift_mm']:.1f} | {r['us_per_step']:.0f} |"
-        )
+    num_rows = [
+        [
+            k,
+            f"{r['contact_force_mean']:.2f}",
+            f"{r['contact_force_std']:.2f}",
+            f"{r['contact_force_max']:.1f}",
+            f"{r['contact_force_min']:.1f}",
+            f"{r['contact_loss_percent']:.2f}",
+            f"{r['support_uplift_mm']:.1f}",
+            f"{r['us_per_step']:.0f}",
+        ]
+        for k, r in numerics.items()
+    ]
     text = "\n".join(
         [
             "# make catenary: FE catenary reference runs and the control experiment",
@@ -591,7 +603,7 @@ def main(argv: list[str] | None = None) -> int:
             "",
             "## Numerics at 300 km/h (convergence, penalty, damping)",
             "",
-            "\n".join(num_rows) if numerics else "(skipped)",
+            markdown.table(num_header, num_rows, ["l"] + ["r"] * 7) if numerics else "(skipped)",
             "",
             "Cost per 1 kHz step, 10-span line + 3-mass pantograph "
             f"({cost['n_dof']} DOFs, CPU time on this shared 2-core VM): "

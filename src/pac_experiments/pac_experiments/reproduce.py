@@ -16,8 +16,8 @@ from typing import Any
 
 from pac_analysis.metrics import compute_metrics, markdown_table
 from pac_analysis.plots import overlay_figure, run_figure
+from pac_bag.reader import read_bag
 from pac_common import jsonio
-from pac_rig.bag import read_bag
 from pac_rig.progress import progress
 from pac_rig.simulate import RunResult, scenario_from_flat, simulate_to_bag
 

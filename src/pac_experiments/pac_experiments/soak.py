@@ -10,6 +10,7 @@ and its figures are measured, never asserted.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import tempfile
@@ -20,11 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from pac_analysis.metrics import loop_timing
+from pac_bag.reader import read_bag
+from pac_common.contact_statistics import statistics
 from pac_common.parameters import LoopParameters
-from pac_rig.bag import read_bag
 from pac_rig.launcher import Rig
 
-PAGE = 4096
+#: /proc/<pid>/statm counts pages: their size is the machine's (4 KiB on x86-64, 16 or 64 KiB on
+#: some ARM kernels).
+PAGE = os.sysconf("SC_PAGE_SIZE")
 
 
 def rss_mb(pid: int) -> float:
@@ -42,9 +46,11 @@ def sigma_per_minute(bag, rate_hz: float) -> list[tuple[int, float, float]]:
     ticks, first = np.unique(truth["tick"], return_index=True)
     force = truth["contact_force"][first]
     minute = (ticks / rate_hz // 60).astype(int)
-    return [
-        (int(m), float(force[minute == m].mean()), float(force[minute == m].std())) for m in np.unique(minute)
-    ]
+    out = []
+    for m in np.unique(minute):
+        stats = statistics(force[minute == m])
+        out.append((int(m), stats.contact_force_mean, stats.contact_force_std))
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -120,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
             f"({timing.messages_lost[topic]} ticks skipped under load, never published)"
         )
     print(
-        f"periods <= 1.5 ms: {timing.periods_under_1_5_ms_percent:.2f} %, y -> u latency p50 / p99: "
+        f"periods <= 1.5 T: {timing.on_time_periods_percent:.2f} %, y -> u latency p50 / p99: "
         f"{timing.latency_p50_ms:.2f} / {timing.latency_p99_ms:.2f} ms, u applied one tick after y: "
         f"{timing.commands_on_time_percent:.1f} %\n"
     )

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter, columns_of
 from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet
 
-from .bag import DEFAULT_COMPRESSION, BagWriter, columns_of
 from .cli import OverrideError, add_override_arguments, overrides_from_args
 from .closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run
-from .mcap_writer import COMPRESSIONS
 from .progress import progress
 
 

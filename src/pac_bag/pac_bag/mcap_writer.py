@@ -277,7 +277,7 @@ class McapWriter:
 def message_records(channel_id: int, log_times: np.ndarray, data: np.ndarray) -> np.ndarray:
     """Complete MCAP message records for ``n`` equal-size messages: uint8 array (n, 31 + size).
 
-    ``data``: uint8 array (n, size), e.g. from :func:`pac_rig.cdr.serialize_many`."""
+    ``data``: uint8 array (n, size), e.g. from :func:`pac_bag.cdr.serialize_many`."""
     n, size = data.shape
     dtype = np.dtype(MESSAGE_HEADER.descr + [("data", "u1", (size,))])
     out = np.empty(n, dtype=dtype)
