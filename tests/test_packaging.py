@@ -63,7 +63,11 @@ def imports(package: Path) -> dict[str, set[str]]:
 
 
 def declared(package: Path) -> set[str]:
-    return set(re.findall(r"<(?:exec_|build_|build_export_)?depend>\s*([^<\s]+)\s*<", (package / "package.xml").read_text()))
+    return set(
+        re.findall(
+            r"<(?:exec_|build_|build_export_)?depend>\s*([^<\s]+)\s*<", (package / "package.xml").read_text()
+        )
+    )
 
 
 @pytest.mark.parametrize("package", packages(), ids=lambda p: p.name)
@@ -77,16 +81,22 @@ def test_package_xml_declares_every_import(package):
         elif module in ROSDEP_KEYS:
             key = ROSDEP_KEYS[module]
         elif module in PYPI_ONLY:
-            assert PYPI_ONLY[module] in locked, f"{module} (imported by {sorted(files)}) not in requirements.lock"
+            assert PYPI_ONLY[module] in locked, (
+                f"{module} (imported by {sorted(files)}) not in requirements.lock"
+            )
             continue
         else:
-            pytest.fail(f"{package.name} imports {module} ({sorted(files)}): add it to ROSDEP_KEYS or PYPI_ONLY")
+            pytest.fail(
+                f"{package.name} imports {module} ({sorted(files)}): add it to ROSDEP_KEYS or PYPI_ONLY"
+            )
         if key not in deps:
             missing.append(f"{key} (imported by {', '.join(sorted(files))})")
     assert missing == [], f"{package.name}/package.xml does not declare: {missing}"
 
 
-@pytest.mark.parametrize("package", [p for p in packages() if (p / "setup.py").exists()], ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "package", [p for p in packages() if (p / "setup.py").exists()], ids=lambda p: p.name
+)
 def test_setup_py_installs_what_exists_and_agrees_with_package_xml(package):
     setup = (package / "setup.py").read_text()
     for pattern in re.findall(r'glob\("([^"]+)"\)', setup):
