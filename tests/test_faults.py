@@ -101,7 +101,7 @@ def test_observer_crash_fallback_and_restart(rigs):
     wait_for_log(rig.processes["controller"], "back to active control", timeout=30)
     time.sleep(4.0)  # run time: re-convergence
     codes = rig.stop()
-    assert {n: c for n, c in codes.items()} == dict.fromkeys(NODES, 0)
+    assert dict(codes) == dict.fromkeys(NODES, 0)
     bag = read_bag(rig.bag_path)
     assert_commands_safe(bag)
     cmd = bag.topics["command"]

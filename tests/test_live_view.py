@@ -113,7 +113,7 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
             assert ch["schemaName"] == bag.topics[topic[1:]].typename
             assert "MSG: std_msgs/Header" in ch["schema"]  # dependencies included: Foxglove can decode
         assert subscribed_topics(env) == []  # nobody watches yet: not even a matched reader
-        subscriptions = {i: ch for i, ch in enumerate(channels.values(), start=1)}
+        subscriptions = dict(enumerate(channels.values(), start=1))
         ws.send(
             json.dumps(
                 {

@@ -136,18 +136,19 @@ def series_from_bag(bag: BagData) -> RunSeries:
     present = [t for t in bag.topics.values() if len(t) and "tick" in t.columns]
     if not present:
         raise ValueError("no pac topic with ticks in the bag")
-    has_truth = truth is not None and len(truth) > 0
-    clock = truth if has_truth else present[0]
+    if truth is not None and not len(truth):
+        truth = None
+    clock = truth if truth is not None else present[0]
     fields: dict[str, Any] = {"tick": clock["tick"], "time": stamp_seconds(clock)}
-    if has_truth:
+    if truth is not None:
         fields["contact_force"] = truth["contact_force"]
         fields["stiffness"] = truth["stiffness"]
     if command is not None and len(command):
         fields["u_time"], fields["u"] = stamp_seconds(command), command["u"]
-        if has_truth:
+        if truth is not None:
             ic, it = _by_tick(command, truth)
             fields["reference_index"], fields["force_reference"] = it, command["force_reference"][ic]
-    if has_truth and estimate is not None and len(estimate):
+    if truth is not None and estimate is not None and len(estimate):
         ie, it = _by_tick(estimate, truth)
         fields["estimate_index"], fields["stiffness_hat"] = it, estimate["stiffness_hat"][ie]
     return RunSeries(**fields)

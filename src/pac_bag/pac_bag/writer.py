@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -243,7 +243,7 @@ def flatten_fields(fields: Mapping[str, Any], prefix: str = "") -> Iterator[tupl
             yield f"{prefix}{name}", value
 
 
-def columns_of(rows: list[Mapping[str, Any]], prefix: str = "") -> dict[str, list[Any]]:
+def columns_of(rows: Sequence[Mapping[str, Any]], prefix: str = "") -> dict[str, list[Any]]:
     """Field dictionaries of many messages (all with the same keys) as columns for ``write_many``
     (flattened paths).  One list comprehension per key: a tenth of a generic per-value walk."""
     columns: dict[str, list[Any]] = {}

@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     text = "# make reproduce: metrics\n\n" + table + "\n" + "\n".join(notes) + "\n"
     (args.reports / "metrics.md").write_text(text)
-    payload = {name: m.as_dict() for name, m in metrics.items()}
+    payload: dict[str, dict[str, Any]] = {name: m.as_dict() for name, m in metrics.items()}
     payload.update(
         {name: {"diverged": r.diverged, "ticks": r.ticks} for name, r in results.items() if r.diverged}
     )

@@ -107,7 +107,11 @@ def main(argv: list[str] | None = None) -> int:
         series = samples.get(name, [])
         start = next((rss for t, rss in series if t >= 10.0), float("nan"))
         end = series[-1][1] if series else float("nan")
-        cpu = 100.0 * proc.cpu_seconds / proc.wall_seconds if proc.cpu_seconds is not None else float("nan")
+        cpu = (
+            100.0 * proc.cpu_seconds / proc.wall_seconds
+            if proc.cpu_seconds is not None and proc.wall_seconds
+            else float("nan")
+        )
         print(f"| {name} | {start:.1f} | {end:.1f} | {end - start:+.1f} | {cpu:.0f} |")
     print(f"\nticks in the run: {timing.ticks}")
     for topic in ("measurement", "plant_truth"):
