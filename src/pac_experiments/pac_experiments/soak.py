@@ -22,6 +22,7 @@ import numpy as np
 
 from pac_analysis.metrics import loop_timing
 from pac_bag.reader import read_bag
+from pac_common import markdown
 from pac_common.contact_statistics import statistics
 from pac_common.parameters import LoopParameters
 from pac_rig.launcher import Rig
@@ -101,8 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"\n## pac soak, {started:%Y-%m-%d %H:%M} to {datetime.now():%H:%M}, {args.minutes:g} min real time\n"
     )
-    print("| node | RSS after ~10 s [MB] | RSS at the end [MB] | growth [MB] | CPU [%] |")
-    print("|---|---:|---:|---:|---:|")
+    usage = []
     for name, proc in rig.processes.items():
         series = samples.get(name, [])
         start = next((rss for t, rss in series if t >= 10.0), float("nan"))
@@ -112,7 +112,9 @@ def main(argv: list[str] | None = None) -> int:
             if proc.cpu_seconds is not None and proc.wall_seconds
             else float("nan")
         )
-        print(f"| {name} | {start:.1f} | {end:.1f} | {end - start:+.1f} | {cpu:.0f} |")
+        usage.append([name, f"{start:.1f}", f"{end:.1f}", f"{end - start:+.1f}", f"{cpu:.0f}"])
+    header = ["node", "RSS after ~10 s [MB]", "RSS at the end [MB]", "growth [MB]", "CPU [%]"]
+    print(markdown.table(header, usage, ["l", "r", "r", "r", "r"]))
     print(f"\nticks in the run: {timing.ticks}")
     for topic in ("measurement", "plant_truth"):
         print(f"ticks without {topic} in the bag: {timing.messages_lost[topic]}")
@@ -135,10 +137,11 @@ def main(argv: list[str] | None = None) -> int:
         f"{timing.commands_on_time_percent:.1f} %\n"
     )
     print("Contact force per minute of simulated time (minute 1 holds the start: F_r filtered from 0)\n")
-    print("| minute | mean contact force [N] | sigma [N] |")
-    print("|---:|---:|---:|")
-    for minute, mean, std in sigma_per_minute(bag, LoopParameters().rate_hz):
-        print(f"| {minute + 1} | {mean:.2f} | {std:.3f} |")
+    minutes = [
+        [minute + 1, f"{mean:.2f}", f"{std:.3f}"]
+        for minute, mean, std in sigma_per_minute(bag, LoopParameters().rate_hz)
+    ]
+    print(markdown.table(["minute", "mean contact force [N]", "sigma [N]"], minutes, "r"))
     return 0
 
 
