@@ -11,7 +11,6 @@ simulator), serialised with numpy in the CDR layout derived from the .msg files
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -20,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from pac_common import jsonio
 from pac_common.messages import TOPICS, RosbagsFactory
 
 from . import cdr
@@ -140,7 +140,7 @@ class BagWriter:
         self._mcap.flush()
 
     def set_metadata(self, key: str, value: Any) -> None:
-        self._custom[f"pac.{key}"] = json.dumps(value)
+        self._custom[f"pac.{key}"] = jsonio.dumps(value)  # strict: a NaN parameter is null
 
     def close(self) -> None:
         """Write the summary and metadata.yaml: the bag is complete and indexed."""
