@@ -66,9 +66,18 @@ def target_mean_force(speed_kmh: float) -> float:
 def en50367_criteria(mean: float, std: float) -> EN50367Verdict:
     """EN 50367: sigma <= 0.3 Fm, and Fm - 3 sigma > 0 (the statistical minimum stays in contact);
     docs/catenary_data.md §3."""
-    return EN50367Verdict(
-        sigma_ok=bool(std <= SIGMA_LIMIT_RATIO * mean), statistical_min_ok=bool(mean - 3.0 * std > 0.0)
-    )
+    sigma_ok, min_ok = _en50367(np.asarray(mean, dtype=float), np.asarray(std, dtype=float))
+    return EN50367Verdict(sigma_ok=bool(sigma_ok), statistical_min_ok=bool(min_ok))
+
+
+def en50367_passed(mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Element by element (many runs at once): both EN 50367 criteria hold; False where Fm or sigma is NaN."""
+    sigma_ok, min_ok = _en50367(np.asarray(mean, dtype=float), np.asarray(std, dtype=float))
+    return np.asarray(sigma_ok & min_ok)
+
+
+def _en50367(mean: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return std <= SIGMA_LIMIT_RATIO * mean, mean - 3.0 * std > 0.0
 
 
 def statistics(force: np.ndarray, loss_force: np.ndarray | None = None) -> ContactStatistics:
