@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 from pac_common import messages
-from pac_common.node import PUBLISH_QOS
+from pac_common.node import PUBLISH_QOS, loopback_only
 
 from .bag import BagError, iter_records
 
@@ -56,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.node import Node
 
+    loopback_only()
     rclpy.init()
     node = Node("replay")
     factory = messages.RclpyFactory()
