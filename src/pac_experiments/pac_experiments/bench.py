@@ -202,12 +202,13 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """
     import domain_coordinator
 
-    from pac_common.node import LOOP_QOS, PUBLISH_QOS, rclpy
+    from pac_common.node import LOOP_QOS, PUBLISH_QOS, loopback_only, rclpy
     from pac_interfaces import msg as pac_msg
 
     out: dict[str, list[float]] = {name: [] for name in _STARTUP}
     with domain_coordinator.domain_id() as domain_id:
         context = rclpy.Context()
+        loopback_only()
         rclpy.init(context=context, domain_id=domain_id)
         node = rclpy.create_node("bench_startup", context=context)
         executor = rclpy.executors.SingleThreadedExecutor(context=context)
