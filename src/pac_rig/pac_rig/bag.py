@@ -436,13 +436,36 @@ def _stream_records(files: list[Path], warnings: list[str]) -> Iterator[tuple[st
                 )
 
 
+#: The first bytes of every MCAP file (the MCAP specification's magic).
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def bag_files(path: Path) -> list[Path]:
+    """The MCAP files of a bag (a rosbag2 directory or a bare .mcap); :class:`BagError` (one line,
+    the same for every tool) when ``path`` is not a bag."""
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    if not files:
+        raise BagError(f"{path}: not a bag (no .mcap file)")
+    for file in files:
+        try:
+            with open(file, "rb") as handle:
+                head = handle.read(len(MCAP_MAGIC))
+        except OSError as exc:
+            raise BagError(f"{file}: cannot read ({exc.strerror or exc})") from None
+        if head != MCAP_MAGIC:
+            raise BagError(f"{path}: not a bag ({file.name} is not an MCAP file)")
+    return files
+
+
 def iter_records(path: Path, warnings: list[str]) -> Iterator[tuple[str, str, int, bytes]]:
     """(topic, type, log time [ns], CDR) of every message: through rosbags for a closed bag,
     else (no metadata.yaml, or an index rosbags cannot read) from the MCAP record stream."""
     from rosbags.highlevel import AnyReaderError
     from rosbags.rosbag2.errors import ReaderError
 
-    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    files = bag_files(path)
     if path.is_dir() and (path / "metadata.yaml").is_file():
         produced = 0
         try:
@@ -473,11 +496,7 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
     """
     path = Path(path)
     wanted = None if topics is None else set(topics)
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
-    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
-    if not files:
-        raise BagError(f"{path}: not a bag (no .mcap file)")
+    bag_files(path)
     store = typestore()
     warnings: list[str] = []
     rows: dict[str, list[tuple[int, Any]]] = {}
