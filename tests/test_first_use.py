@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from pac_bag.reader import BagError, read_bag
 from pac_common.command_line import ParamsFile, UsageError, section_matches
-from pac_rig.bag import BagError, read_bag
 from pac_rig.launcher import node_env
 
 ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")

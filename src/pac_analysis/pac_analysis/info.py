@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pac_bag.reader import BagError, read_bag
 from pac_common import messages
-from pac_rig.bag import BagError, read_bag
 
 
 def describe(path: Path) -> tuple[str, list[str]]:

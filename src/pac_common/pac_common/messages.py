@@ -33,6 +33,8 @@ LOOP_TOPICS: dict[str, str] = {
 #: Every pac topic: the loop's, and the plant's run start and end.
 TOPICS: dict[str, str] = {**LOOP_TOPICS, "run_status": RUN_STATUS}
 
+# The .msg files' constants (tests/test_messages.py checks each against its .msg file, and every
+# field dictionary below against the message's fields).
 MODES = {"active": 0, "passive": 1, "fallback": 2}
 COMMAND_FRESH, COMMAND_HELD, COMMAND_PASSIVE = 0, 1, 2
 RUN_RUNNING, RUN_ENDED = 0, 1

@@ -25,8 +25,8 @@ from datetime import datetime
 from pathlib import Path
 
 from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
+from pac_bag.reader import read_bag
 from pac_common import messages
-from pac_rig.bag import read_bag
 from pac_rig.batch import run_batch
 from pac_rig.closed_loop import Scenario, run
 from pac_rig.launcher import Rig
@@ -145,8 +145,8 @@ def bag_writing(workdir: Path, seconds: float = 10.0) -> list[tuple[str, float, 
     The run's ticks are collected first (the simulator's own field dictionaries), then written
     through the bulk path (columns -> CDR -> chunks) with each compression, and message by
     message with the rosbags serialiser (the path before #10) for comparison; best of 3."""
-    from pac_rig.bag import BagWriter
-    from pac_rig.mcap_writer import COMPRESSIONS
+    from pac_bag.mcap_writer import COMPRESSIONS
+    from pac_bag.writer import BagWriter
     from pac_rig.simulate import scenario_from_flat, tick_fields, write_ticks
 
     scenario = scenario_from_flat({"duration": seconds})

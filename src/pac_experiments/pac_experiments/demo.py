@@ -18,8 +18,8 @@ from pathlib import Path
 
 from pac_analysis.metrics import compute_metrics, loop_timing, markdown_table, timing_table
 from pac_analysis.plots import run_figure
+from pac_bag.reader import read_bag
 from pac_common.command_line import UsageError
-from pac_rig.bag import read_bag
 from pac_rig.launcher import Rig
 
 

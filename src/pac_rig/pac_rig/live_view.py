@@ -12,7 +12,7 @@ releases offer it; Lichtblick 1.21 and earlier and older Foxglove Studio offer o
 switch for the old name. Use a client that connects to foxglove_bridge 3.x.
 
 The channels carry the serialised CDR bytes as received, with the same ``ros2msg``
-schemas the bags carry (pac_rig.bag's type store), so nothing is deserialised here.
+schemas the bags carry (pac_bag's type store), so nothing is deserialised here.
 It stays off the loop's critical path: it subscribes a topic only while a client
 watches it, best effort and keep last ``depth`` (a slow viewer loses samples instead
 of holding back a publisher), and forwards at most ``rate_hz`` messages per topic and
@@ -27,11 +27,10 @@ from dataclasses import dataclass
 
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from pac_bag.typestore import typestore
 from pac_common import messages
 from pac_common.node import PacNode, run_node
 from pac_common.parameters import ParameterError, ParameterSet, parameter
-
-from .bag import typestore
 
 #: The only WebSocket subprotocol foxglove-sdk 0.30 accepts (its handshake refuses others).
 SUBPROTOCOL = "foxglove.sdk.v1"
