@@ -57,6 +57,7 @@ def seen(d):
 ALL = [(node, spec) for node, (*_, sets) in NODES.items() for cls in sets for spec in cls.specs()]
 
 
+@pytest.mark.unit
 @pytest.mark.parametrize(("node", "spec"), ALL, ids=[f"{n}.{s.name}" for n, s in ALL])
 def test_descriptor_follows_the_declaration(node, spec):
     d = descriptor(spec)

@@ -145,12 +145,7 @@ class ControllerNode(PacNode):
 
     def missing(self) -> list[str]:
         """The peers this node's output still waits for, by name (empty: ready)."""
-        recorder = int(self.node_options.wait_for_recorder)
-        readers = self.command_pub.get_subscription_count()
-        if readers >= 1 + recorder:
-            return []
-        who = "a plant and a recorder (wait_for_recorder)" if recorder else "a plant"
-        return [f"{who} subscribed to command ({readers} of {1 + recorder})"]
+        return self.readers_missing(self.command_pub, "command", "a plant")
 
     def ready(self) -> bool:
         return self.command_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)

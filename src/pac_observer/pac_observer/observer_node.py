@@ -99,12 +99,7 @@ class ObserverNode(PacNode):
 
     def missing(self) -> list[str]:
         """The peers this node's output still waits for, by name (empty: ready)."""
-        recorder = int(self.node_options.wait_for_recorder)
-        readers = self.estimate_pub.get_subscription_count()
-        if readers >= 1 + recorder:
-            return []
-        who = "a controller and a recorder (wait_for_recorder)" if recorder else "a controller"
-        return [f"{who} subscribed to estimate ({readers} of {1 + recorder})"]
+        return self.readers_missing(self.estimate_pub, "estimate", "a controller")
 
     def ready(self) -> bool:
         return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
