@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -102,13 +103,16 @@ def simulate_to_bag(
     compression: str = DEFAULT_COMPRESSION,
     show_progress: bool = False,
     on_record: Callable[[TickRecord], None] | None = None,
+    stop_requested: Callable[[], bool] | None = None,
 ) -> RunResult:
     """Run ``scenario`` offline and record the pac topics; log time = simulated time.
 
     Each tick's field dictionaries are the nodes' own (pac_common.messages); they are
     collected per topic and written in blocks through the vectorised CDR path.
     ``show_progress``: a tick progress bar on stderr when it is a terminal. ``on_record``
-    sees every tick's record too (e.g. to compute measures without reading the bag)."""
+    sees every tick's record too (e.g. to compute measures without reading the bag).
+    ``stop_requested`` (asked after every tick): stop there, and close the bag with what was
+    simulated (``RunResult.interrupted``)."""
     rate = scenario.loop.rate_hz
     start = time.perf_counter()
     ticks = 0
@@ -146,13 +150,15 @@ def simulate_to_bag(
                     bag.flush()
                     rows = {topic: [] for topic in messages.LOOP_TOPICS}
                     stamps = []
+                if stop_requested is not None and stop_requested():
+                    interrupted = True
+                    break
         except DivergenceError as exc:
             diverged = str(exc)
             bag.set_metadata("diverged", {"tick": exc.tick, "reason": exc.reason})
-        except KeyboardInterrupt:
-            # Ctrl-C: keep what was simulated; a second Ctrl-C must not cut the bag's closing short.
+        except KeyboardInterrupt:  # a caller without stop_requested: keep what was simulated
             interrupted = True
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        if interrupted:
             bag.set_metadata("interrupted", {"ticks": ticks})
         write_ticks(bag, rows, stamps)
         write_run_status(bag, max(ticks - 1, 0), messages.RUN_ENDED)
@@ -218,13 +224,24 @@ def main(argv: list[str] | None = None) -> int:
             f"controller assume span_length {scenario.track.span_length:g} m (set -p span_length:={span:g})",
             file=sys.stderr,
         )
+    # Ctrl-C asks the loop to stop after the current tick (a KeyboardInterrupt raised inside the
+    # compiled cores surfaced as a SystemError traceback); the bag is then closed as usual.
+    requested = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda *_: requested.set())
     try:
         result = simulate_to_bag(
-            scenario, args.bag, label=args.bag.name, compression=compression, show_progress=True
+            scenario,
+            args.bag,
+            label=args.bag.name,
+            compression=compression,
+            show_progress=True,
+            stop_requested=requested.is_set,
         )
     except OSError as exc:  # e.g. the disk filled up or the folder vanished mid-run
         print(f"simulate: cannot write {args.bag}: {exc.strerror or exc}", file=sys.stderr)
         return 1
+    finally:
+        signal.signal(signal.SIGINT, previous)
     speed = result.simulated_seconds / max(result.wall_seconds, 1e-9)
     print(
         f"wrote {result.bag_path}: {result.ticks} ticks, {result.simulated_seconds:g} s simulated "
