@@ -84,6 +84,7 @@ class ObserverNode(PacNode):
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS
         )
         self.follow_run()
+        self.watch_start(self.missing)
         self.last_estimate = None  # (estimate, status, rejected, reinitialisations) last published
         self.last_seen_tick = -1
         self.reinitialisations = 0
@@ -95,6 +96,10 @@ class ObserverNode(PacNode):
 
     def apply_parameters(self, changed: dict) -> None:
         self.limits = changed.get(MeasurementLimits, self.limits)
+
+    def missing(self) -> list[str]:
+        """The peers this node's output still waits for, by name (empty: ready)."""
+        return self.readers_missing(self.estimate_pub, "estimate", "a controller")
 
     def ready(self) -> bool:
         return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
