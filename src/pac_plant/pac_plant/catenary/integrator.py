@@ -94,18 +94,23 @@ class ContactSimulation:
         g[np.arange(nd), dr.wc] = -1.0
         for col in g:
             band_chol_solve(self._chol, col)
-        self._ydrop = g.T  # (n, nd) view of the contiguous rows A^-1 g_j
+        self._ydrop = np.ascontiguousarray(g.T)  # (n, nd): column j = A^-1 g_j
         self._ddrop = np.ascontiguousarray(self._ydrop[dr.wm, :] - self._ydrop[dr.wc, :])
         self._kdrop = dr.stiffness.copy()
         self._e0 = dr.elongation0.copy()
         self._drop_per_span = len(line.data.dropper_positions)
         span = line.data.span
+        factors, starts, bounds = kn.chunk_factor(a_line)
         self.constants = StepConstants(
-            m_ab=self._m,
-            k_ab=self._k,
+            m_pad=kn.pad_band(self._m),
+            k_pad=kn.pad_band(self._k),
             chol=self._chol,
+            chunk_factors=factors,
+            chunk_starts=starts,
+            chunk_bounds=bounds,
             x_nodes=np.ascontiguousarray(line.x),
             w_static=np.ascontiguousarray(line.w_static),
+            ydrop=self._ydrop,
             ydrop_t=g,
             ddrop=self._ddrop,
             kdrop=self._kdrop,
@@ -152,11 +157,13 @@ class ContactSimulation:
             ap=np.zeros(pantograph.n),
             roof_rest=np.zeros(pantograph.n),
             scalars=np.zeros(4),
-            counters=np.zeros(6, dtype=np.int64),
+            counters=np.zeros(7, dtype=np.int64),
             slack=np.zeros(nd, dtype=np.int64),
-            unit_keys=np.full(kn.UNIT_CACHE, -1, dtype=np.int64),
-            unit_cols=np.zeros((kn.UNIT_CACHE, n)),
-            work=np.zeros((4, n)),
+            unit_patches=np.zeros((line.n_nodes, 2, min(n, 4 * (2 * kn.UNIT_REACH + 1)))),
+            unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
+            work=np.zeros((2, n)),
+            padded=np.zeros((2, n + 2 * kn.KD)),
+            chunk_work=np.zeros((factors.shape[0], 2)),
         )
         self.x = float(x0)
         self._b = np.empty(n)
