@@ -317,6 +317,16 @@ class ContactSimulation:
         if fe_step(self.constants, self.state, input_force) != kn.STEP_OK:
             raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
 
+    def advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> None:
+        """``steps`` x ``step`` and ``kernels.contact_readings`` into ``readings``, in one compiled call
+        (``flexibility``: ``Line.element_flexibility()``)."""
+        if kn.fe_advance(self.constants, self.state, input_force, steps, flexibility, readings) != kn.STEP_OK:
+            raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
+
+    def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
+        """``kernels.contact_readings`` of the present state into ``readings``."""
+        kn.contact_readings(self.constants, self.state, flexibility, readings)
+
     def step_reference(self, input_force: float) -> None:
         """``step`` in numpy (the implementation the compiled ``fe_step`` replaced): the reference
         of the equality tests and of the benchmark's old path."""

@@ -548,3 +548,54 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     s.scalars[INPUT_FORCE] = input_force
     s.counters[STEPS] += 1
     return STEP_OK
+
+
+# Indices into the ``contact_readings`` output.
+CONTACT_UPLIFT, SUPPORT_UPLIFT, STATIC_STIFFNESS, STATIC_HEIGHT, STATIC_SLOPE = 0, 1, 2, 3, 4
+
+
+@numba.njit(cache=True)
+def contact_readings(c: StepConstants, s: StepState, flexibility: np.ndarray, out: np.ndarray) -> None:
+    """What the plant reports at the contact point x (``Line``'s formulas, compiled): the wire's
+    uplift there and at the nearest support [m], the static point stiffness 1 / (N^T F_e N)
+    from the element's 4x4 flexibility block [N/m], the static wire height [m] and slope."""
+    x, span = s.scalars[X], c.numbers[8]
+    e, n = hermite_weights(c.x_nodes, x)
+    dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
+    up, ws, nfn = 0.0, 0.0, 0.0
+    for i in range(4):
+        up += n[i] * s.d[dofs[i]]
+        ws += n[i] * c.w_static[dofs[i]]
+        acc = 0.0
+        for j in range(4):
+            acc += flexibility[e, i, j] * n[j]
+        nfn += n[i] * acc
+    h = c.x_nodes[e + 1] - c.x_nodes[e]
+    xi = (x - c.x_nodes[e]) / h
+    x2 = xi * xi
+    dn = (6 * (x2 - xi) / h, 1 - 4 * xi + 3 * x2, 6 * (xi - x2) / h, 3 * x2 - 2 * xi)
+    slope = 0.0
+    for i in range(4):
+        slope += dn[i] * c.w_static[dofs[i]]
+    es, ns = hermite_weights(c.x_nodes, np.rint(x / span) * span)
+    sup = 0.0
+    for i in range(4):
+        sup += ns[i] * s.d[4 * es + (i % 2) + 4 * (i // 2)]
+    out[CONTACT_UPLIFT] = up
+    out[SUPPORT_UPLIFT] = sup
+    out[STATIC_STIFFNESS] = 1.0 / nfn
+    out[STATIC_HEIGHT] = ws
+    out[STATIC_SLOPE] = slope
+
+
+@numba.njit(cache=True)
+def fe_advance(
+    c: StepConstants, s: StepState, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray
+) -> int:
+    """``steps`` x ``fe_step`` with the force held, then ``contact_readings``: one plant tick."""
+    for _ in range(steps):
+        status = fe_step(c, s, input_force)
+        if status != STEP_OK:
+            return status
+    contact_readings(c, s, flexibility, readings)
+    return STEP_OK
