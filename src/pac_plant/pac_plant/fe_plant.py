@@ -23,8 +23,8 @@ import numpy as np
 
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .catenary.data import CatenaryData, NumericalOptions
 from .catenary import kernels
+from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.integrator import ContactSimulation
 from .catenary.line import Line
 from .catenary.pantographs import paper_pantograph

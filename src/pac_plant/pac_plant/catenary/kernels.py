@@ -112,7 +112,7 @@ def narrow_band(ab: np.ndarray) -> np.ndarray:
 
 def pad_band(ab: np.ndarray) -> np.ndarray:
     """``narrow_band(ab)`` with KD zero columns in front: row-wise products can then read
-    A[i, i-k] = ab[k, i-k] for every i without a branch (``newmark_rhs_padded``)."""
+    A[i, i-k] = ab[k, i-k] for every i without a branch (``newmark_rhs_mass``)."""
     nb = narrow_band(ab)
     out = np.zeros((KD + 1, nb.shape[1] + KD))
     out[:, KD:] = nb
@@ -120,54 +120,60 @@ def pad_band(ab: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True, fastmath={"contract"})
-def newmark_rhs_padded(
+def newmark_rhs_mass(
     mp: np.ndarray,
-    kp: np.ndarray,
     d: np.ndarray,
     v: np.ndarray,
     a: np.ndarray,
     dt: float,
     alpha: float,
     beta: float,
-    x1: np.ndarray,
-    x2: np.ndarray,
+    z: np.ndarray,
+    tail: np.ndarray,
     out: np.ndarray,
 ) -> None:
-    """``newmark_rhs`` row by row over both triangles (``pad_band`` storage, x1, x2 of length n + 2 KD
-    with zero ends): no scatter, so the loop vectorises (4x faster than the column sweep)."""
+    """The Newmark right-hand side with one banded product (M only): out = M z and tail = g w
+    such that A^-1 (``newmark_rhs``) = A^-1 out + tail.
+
+    With w = 2/dt d + v and x1 = 4/dt^2 d + 4/dt v + a + alpha w, the right-hand side is
+    M x1 + beta K w; A = (1 + 2/dt beta) K + (4/dt^2 + 2/dt alpha) M gives
+    A^-1 K w = (w - (4/dt^2 + 2/dt alpha) A^-1 M w) / (1 + 2/dt beta), hence
+    z = x1 - g (4/dt^2 + 2/dt alpha) w with g = beta / (1 + 2/dt beta). Exact algebra: K (its
+    band and its flops) leaves the step. ``mp``: ``pad_band(M)``; z of length n + 2 KD, zero ends."""
     n = d.shape[0]
     c0, c1, c2 = 4.0 / (dt * dt), 2.0 / dt, 4.0 / dt
+    g = beta / (1.0 + c1 * beta)
+    gm = g * (c0 + c1 * alpha)
     for i in range(n):
         w = c1 * d[i] + v[i]
-        x1[KD + i] = c0 * d[i] + c2 * v[i] + a[i] + alpha * w
-        x2[KD + i] = beta * w
+        z[KD + i] = c0 * d[i] + c2 * v[i] + a[i] + alpha * w - gm * w
+        tail[i] = g * w
     for i in range(n):
         j = KD + i
-        acc = mp[0, j] * x1[j] + kp[0, j] * x2[j]
+        acc = mp[0, j] * z[j]
         for k in range(1, KD + 1):
-            acc += (
-                mp[k, j] * x1[j + k]
-                + kp[k, j] * x2[j + k]
-                + mp[k, j - k] * x1[j - k]
-                + kp[k, j - k] * x2[j - k]
-            )
+            acc += mp[k, j] * z[j + k] + mp[k, j - k] * z[j - k]
         out[i] = acc
 
 
-def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Banded Cholesky factors of two overlapping diagonal blocks of A for ``chunk_solve``.
+CHUNKS = 4  # independent dependency chains in ``chunk_solve``
 
-    Returns (factors (lc + 2 KD, KD + 1, 2): row r + KD of chunk c holds L[r, r-k] for k = 1..KD
-    and 1/L[r, r] at k = 0, zero rows around; starts (2,): first row of each chunk in A;
-    bounds (3,): chunk c delivers rows bounds[c] .. bounds[c+1])."""
+
+def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Banded Cholesky factors of CHUNKS overlapping diagonal blocks of A for ``chunk_solve``.
+
+    Returns (factors (lc + 2 KD, KD + 1, CHUNKS): row r + KD of chunk c holds L[r, r-k] for
+    k = 1..KD and 1/L[r, r] at k = 0, zero rows around; starts (CHUNKS,): first row of each
+    chunk in A; bounds (CHUNKS + 1,): chunk c delivers rows bounds[c] .. bounds[c+1], with at
+    least ``overlap`` rows of its block on either side of them (where A goes on))."""
     from scipy.linalg import cholesky_banded
 
     n, kd = ab.shape[1], KD
-    bounds = np.array([0, n // 2, n], dtype=np.int64)
-    lc = min(n, n - n // 2 + overlap)
-    starts = np.array([0, n - lc], dtype=np.int64)
-    factors = np.zeros((lc + 2 * kd, kd + 1, 2))
-    for c in range(2):
+    bounds = np.array([round(c * n / CHUNKS) for c in range(CHUNKS + 1)], dtype=np.int64)
+    lc = min(n, int(np.max(np.diff(bounds))) + 2 * overlap)
+    starts = np.array([min(max(bounds[c] - overlap, 0), n - lc) for c in range(CHUNKS)], dtype=np.int64)
+    factors = np.zeros((lc + 2 * kd, kd + 1, CHUNKS))
+    for c in range(CHUNKS):
         sub = ab[:, starts[c] : starts[c] + lc].copy()
         for k in range(1, sub.shape[0]):
             sub[k, lc - k :] = 0.0  # couplings that leave the block
@@ -180,44 +186,75 @@ def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarr
 
 @numba.njit(cache=True, fastmath={"contract"})
 def chunk_solve(
-    factors: np.ndarray, starts: np.ndarray, bounds: np.ndarray, b: np.ndarray, w: np.ndarray
+    factors: np.ndarray,
+    starts: np.ndarray,
+    bounds: np.ndarray,
+    b: np.ndarray,
+    w: np.ndarray,
+    addend: np.ndarray,
 ) -> None:
-    """Solve A x = b in place (b of shape (n,)) as two independent banded Cholesky solves of the
-    overlapping halves of A (``chunk_factor``), interleaved so that the two dependency chains
-    overlap in the CPU; rows kept in registers, the newest term last (shortest chain). ``w``:
-    scratch (lc + 2 KD, 2). Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
+    """Solve A x = b in place (b of shape (n,)) as CHUNKS independent banded Cholesky solves of
+    overlapping diagonal blocks of A (``chunk_factor``), interleaved so that their dependency
+    chains overlap in the CPU (one chain is latency-bound: each row waits for the previous
+    one); rows kept in registers, the newest term last (shortest chain). ``w``: scratch
+    (lc + 2 KD, CHUNKS). ``addend`` (length n, or empty: none) is added to the solution on the
+    way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
     lc = factors.shape[0] - 2 * KD
     f = factors
-    for c in range(2):
+    for c in range(CHUNKS):
         s = starts[c]
         for j in range(lc):
             w[KD + j, c] = b[s + j]
-    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0  # chunk 0: x[j-1] .. x[j-5]
-    q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0  # chunk 1
-    for j in range(KD, KD + lc):  # forward: L y = b
-        r0 = w[j, 0] - f[j, 5, 0] * p5 - f[j, 4, 0] * p4 - f[j, 3, 0] * p3 - f[j, 2, 0] * p2
-        r1 = w[j, 1] - f[j, 5, 1] * q5 - f[j, 4, 1] * q4 - f[j, 3, 1] * q3 - f[j, 2, 1] * q2
-        y0 = (r0 - f[j, 1, 0] * p1) * f[j, 0, 0]
-        y1 = (r1 - f[j, 1, 1] * q1) * f[j, 0, 1]
-        w[j, 0] = y0
-        w[j, 1] = y1
-        p5, p4, p3, p2, p1 = p4, p3, p2, p1, y0
-        q5, q4, q3, q2, q1 = q4, q3, q2, q1, y1
-    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0  # now x[j+1] .. x[j+5]
+    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0
     q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    for j in range(KD + lc - 1, KD - 1, -1):  # backward: L^T x = y
-        r0 = w[j, 0] - f[j + 5, 5, 0] * p5 - f[j + 4, 4, 0] * p4 - f[j + 3, 3, 0] * p3 - f[j + 2, 2, 0] * p2
-        r1 = w[j, 1] - f[j + 5, 5, 1] * q5 - f[j + 4, 4, 1] * q4 - f[j + 3, 3, 1] * q3 - f[j + 2, 2, 1] * q2
-        y0 = (r0 - f[j + 1, 1, 0] * p1) * f[j, 0, 0]
-        y1 = (r1 - f[j + 1, 1, 1] * q1) * f[j, 0, 1]
-        w[j, 0] = y0
-        w[j, 1] = y1
-        p5, p4, p3, p2, p1 = p4, p3, p2, p1, y0
-        q5, q4, q3, q2, q1 = q4, q3, q2, q1, y1
-    for c in range(2):
+    r1, r2, r3, r4, r5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    t1, t2, t3, t4, t5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    for j in range(KD, KD + lc):  # forward: L y = b; p1..p5 = y[j-1]..y[j-5] of chunk 0, q.. of 1, ...
+        p0 = w[j, 0] - f[j, 5, 0] * p5 - f[j, 4, 0] * p4 - f[j, 3, 0] * p3 - f[j, 2, 0] * p2
+        q0 = w[j, 1] - f[j, 5, 1] * q5 - f[j, 4, 1] * q4 - f[j, 3, 1] * q3 - f[j, 2, 1] * q2
+        r0 = w[j, 2] - f[j, 5, 2] * r5 - f[j, 4, 2] * r4 - f[j, 3, 2] * r3 - f[j, 2, 2] * r2
+        t0 = w[j, 3] - f[j, 5, 3] * t5 - f[j, 4, 3] * t4 - f[j, 3, 3] * t3 - f[j, 2, 3] * t2
+        p0 = (p0 - f[j, 1, 0] * p1) * f[j, 0, 0]
+        q0 = (q0 - f[j, 1, 1] * q1) * f[j, 0, 1]
+        r0 = (r0 - f[j, 1, 2] * r1) * f[j, 0, 2]
+        t0 = (t0 - f[j, 1, 3] * t1) * f[j, 0, 3]
+        w[j, 0] = p0
+        w[j, 1] = q0
+        w[j, 2] = r0
+        w[j, 3] = t0
+        p5, p4, p3, p2, p1 = p4, p3, p2, p1, p0
+        q5, q4, q3, q2, q1 = q4, q3, q2, q1, q0
+        r5, r4, r3, r2, r1 = r4, r3, r2, r1, r0
+        t5, t4, t3, t2, t1 = t4, t3, t2, t1, t0
+    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    r1, r2, r3, r4, r5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    t1, t2, t3, t4, t5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    for j in range(KD + lc - 1, KD - 1, -1):  # backward: L^T x = y; p1..p5 = x[j+1]..x[j+5]
+        p0 = w[j, 0] - f[j + 5, 5, 0] * p5 - f[j + 4, 4, 0] * p4 - f[j + 3, 3, 0] * p3 - f[j + 2, 2, 0] * p2
+        q0 = w[j, 1] - f[j + 5, 5, 1] * q5 - f[j + 4, 4, 1] * q4 - f[j + 3, 3, 1] * q3 - f[j + 2, 2, 1] * q2
+        r0 = w[j, 2] - f[j + 5, 5, 2] * r5 - f[j + 4, 4, 2] * r4 - f[j + 3, 3, 2] * r3 - f[j + 2, 2, 2] * r2
+        t0 = w[j, 3] - f[j + 5, 5, 3] * t5 - f[j + 4, 4, 3] * t4 - f[j + 3, 3, 3] * t3 - f[j + 2, 2, 3] * t2
+        p0 = (p0 - f[j + 1, 1, 0] * p1) * f[j, 0, 0]
+        q0 = (q0 - f[j + 1, 1, 1] * q1) * f[j, 0, 1]
+        r0 = (r0 - f[j + 1, 1, 2] * r1) * f[j, 0, 2]
+        t0 = (t0 - f[j + 1, 1, 3] * t1) * f[j, 0, 3]
+        w[j, 0] = p0
+        w[j, 1] = q0
+        w[j, 2] = r0
+        w[j, 3] = t0
+        p5, p4, p3, p2, p1 = p4, p3, p2, p1, p0
+        q5, q4, q3, q2, q1 = q4, q3, q2, q1, q0
+        r5, r4, r3, r2, r1 = r4, r3, r2, r1, r0
+        t5, t4, t3, t2, t1 = t4, t3, t2, t1, t0
+    for c in range(CHUNKS):
         s = starts[c]
-        for i in range(bounds[c], bounds[c + 1]):
-            b[i] = w[KD + i - s, c]
+        if addend.shape[0]:
+            for i in range(bounds[c], bounds[c + 1]):
+                b[i] = w[KD + i - s, c] + addend[i]
+        else:
+            for i in range(bounds[c], bounds[c + 1]):
+                b[i] = w[KD + i - s, c]
 
 
 # -- the whole Newmark step of line + pantograph, compiled (``integrator.ContactSimulation``) ----------
@@ -236,6 +273,7 @@ STEP_OK, STEP_OFF_LINE = 0, 1
 class StepConstants(NamedTuple):
     """What does not change during a run: line matrices, factor, droppers, pantograph, numbers.
 
+    ``m_pad`` = ``pad_band(M)`` (the step needs no K, see ``newmark_rhs_mass``);
     ``ydrop[:, j]`` = ``ydrop_t[j]`` is A^-1 g_j for dropper j (both layouts: rows of the first at
     the contact DOFs, contiguous columns of the second for the update), ``ddrop`` = G^T A^-1 G.
     ``numbers`` = (dt, speed, alpha, beta, kp, c0, c1, length, span, shift_at);
@@ -243,7 +281,6 @@ class StepConstants(NamedTuple):
     """
 
     m_pad: np.ndarray
-    k_pad: np.ndarray
     chol: np.ndarray
     chunk_factors: np.ndarray
     chunk_starts: np.ndarray
@@ -326,7 +363,7 @@ def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
     for r in range(2):
         col[:] = 0.0
         col[4 * node + r] = 1.0
-        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work)
+        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0])
         s.unit_patches[node, r, :] = col[lo : lo + width]
     s.unit_ready[node] = 1
 
@@ -426,8 +463,9 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
     _unit_patches(c, s, e)  # (before the solve: they use y_l as scratch)
     _unit_patches(c, s, e + 1)
-    newmark_rhs_padded(c.m_pad, c.k_pad, d, v, a, dt, alpha, beta, s.padded[0], s.padded[1], y_l)
-    chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work)
+    z, tail = s.padded[0], s.padded[1, :n]
+    newmark_rhs_mass(c.m_pad, d, v, a, dt, alpha, beta, z, tail, y_l)
+    chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work, tail)
     # Contact column A^-1 g_c (line part) from the stored patches; zero outside [lo, hi).
     yc_l[s.counters[YC_LO] : s.counters[YC_HI]] = 0.0
     width = s.unit_patches.shape[2]
@@ -590,7 +628,12 @@ def contact_readings(c: StepConstants, s: StepState, flexibility: np.ndarray, ou
 
 @numba.njit(cache=True)
 def fe_advance(
-    c: StepConstants, s: StepState, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray
+    c: StepConstants,
+    s: StepState,
+    input_force: float,
+    steps: int,
+    flexibility: np.ndarray,
+    readings: np.ndarray,
 ) -> int:
     """``steps`` x ``fe_step`` with the force held, then ``contact_readings``: one plant tick."""
     for _ in range(steps):
