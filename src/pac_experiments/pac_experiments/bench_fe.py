@@ -120,7 +120,8 @@ def fe_tick_figures(steps: int = 2000, batches: int = 10) -> dict[str, float]:
     put("copy_vector", lambda: np.copyto(y, rhs))
     put("update", lambda: kn.newmark_update(d, v, a, rhs, dt))
     readings = np.zeros(5)
-    put("call_and_readings", lambda: kn.fe_advance(c, s, FORCE, 0, plant._flex, readings))
+    put("call_and_readings", lambda: sim.advance(FORCE, 0, plant._flex, readings))
+    put("measurement_truth", lambda: (plant.measurement(), plant.truth()))
     out["fe_plant_realtime_factor"] = 1e3 / out["fe_plant_tick_us"]
     out["step_speedup"] = out["step_old_us"] / out["step_new_us"]
     # Machine: one dependent multiply-add (the solve's chain), memory bandwidth.
@@ -153,6 +154,7 @@ def table(f: dict[str, float]) -> str:
         ("  banded solve: old / new", f"{f['solve_old_us']:.1f} / {f['solve_new_us']:.1f}", "incl. a copy"),
         ("  Newmark update", f"{f['update_us']:.1f}", ""),
         ("  call from Python + contact readings", f"{f['call_and_readings_us']:.1f}", ""),
+        ("FEPlant measurement() + truth() (Python)", f"{f['measurement_truth_us']:.1f}", ""),
         ("solve: dependency-chain bound", f"{f['solve_chain_bound_us']:.1f}", ""),
         ("dependent multiply-add [ns]", f"{f['dependent_multiply_add_ns']:.2f}", ""),
         (

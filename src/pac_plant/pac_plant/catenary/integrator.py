@@ -44,7 +44,6 @@ from .kernels import (
     band_chol_solve,
     band_matvec2,
     chol_factor,
-    fe_step,
     newmark_rhs,
     newmark_update,
 )
@@ -171,6 +170,13 @@ class ContactSimulation:
             padded=np.zeros((2, n + 2 * kn.KD)),
             chunk_work=np.zeros((factors.shape[0], factors.shape[2])),
         )
+        # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
+        self._cf, self._ci, self._cl, views = kn.pack(tuple(self.constants), kn.CONSTANT_KINDS)
+        self.constants = StepConstants(*views)
+        self._sf, self._si, self._sl, views = kn.pack(tuple(self.state), kn.STATE_KINDS)
+        self.state = StepState(*views)
+        self._packed = (self._cf, self._ci, self._cl, self._sf, self._si, self._sl)
+        self._no_flex, self._no_readings = np.zeros((0, 4, 4)), np.zeros(0)
         self.x = float(x0)
         self._b = np.empty(n)
         self._x1, self._x2 = np.empty(n), np.empty(n)
@@ -315,14 +321,17 @@ class ContactSimulation:
     def step(self, input_force: float) -> None:
         """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time
         (``kernels.fe_step``, compiled: the same algorithm as ``step_reference``)."""
-        if fe_step(self.constants, self.state, input_force) != kn.STEP_OK:
+        if self._advance(input_force, 1, self._no_flex, self._no_readings) != kn.STEP_OK:
             raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
 
     def advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> None:
         """``steps`` x ``step`` and ``kernels.contact_readings`` into ``readings``, in one compiled call
         (``flexibility``: ``Line.element_flexibility()``)."""
-        if kn.fe_advance(self.constants, self.state, input_force, steps, flexibility, readings) != kn.STEP_OK:
+        if self._advance(input_force, steps, flexibility, readings) != kn.STEP_OK:
             raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
+
+    def _advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> int:
+        return kn.fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
 
     def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
         """``kernels.contact_readings`` of the present state into ``readings``."""
