@@ -18,7 +18,17 @@ from pac_common.parameters import ParameterError, ParameterSet
 
 from .bag import DEFAULT_COMPRESSION, BagWriter, columns_of
 from .cli import OverrideError, add_override_arguments, overrides_from_args
-from .closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run
+from .closed_loop import (
+    BLOCK,
+    DivergenceError,
+    Scenario,
+    TickRecord,
+    build_cores,
+    run_blocks,
+    run_cores,
+    tick_records,
+)
+from .loop import compile_loop
 from .mcap_writer import COMPRESSIONS
 from .progress import progress
 
@@ -91,13 +101,16 @@ def simulate_to_bag(
     compression: str = DEFAULT_COMPRESSION,
     show_progress: bool = False,
     on_record: Callable[[TickRecord], None] | None = None,
+    compiled: bool = True,
 ) -> RunResult:
     """Run ``scenario`` offline and record the pac topics; log time = simulated time.
 
     Each tick's field dictionaries are the nodes' own (pac_common.messages); they are
     collected per topic and written in blocks through the vectorised CDR path.
     ``show_progress``: a tick progress bar on stderr when it is a terminal. ``on_record``
-    sees every tick's record too (e.g. to compute measures without reading the bag)."""
+    sees every tick's record too (e.g. to compute measures without reading the bag).
+    ``compiled=False``: the core objects tick by tick and one field dictionary per message, the
+    path before the loop was compiled (the bench compares the two; the bags are the same)."""
     rate = scenario.loop.rate_hz
     start = time.perf_counter()
     ticks = 0
@@ -118,8 +131,25 @@ def simulate_to_bag(
             )
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
+        plant, observer, controller = build_cores(scenario)
+        delay = scenario.loop.command_delay_ticks
+        loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
-            records = run(scenario)
+            if loop is not None:  # compiled: whole blocks of ticks, written as columns
+                blocks = run_blocks(scenario, plant, loop)
+                if show_progress:
+                    blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
+                for block in blocks:
+                    for topic, columns in messages.tick_columns(block, rate, delay).items():
+                        bag.write_many(topic, columns, messages.tick_stamp_ns(1, rate) * block["tick"])
+                    bag.flush()
+                    ticks += block.size
+                    if on_record is not None:
+                        for rec in tick_records(block):
+                            on_record(rec)
+                records = iter(())
+            else:
+                records = run_cores(scenario, plant, observer, controller)
             if show_progress:
                 records = progress(records, scenario.loop.ticks, label or "simulate", "tick")
             for rec in records:
