@@ -519,7 +519,7 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench", description=__doc__)
-    parser.add_argument("--realtime-seconds", type=float, default=30.0)
+    parser.add_argument("--realtime-seconds", type=float, default=30.0, help="0: no real-time rigs")
     parser.add_argument("--lockstep-seconds", type=float, default=10.0)
     parser.add_argument(
         "--realtime-priority",
@@ -573,18 +573,17 @@ def main(argv: list[str] | None = None) -> int:
     try:
         runs, cpus, quality = {}, {}, {}
         # (column, timing mode, seconds, composed, busy loops): each is run as pac, then as its floor.
-        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)]
+        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)] if args.realtime_seconds else []
         if args.offline_only:
             plan = []
-        elif args.load:
+        elif args.load and args.realtime_seconds:
             plan.append((f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load))
         if not args.offline_only:
             plan.append(("lockstep", "lockstep", args.lockstep_seconds, False, 0))
         if args.composed and not args.offline_only:
-            plan += [
-                ("composed realtime", "realtime", args.realtime_seconds, True, 0),
-                ("composed lockstep", "lockstep", args.lockstep_seconds, True, 0),
-            ]
+            if args.realtime_seconds:
+                plan.append(("composed realtime", "realtime", args.realtime_seconds, True, 0))
+            plan.append(("composed lockstep", "lockstep", args.lockstep_seconds, True, 0))
         pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
         for name, mode, seconds, composed, load in plan:
             for relay, column in ((False, name), (True, f"{name} floor")):
