@@ -12,6 +12,8 @@ from pac_rig.batch import TRACES, batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, build_cores, run, run_cores
 from pac_rig.simulate import scenario_from_flat
 
+pytestmark = pytest.mark.offline
+
 SCENARIOS = {
     "square": {**COMMON, "shape": "square", "duration": 2.0},
     "paper_gains": {**COMMON, **PAPER_GAINS, "duration": 0.5},  # the backstepping laws diverge

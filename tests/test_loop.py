@@ -9,6 +9,8 @@ from mcap.reader import make_reader
 from pac_experiments import bench_report
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
+pytestmark = pytest.mark.offline
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_rig.bag import BagError, read_bag
+from pac_bag.reader import BagError, read_bag
 
 
 def describe(path: Path) -> tuple[str, list[str]]:

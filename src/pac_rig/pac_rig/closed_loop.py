@@ -140,20 +140,25 @@ def divergence_reason(code: int, value: float) -> str:
     return _DIVERGED_REASONS[code]
 
 
+_RECORD_COLUMNS = (
+    "tick", "time", "y", "actuator_force", "z", "stiffness", "contact_force", "in_contact", "u_applied",
+    "stiffness_hat", "contact_force_hat", "u", "u_unsaturated", "force_reference", "tracking_error",
+    "saturated", "mode",
+)  # fmt: skip
+
+
 def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
     """The TickRecord of each row of a TICK block (the objects the per-tick cores return)."""
-    col = {name: block[name].tolist() for name in ("tick", "time", "actuator_force", "stiffness")}
-    col.update({name: block[name].tolist() for name in ("contact_force", "in_contact", "u_applied")})
-    col.update({name: block[name].tolist() for name in ("stiffness_hat", "contact_force_hat", "u")})
-    col.update({name: block[name].tolist() for name in ("u_unsaturated", "force_reference", "saturated")})
-    col.update({name: block[name].tolist() for name in ("y", "z", "tracking_error", "mode")})
+    col = {name: block[name].tolist() for name in _RECORD_COLUMNS}  # Python numbers, as the cores give
     z_hat, theta_hat, innovation = block["z_hat"], block["theta_hat"], block["innovation"]
     for i, (tick, t) in enumerate(zip(col["tick"], col["time"], strict=True)):
         y1, y2 = col["y"][i]
+        z0, z1, z2, z3 = col["z"][i]
+        e1, e2, e3 = col["tracking_error"][i]
         yield TickRecord(
             Measurement(tick, t, y1, y2, col["actuator_force"][i]),
             Truth(
-                tick, t, tuple(col["z"][i]), col["stiffness"][i], col["contact_force"][i],
+                tick, t, (z0, z1, z2, z3), col["stiffness"][i], col["contact_force"][i],
                 col["in_contact"][i], col["u_applied"][i],
             ),
             Estimate(
@@ -162,7 +167,7 @@ def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
             ),
             Command(
                 tick, t, col["u"][i], col["u_unsaturated"][i], col["force_reference"][i],
-                tuple(col["tracking_error"][i]), col["saturated"][i], MODES[col["mode"][i]],
+                (e1, e2, e3), col["saturated"][i], MODES[col["mode"][i]],
             ),
         )  # fmt: skip
 

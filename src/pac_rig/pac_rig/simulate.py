@@ -6,17 +6,18 @@ import argparse
 import dataclasses
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter, columns_of
 from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet
 
-from .bag import DEFAULT_COMPRESSION, BagWriter, columns_of
 from .cli import OverrideError, add_override_arguments, overrides_from_args
 from .closed_loop import (
     BLOCK,
@@ -29,7 +30,6 @@ from .closed_loop import (
     tick_records,
 )
 from .loop import compile_loop
-from .mcap_writer import COMPRESSIONS
 from .progress import progress
 
 
@@ -48,7 +48,7 @@ def scenario_from_flat(values: dict[str, Any], base: Scenario | None = None) -> 
     """A scenario with ``values`` (flat parameter names) over ``base``; unknown names are errors."""
     base = base or Scenario()
     known: set[str] = set()
-    updated = {}
+    updated: dict[str, Any] = {}
     for name, pset in scenario_sets(base).items():
         names = {spec.name for spec in pset.specs()}
         known |= names
@@ -147,7 +147,7 @@ def simulate_to_bag(
                     if on_record is not None:
                         for rec in tick_records(block):
                             on_record(rec)
-                records = iter(())
+                records: Iterable[TickRecord] = iter(())
             else:
                 records = run_cores(scenario, plant, observer, controller)
             if show_progress:
