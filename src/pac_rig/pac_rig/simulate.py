@@ -136,7 +136,7 @@ def simulate_to_bag(
         loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
             if loop is not None:  # compiled: whole blocks of ticks, written as columns
-                blocks = run_blocks(scenario, plant, loop)
+                blocks: Iterable[np.ndarray] = run_blocks(scenario, plant, loop)
                 if show_progress:
                     blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
                 for block in blocks:
