@@ -101,30 +101,6 @@ def stiffness_hat_derivatives4(
 
 
 @njit(cache=True, error_model="numpy")
-def backstepping_law(
-    t: float,
-    f_r: np.ndarray,
-    z_hat: np.ndarray,
-    theta_hat: np.ndarray,
-    omega: float,
-    m1: float,
-    b1: float,
-    k1: float,
-    m2: float,
-    b2: float,
-    c1: float,
-    c2: float,
-    c3: float,
-    k_min: float,
-) -> tuple[float, float, float, float]:
-    """Eqs. (23)-(43) on numbers: (u, e1, e2, e3), u unsaturated (:func:`backstepping_law4` on arrays)."""
-    return backstepping_law4(
-        t, (f_r[0], f_r[1], f_r[2], f_r[3]), z_hat, theta_hat[0], theta_hat[1], theta_hat[2],
-        omega, m1, b1, k1, m2, b2, c1, c2, c3, k_min,
-    )  # fmt: skip
-
-
-@njit(cache=True, error_model="numpy")
 def backstepping_law4(
     t: float,
     f_r,
@@ -218,7 +194,7 @@ class BacksteppingController(KernelLaw):
     def law(
         self, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
     ) -> tuple[float, tuple[float, float, float]]:
-        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3) (compiled :func:`backstepping_law`)."""
+        """Eqs. (23)-(43): the unsaturated u and (e1, e2, e3) (:func:`backstepping_law4` via ``kernels``)."""
         return self.output(0, t, f_r, z_hat, theta_hat)
 
 

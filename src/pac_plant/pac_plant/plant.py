@@ -65,22 +65,11 @@ def plant_rhs(
 
 
 @njit(cache=True)
-def plant_advance(
-    z: np.ndarray,
-    t0: float,
-    period: float,
-    substeps: int,
-    u: float,
-    a: np.ndarray,
-    theta: np.ndarray,
-    omega: float,
-    m1: float,
-    m2: float,
-    unilateral: bool,
-) -> np.ndarray:
-    """z at t0 + period from z at t0, u held (ZOH): :func:`plant_advance_inplace` on a copy."""
+def plant_advance(z: np.ndarray, *args) -> np.ndarray:
+    """z at t0 + period from z at t0, u held (ZOH): :func:`plant_advance_inplace` (its arguments
+    after z) on a copy."""
     out = z.copy()
-    plant_advance_inplace(out, t0, period, substeps, u, a, theta, omega, m1, m2, unilateral)
+    plant_advance_inplace(out, *args)
     return out
 
 
