@@ -107,6 +107,7 @@ class ControllerNode(PacNode):
             self.laws,
             self.catenary,
         )
+        self.core.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.get_logger().info(f"control law: {self.core.name}")
         self.command_pub = self.create_publisher(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", PUBLISH_QOS

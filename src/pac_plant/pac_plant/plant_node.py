@@ -94,6 +94,7 @@ class PlantNode(PacNode):
             self.parameters(PlantOptions),
             loop.sample_period,
         )
+        self.plant.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.measurement_pub = self.create_publisher(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS
         )

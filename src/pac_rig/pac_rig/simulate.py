@@ -21,7 +21,17 @@ from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
 
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
-from .closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run
+from .closed_loop import (
+    BLOCK,
+    DivergenceError,
+    Scenario,
+    TickRecord,
+    build_cores,
+    run_blocks,
+    run_cores,
+    tick_records,
+)
+from .loop import compile_loop
 from .progress import progress
 
 
@@ -104,6 +114,7 @@ def simulate_to_bag(
     show_progress: bool = False,
     on_record: Callable[[TickRecord], None] | None = None,
     stop_requested: Callable[[], bool] | None = None,
+    compiled: bool = True,
 ) -> RunResult:
     """Run ``scenario`` offline and record the pac topics; log time = simulated time.
 
@@ -111,8 +122,10 @@ def simulate_to_bag(
     collected per topic and written in blocks through the vectorised CDR path.
     ``show_progress``: a tick progress bar on stderr when it is a terminal. ``on_record``
     sees every tick's record too (e.g. to compute measures without reading the bag).
-    ``stop_requested`` (asked after every tick): stop there, and close the bag with what was
-    simulated (``RunResult.interrupted``)."""
+    ``stop_requested`` (asked after every tick, or every block of ticks on the compiled path):
+    stop there, and close the bag with what was simulated (``RunResult.interrupted``).
+    ``compiled=False``: the core objects tick by tick and one field dictionary per message, the
+    path before the loop was compiled (the bench compares the two; the bags are the same)."""
     rate = scenario.loop.rate_hz
     start = time.perf_counter()
     ticks = 0
@@ -134,8 +147,28 @@ def simulate_to_bag(
             bag.write("run_status", fields, stamp)
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
+        plant, observer, controller = build_cores(scenario)
+        delay = scenario.loop.command_delay_ticks
+        loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
-            records: Iterable[TickRecord] = run(scenario)
+            if loop is not None:  # compiled: whole blocks of ticks, written as columns
+                blocks: Iterable[np.ndarray] = run_blocks(scenario, plant, loop)
+                if show_progress:
+                    blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
+                for block in blocks:
+                    for topic, columns in messages.tick_columns(block, rate, delay).items():
+                        bag.write_many(topic, columns, messages.tick_stamp_ns(1, rate) * block["tick"])
+                    bag.flush()
+                    ticks += block.size
+                    if on_record is not None:
+                        for rec in tick_records(block):
+                            on_record(rec)
+                    if stop_requested is not None and stop_requested():
+                        interrupted = True
+                        break
+                records: Iterable[TickRecord] = iter(())
+            else:
+                records = run_cores(scenario, plant, observer, controller)
             if show_progress:
                 records = progress(records, scenario.loop.ticks, label or "simulate", "tick")
             for rec in records:
