@@ -108,6 +108,7 @@ def test_en50367_criteria(mean, std, sigma_ok, min_ok):
     v = cs.en50367_criteria(mean, std)
     assert (v.sigma_ok, v.statistical_min_ok) == (sigma_ok, min_ok)
     assert v.passed == (sigma_ok and min_ok)
+    assert cs.en50367_passed(np.array([mean, math.nan]), np.array([std, 1.0])).tolist() == [v.passed, False]
 
 
 def test_whole_spans_inside_an_interval():

@@ -19,7 +19,7 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 #: Low-pass cut-off of the contact force before its statistics (common practice for EN 50318
-#: comparisons: docs/catenary_data.md, "Reference results").
+#: comparisons: docs/catenary_data.md §1).
 CUTOFF_HZ = 20.0
 #: Order of the Butterworth low-pass (applied forwards and backwards: zero phase, twice the order).
 LOWPASS_ORDER = 4
@@ -58,16 +58,26 @@ class EN50367Verdict:
 def target_mean_force(speed_kmh: float) -> float:
     """EN 50367 / TSI Energy target mean contact force on AC lines [N], v in km/h.
 
-    Fm(v) = 0.00097 v^2 + 70.
+    Fm(v) = 0.00097 v^2 + 70 (docs/catenary_data.md §3).
     """
     return 0.00097 * speed_kmh**2 + 70.0
 
 
 def en50367_criteria(mean: float, std: float) -> EN50367Verdict:
-    """EN 50367: sigma <= 0.3 Fm, and Fm - 3 sigma > 0 (the statistical minimum stays in contact)."""
-    return EN50367Verdict(
-        sigma_ok=bool(std <= SIGMA_LIMIT_RATIO * mean), statistical_min_ok=bool(mean - 3.0 * std > 0.0)
-    )
+    """EN 50367: sigma <= 0.3 Fm, and Fm - 3 sigma > 0 (the statistical minimum stays in contact);
+    docs/catenary_data.md §3."""
+    sigma_ok, min_ok = _en50367(np.asarray(mean, dtype=float), np.asarray(std, dtype=float))
+    return EN50367Verdict(sigma_ok=bool(sigma_ok), statistical_min_ok=bool(min_ok))
+
+
+def en50367_passed(mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Element by element (many runs at once): both EN 50367 criteria hold; False where Fm or sigma is NaN."""
+    sigma_ok, min_ok = _en50367(np.asarray(mean, dtype=float), np.asarray(std, dtype=float))
+    return np.asarray(sigma_ok & min_ok)
+
+
+def _en50367(mean: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return std <= SIGMA_LIMIT_RATIO * mean, mean - 3.0 * std > 0.0
 
 
 def statistics(force: np.ndarray, loss_force: np.ndarray | None = None) -> ContactStatistics:

@@ -26,6 +26,8 @@ import sys
 import time
 from pathlib import Path
 
+from pac_common.parameters import ParameterError, check_output_folder
+
 from .campaign_dask import Outcome, embedded_cluster, execute
 from .campaign_report import write_report
 from .campaign_results import RESULTS_FILE, read_done, write_results
@@ -55,9 +57,10 @@ def main(argv: list[str] | None = None) -> int:
                 raise SpecError(
                     f"invalid option '--{name.replace('_', '-')}' = {value}: allowed an integer >= 1"
                 )
+        check_output_folder("--out", args.out)
         spec = load_spec(args.spec)
         points = expand(spec)
-    except SpecError as exc:
+    except (SpecError, ParameterError) as exc:
         print(f"campaign: {exc}", file=sys.stderr)
         return 2
 

@@ -363,7 +363,7 @@ def write(spec_path: Path, out: Path, law: str = JUDGED, figures: bool = True) -
     points = expand(spec)
     done = read_done(out)
     rows = [done[p.key] for p in points if p.key in done]
-    laws = [law for law in dict.fromkeys(r["law"] for r in rows)]
+    laws = list(dict.fromkeys(r["law"] for r in rows))
     found = goals(rows, law)
     if figures:
         sigma_figure(rows, laws, out / "sigma_vs_speed.png")

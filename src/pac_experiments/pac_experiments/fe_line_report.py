@@ -10,7 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from pac_common import jsonio  # noqa: E402
+from pac_common import jsonio, markdown  # noqa: E402
 from pac_common.contact_statistics import lowpass, target_mean_force  # noqa: E402
 
 from .fe_line_runs import (  # noqa: E402
@@ -38,24 +38,23 @@ def _fmt(v: Any) -> str:
 
 
 def reference_table(refs: dict[int, dict[str, Any]]) -> str:
-    head = " | ".join(f"{v} km/h: ours | EN 50318:2002 band | distance" for v in refs)
-    rows = [f"| quantity | {head} |"]
-    rows.append("|---|" + "---:|---:|---:|" * len(refs))
+    header = ["quantity"]
+    for v in refs:
+        header += [f"{v} km/h: ours", "EN 50318:2002 band", "distance"]
+    rows = []
     for q, bands in EN50318_BANDS.items():
-        cells = []
+        cells = [q]
         for v, r in refs.items():
             lo, hi = bands[v]
-            cells.append(f"{r[q]:.1f} | {lo}–{hi} | {band_distance(r[q], bands[v]):+.1f}")
-        rows.append(f"| {q} | " + " | ".join(cells) + " |")
-    return "\n".join(rows)
+            cells += [f"{r[q]:.1f}", f"{lo}–{hi}", f"{band_distance(r[q], bands[v]):+.1f}"]
+        rows.append(cells)
+    return markdown.table(header, rows, ["l"] + ["r"] * (len(header) - 1))
 
 
 def _table(metrics: list[dict[str, Any]], keys: list[tuple[str, str]]) -> str:
     cols = [("speed_kmh", "v [km/h]"), ("mode", "mode"), ("datum", "z datum"), *keys]
-    rows = ["| " + " | ".join(label for _, label in cols) + " |", "|" + "---|" * len(cols)]
-    for m in metrics:
-        rows.append("| " + " | ".join(_fmt(m.get(k, "—")) for k, _ in cols) + " |")
-    return "\n".join(rows)
+    rows = [[_fmt(m.get(k, "—")) for k, _ in cols] for m in metrics]
+    return markdown.table([label for _, label in cols], rows)
 
 
 def experiment_table(metrics: list[dict[str, Any]]) -> str:
@@ -71,8 +70,8 @@ def experiment_table(metrics: list[dict[str, Any]]) -> str:
         ("quality_sigma_le_0.3Fm", "σ ≤ 0.3 Fm"),
         ("quality_Fm_minus_3sigma_gt_0", "Fm−3σ > 0"),
         ("sigma_reduction_percent", "σ reduction [%]"),
-        ("max_abs_u", "max \\|u\\| [N]"),
-        ("max_abs_du_dt", "max \\|du/dt\\| [N/s]"),
+        ("max_abs_u", "max |u| [N]"),
+        ("max_abs_du_dt", "max |du/dt| [N/s]"),
         ("contact_uplift_max_mm", "max uplift [mm]"),
         ("stopped_at_s", "diverged at [s]"),
     ]
@@ -193,17 +192,29 @@ def write_report(
     plt.close(fig)
 
     # Tables.
-    num_rows = [
-        "| variant (300 km/h, 3-mass passive) | Fm [N] | σ [N] | max [N] | min [N] | loss [%] | "
-        "support uplift [mm] | µs/step |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    num_header = [
+        "variant (300 km/h, 3-mass passive)",
+        "Fm [N]",
+        "σ [N]",
+        "max [N]",
+        "min [N]",
+        "loss [%]",
+        "support uplift [mm]",
+        "µs/step",
     ]
-    for k, r in numerics.items():
-        num_rows.append(
-            f"| {k} | {r['contact_force_mean']:.2f} | {r['contact_force_std']:.2f} | "
-            f"{r['contact_force_max']:.1f} | {r['contact_force_min']:.1f} | "
-            f"{r['contact_loss_percent']:.2f} | {r['support_uplift_mm']:.1f} | {r['us_per_step']:.0f} |"
-        )
+    num_rows = [
+        [
+            k,
+            f"{r['contact_force_mean']:.2f}",
+            f"{r['contact_force_std']:.2f}",
+            f"{r['contact_force_max']:.1f}",
+            f"{r['contact_force_min']:.1f}",
+            f"{r['contact_loss_percent']:.2f}",
+            f"{r['support_uplift_mm']:.1f}",
+            f"{r['us_per_step']:.0f}",
+        ]
+        for k, r in numerics.items()
+    ]
     text = "\n".join(
         [
             "# make catenary: FE catenary reference runs and the control experiment",
@@ -236,7 +247,7 @@ def write_report(
             "",
             "## Numerics at 300 km/h (convergence, penalty, damping)",
             "",
-            "\n".join(num_rows) if numerics else "(skipped)",
+            markdown.table(num_header, num_rows, ["l"] + ["r"] * 7) if numerics else "(skipped)",
             "",
             "Cost per 1 kHz step, 10-span line + 3-mass pantograph "
             f"({cost['n_dof']} DOFs, CPU time on this shared 2-core VM): "

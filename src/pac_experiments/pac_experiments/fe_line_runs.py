@@ -30,7 +30,7 @@ from pac_plant.catenary.pantographs import three_mass_pantograph
 
 DATA = CatenaryData()
 SPAN = DATA.span
-#: EN 50318:2002 reference bands (CATENARY_DATA §1): quantity -> {speed: (low, high)}.
+#: EN 50318:2002 reference bands (docs/catenary_data.md §1): quantity -> {speed: (low, high)}.
 EN50318_BANDS = {
     "contact_force_mean": {250: (110, 120), 300: (110, 120)},
     "contact_force_std": {250: (26, 31), 300: (32, 40)},

@@ -154,7 +154,7 @@ def write_up(
 ) -> int:
     """live.md, live.json, live.png from the bag, beside the campaign's offline row."""
     from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
-    from pac_rig.bag import read_bag
+    from pac_bag.reader import read_bag
 
     bag = read_bag(bag_path)
     s = bag_series(bag, scenario.loop.rate_hz)
