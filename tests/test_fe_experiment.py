@@ -7,6 +7,8 @@ import pytest
 
 from pac_experiments import fe_experiment
 
+pytestmark = pytest.mark.unit
+
 SPEEDS = [160.0, 200.0, 250.0, 300.0, 360.0, 400.0]
 
 

@@ -30,7 +30,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pac_common import jsonio  # noqa: E402
+from pac_common import jsonio, markdown  # noqa: E402
 from pac_common.contact_statistics import lowpass  # noqa: E402
 
 from .campaign_results import read_done  # noqa: E402
@@ -209,50 +209,54 @@ def _fmt(v: Any, spec: str = ".4g") -> str:
 
 def laws_table(rows: list[dict[str, Any]], laws: list[str]) -> str:
     """One row per nominal run: speed, law, EN 50318 statistics, change vs passive, actuator, F_hat error."""
-    head = (
-        "| v [km/h] | law | target Fm [N] | Fm [N] | σ [N] | σ vs passive | Fm−3σ [N] | max [N] | loss [%] | "
-        "max \\|u\\| [N] | max \\|du/dt\\| [kN/s] | max uplift [mm] | F̂ error [% of σ_F] | status |"
-    )
-    lines = [head, "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    header = [
+        "v [km/h]",
+        "law",
+        "target Fm [N]",
+        "Fm [N]",
+        "σ [N]",
+        "σ vs passive",
+        "Fm−3σ [N]",
+        "max [N]",
+        "loss [%]",
+        "max |u| [N]",
+        "max |du/dt| [kN/s]",
+        "max uplift [mm]",
+        "F̂ error [% of σ_F]",
+        "status",
+    ]
+    out = []
     nominal = [r for r in rows if case_of(r) == "nominal" and r.get("law") in laws]
     for r in sorted(nominal, key=lambda r: (float(r["speed_kmh"]), laws.index(r["law"]))):
-        status = r["status"] if ok(r) else f"{r['status']}: {r.get('reason', '')}".replace("|", "/")
+        status = r["status"] if ok(r) else f"{r['status']}: {r.get('reason', '')}"
         change = change_percent(rows, r)
-        lines.append(
-            "| "
-            + " | ".join(
-                [
-                    _fmt(r["speed_kmh"], "g"),
-                    r["law"],
-                    _fmt(r.get("force_amplitude"), ".1f"),
-                    _fmt(r.get(MEAN), ".1f"),
-                    _fmt(r.get(SIGMA), ".1f"),
-                    "—" if r["law"] == "passive" else (f"{change:+.1f} %" if math.isfinite(change) else "—"),
-                    _fmt(r.get("en50318_statistical_min"), ".1f"),
-                    _fmt(r.get("en50318_contact_force_max"), ".1f"),
-                    _fmt(r.get(LOSS), ".2f"),
-                    _fmt(r.get("u_max_abs"), ".0f"),
-                    _fmt(float(r.get("du_dt_max_abs", math.nan)) / 1e3, ".1f"),
-                    _fmt(r.get("uplift_max_mm"), ".1f"),
-                    _fmt(r.get("force_hat_error_percent"), ".0f"),
-                    status,
-                ]
-            )
-            + " |"
+        out.append(
+            [
+                _fmt(r["speed_kmh"], "g"),
+                r["law"],
+                _fmt(r.get("force_amplitude"), ".1f"),
+                _fmt(r.get(MEAN), ".1f"),
+                _fmt(r.get(SIGMA), ".1f"),
+                "—" if r["law"] == "passive" else (f"{change:+.1f} %" if math.isfinite(change) else "—"),
+                _fmt(r.get("en50318_statistical_min"), ".1f"),
+                _fmt(r.get("en50318_contact_force_max"), ".1f"),
+                _fmt(r.get(LOSS), ".2f"),
+                _fmt(r.get("u_max_abs"), ".0f"),
+                _fmt(float(r.get("du_dt_max_abs", math.nan)) / 1e3, ".1f"),
+                _fmt(r.get("uplift_max_mm"), ".1f"),
+                _fmt(r.get("force_hat_error_percent"), ".0f"),
+                status,
+            ]
         )
-    return "\n".join(lines)
+    return markdown.table(header, out, ["r", "l", *["r"] * 11, "l"])
 
 
 def robustness_table(rows: list[dict[str, Any]], law: str) -> str:
-    speeds = sorted(
-        {float(r["speed_kmh"]) for r in rows if r.get("law") == law and case_of(r) not in (None, "nominal")}
-    )
-    lines = [
-        "| case | " + " | ".join(f"{v:g} km/h: σ [N], vs passive" for v in speeds) + " |",
-        "|---|" + "---:|" * len(speeds),
-    ]
+    cases = [r for r in rows if r.get("law") == law and case_of(r) not in (None, "nominal")]
+    speeds = sorted({float(r["speed_kmh"]) for r in cases})
+    out = []
     for name in ("nominal", *CASES):
-        cells = []
+        cells = [name]
         for v in speeds:
             r = next((r for r in _rows_of(rows, law, name, (v, v))), None)
             if r is None:
@@ -261,14 +265,15 @@ def robustness_table(rows: list[dict[str, Any]], law: str) -> str:
                 cells.append(str(r["status"]))
             else:
                 cells.append(f"{float(r[SIGMA]):.1f}, {change_percent(rows, r):+.1f} %")
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    return "\n".join(lines)
+        out.append(cells)
+    header = ["case", *(f"{v:g} km/h: σ [N], vs passive" for v in speeds)]
+    return markdown.table(header, out, ["l", *["r"] * len(speeds)])
 
 
 def goals_table(found: list[Goal]) -> str:
-    lines = ["| goal | met | numbers |", "|---|---|---|"]
-    lines += [f"| {g.name} | {'**met**' if g.met else 'not met'} | {g.numbers} |" for g in found]
-    return "\n".join(lines)
+    return markdown.table(
+        ["goal", "met", "numbers"], [[g.name, "**met**" if g.met else "not met", g.numbers] for g in found]
+    )
 
 
 def sigma_figure(rows: list[dict[str, Any]], laws: list[str], path: Path) -> Path:
