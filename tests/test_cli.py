@@ -1,4 +1,4 @@
-"""Issue #9: the ros2 stand-in's daily verbs against a live rig (called by path, not via PATH).
+"""The ros2 stand-in's daily verbs against a live rig (called by path, not via PATH).
 
 The rig (plant in real time at 200 Hz, observer, controller) runs in its own ROS domain for the
 module; every process it starts is stopped at teardown, pass or fail.
