@@ -43,7 +43,8 @@ def ros2(env, *args, timeout=60):
 
 @pytest.fixture(scope="module")
 def live(tmp_path_factory):
-    """(env, rig): a rig running until stopped, in a domain reserved for this module."""
+    """(env, rig): a rig running until stopped, in a domain reserved for this module (its users
+    are live tests: conftest.LIVE_FIXTURES)."""
     import domain_coordinator
 
     tmp = tmp_path_factory.mktemp("cli")
