@@ -17,7 +17,7 @@ import time
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar, TypeVar
 
-from . import messages
+from . import diagnostics, messages
 from .parameters import (
     NodeOptions,
     ParameterError,
@@ -44,6 +44,9 @@ from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy  
 from rclpy.node import Node  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+
+from .health import NodeHealth, StatusRule  # noqa: E402
+from .lifecycle import LifecycleOptions, ManagedNode  # noqa: E402
 
 #: Loop subscribers (observer <- measurement, controller <- estimate, plant <- command): best
 #: effort, keep last 1. Only the newest sample matters in real time, a late sample is worse than
@@ -146,7 +149,7 @@ def parameter_names(sets: Iterable[type[ParameterSet]]) -> list[str]:
     return [spec.name for cls in sets for spec in cls.specs()]
 
 
-class PacNode(Node):
+class PacNode(ManagedNode, Node):
     """Base of every pac node: the contract :func:`run_node` relies on, and the shared start-up.
 
     A subclass lists its ``PARAMETER_SETS``; the base declares them (description, range and
@@ -156,16 +159,23 @@ class PacNode(Node):
 
     Contract with :func:`run_node`: ``finished`` ends the spin loop, ``close()`` makes the
     node's results final (bag closed, counters printed), ``exit_status`` is the process status.
+
+    A subclass builds itself in ``configure()`` (pac_common.lifecycle): at once, or, with
+    ``lifecycle:=true`` (``LifecycleOptions`` in its sets), when a lifecycle manager says so;
+    its loop callbacks check ``active``.  Every node reports ``health_counters()`` on
+    ``/diagnostics`` with its ``HEALTH_RULE`` (pac_common.diagnostics).
     """
 
     PARAMETER_SETS: ClassVar[Sequence[type[ParameterSet]]] = ()
     #: Why a parameter declared without ``runtime=True`` is refused at run time.
     FROZEN_REASON: ClassVar[str] = "fixed for a run: restart the node to change it"
+    #: The node's rule from counters to its ``/diagnostics`` status (pac_common.diagnostics).
+    HEALTH_RULE: ClassVar[StatusRule] = staticmethod(diagnostics.relay_status)
 
     def __init__(self, name: str) -> None:
         # Undeclared names reach our callback, which refuses them by name (rclpy's own refusal
         # reads "Invalid access to undeclared parameter(s): []" in these wheels).
-        super().__init__(name, allow_undeclared_parameters=True)
+        Node.__init__(self, name, allow_undeclared_parameters=True)
         self.finished = False
         self.exit_status = 0
         sets = declare_parameter_sets(self, self.PARAMETER_SETS)
@@ -181,6 +191,24 @@ class PacNode(Node):
         scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
         if scheduling:
             set_realtime_priority(self, scheduling[0].realtime_priority)
+        self.health = NodeHealth(self, self._health_counters, self.HEALTH_RULE)
+        lifecycle = self._sets.get(LifecycleOptions)
+        self.start_lifecycle(bool(lifecycle is not None and lifecycle.lifecycle))  # type: ignore[attr-defined]
+
+    def _health_counters(self) -> dict[str, Any]:
+        if not self.configured:
+            return {"state": self.lifecycle_state}
+        counters = self.health_counters()
+        if self.managed:
+            counters["lifecycle_state"] = self.lifecycle_state
+            if not self.active:
+                counters["state"] = self.lifecycle_state
+        return counters
+
+    def health_counters(self) -> dict[str, Any]:
+        """Hook: the node's counters and state, read (never computed) from what the loop keeps;
+        its ``/diagnostics`` key-values every second and its ``pac-stats`` line at the end."""
+        return {}
 
     def _unknown_hint(self) -> str:
         return f"a parameter of {self.get_name()} (`ros2 run <pkg> {self.get_name()} --help` lists them)"
@@ -210,7 +238,8 @@ class PacNode(Node):
             return SetParametersResult(successful=False, reason=error)
         changed = {cls: new for cls, old, new in zip(live, current, updated, strict=True) if new != old}
         if changed:
-            self.apply_parameters(changed)
+            if self.configured:
+                self.apply_parameters(changed)
             self._sets.update(changed)
         return SetParametersResult(successful=True)
 
@@ -247,6 +276,12 @@ class PacNode(Node):
         """A new run started (a RUNNING status, or ticks back at 0): leave the idle state."""
         self.run_last_tick = None
         self._last_handled_tick = -1
+
+    def loop_state(self, last_tick: int) -> str:
+        """``waiting`` (no tick handled yet), ``running`` or ``ended``: the state a status reports."""
+        if self.run_ended:
+            return "ended"
+        return "waiting" if last_tick < 0 else "running"
 
     def on_run_end(self) -> None:
         """Hook: the plant announced the end of its run (``run_last_tick`` is set)."""
@@ -288,7 +323,9 @@ class PacNode(Node):
                 return
 
     def close(self) -> None:
-        """Make the node's results final; the base waits for acknowledgements of what it sent."""
+        """Make the node's results final; the base reports the last status and waits for
+        acknowledgements of what it sent."""
+        self.health.final_report()
         self.wait_for_acknowledgements()
 
 
@@ -498,7 +535,11 @@ def run_nodes(program: str, node_classes: Sequence[type[PacNode]], args: list[st
     finally:
         if nodes and status != 2:
             for node in nodes:
-                node.close()  # the node's own results (bag, counters) are final from here on
+                if node.configured:
+                    node.close()  # the node's own results (bag, counters) are final from here on
+                else:
+                    node.health.final_report()
+                node.health.print_stats()
                 status = status or node.exit_status
             # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
             # stops; everything that matters is done, so a stuck teardown ends the process.
