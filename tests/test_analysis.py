@@ -15,10 +15,15 @@ from pac_analysis.info import describe
 from pac_analysis.re_estimate import re_estimate
 from pac_analysis.recover import recover
 from pac_analysis.report import report
+from pac_bag.reader import BagError, read_bag
+from pac_bag.typestore import interface_dir
+from pac_bag.writer import BagWriter
 from pac_common import messages
-from pac_rig.bag import BagError, BagWriter, read_bag
+from pac_common.messages import RosbagsFactory
 from pac_rig.launcher import node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.offline
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -235,19 +240,39 @@ def test_missing_topics_are_named_and_the_rest_is_reported(offline_bags, tmp_pat
     assert m["u_max_abs"] == pytest.approx(np.max(np.abs(src["u"][src["header.stamp.sec"] >= 3])))
 
 
-def test_unknown_type_is_skipped_with_a_warning(offline_bags, tmp_path):
-    path = tmp_path / "foreign"
+def _foreign_bag(path, with_pac_topic):
+    """A bag written by rosbags with a type pac does not know (and, if asked, a pac topic)."""
     store = get_typestore(Stores.ROS2_JAZZY)
     store.register(get_types_from_msg("float64 x", "other_pkg/msg/Thing"))
+    store.register(get_types_from_msg((interface_dir() / "RunStatus.msg").read_text(), messages.RUN_STATUS))
     writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
     thing = writer.add_connection("thing", "other_pkg/msg/Thing", typestore=store)
     cls = store.types["other_pkg/msg/Thing"]
     for i in range(10):
         writer.write(thing, i, store.serialize_cdr(cls(x=float(i)), "other_pkg/msg/Thing"))
+    if with_pac_topic:
+        status = writer.add_connection("/run_status", messages.RUN_STATUS, typestore=store)
+        msg = RosbagsFactory(store).make(
+            messages.RUN_STATUS, messages.run_status_fields(7, messages.RUN_ENDED, 1.0, 0)
+        )
+        writer.write(status, 20, store.serialize_cdr(msg, messages.RUN_STATUS))
     writer.close()
+    return path
+
+
+def test_unknown_type_is_skipped_with_a_warning(tmp_path):
+    bag = read_bag(_foreign_bag(tmp_path / "mixed", with_pac_topic=True))
+    assert list(bag.topics) == ["run_status"] and list(bag.topics["run_status"]["tick"]) == [7]
+    assert bag.warnings == [
+        "topic 'thing': unknown message type other_pkg/msg/Thing, skipped",
+        "topic 'thing': 0 of 10 messages readable (per metadata.yaml)",
+    ]
+
+
+def test_a_bag_of_unknown_types_only_is_refused_naming_the_type(tmp_path):
     with pytest.raises(BagError, match="no readable message.*unknown message type other_pkg/msg/Thing"):
-        read_bag(path)
+        read_bag(_foreign_bag(tmp_path / "foreign", with_pac_topic=False))
 
 
 def test_empty_bag_and_no_bag(tmp_path):

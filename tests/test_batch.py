@@ -8,6 +8,8 @@ from pac_rig.batch import TRACES, run_batch
 from pac_rig.closed_loop import DivergenceError, run
 from pac_rig.simulate import scenario_from_flat
 
+pytestmark = pytest.mark.offline
+
 SCENARIOS = {
     "square": {**COMMON, "shape": "square", "duration": 3.0},
     "paper_gains": {**COMMON, **PAPER_GAINS, "duration": 1.0},  # diverges at 0.234 s

@@ -17,10 +17,12 @@ import pytest
 import yaml
 
 from pac_analysis.metrics import compute_metrics
+from pac_bag.reader import read_bag
 from pac_experiments import campaign
-from pac_rig.bag import read_bag
 from pac_rig.closed_loop import build_cores
 from pac_rig.simulate import scenario_from_flat
+
+pytestmark = pytest.mark.offline
 
 WINDOW = [0.25, 0.5]
 #: The paper's gains with an ideal actuator (as reproduce's paper_gains run): diverge in ~0.23 s.

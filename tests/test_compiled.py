@@ -15,6 +15,8 @@ from pac_plant.plant import Plant
 from pac_rig.closed_loop import run
 from pac_rig.simulate import scenario_from_flat
 
+pytestmark = pytest.mark.unit
+
 DT = 1e-3
 
 

@@ -20,9 +20,9 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from pac_analysis.info import describe
+from pac_bag.reader import read_bag
 from pac_common import diagnostics
 from pac_common.diagnostics import ERROR, OK, WARN, LoopTiming
-from pac_rig.bag import read_bag
 from pac_rig.launcher import NODES, node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 

@@ -12,9 +12,12 @@ import numpy as np
 import pytest
 from websockets.sync.client import connect
 
-from pac_rig.bag import read_bag, typestore
+from pac_bag.reader import read_bag
+from pac_bag.typestore import typestore
 from pac_rig.launcher import node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.live
 
 TOPICS = ("measurement", "plant_truth", "estimate", "command")
 ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
@@ -110,7 +113,7 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
             assert ch["schemaName"] == bag.topics[topic[1:]].typename
             assert "MSG: std_msgs/Header" in ch["schema"]  # dependencies included: Foxglove can decode
         assert subscribed_topics(env) == []  # nobody watches yet: not even a matched reader
-        subscriptions = {i: ch for i, ch in enumerate(channels.values(), start=1)}
+        subscriptions = dict(enumerate(channels.values(), start=1))
         ws.send(
             json.dumps(
                 {

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pac_bag.reader import BagError, TopicData, read_bag
 from pac_common.diagnostics import level_name
-from pac_rig.bag import BagError, TopicData, read_bag
 
 #: Level changes listed per status; the rest are counted.
 MAX_CHANGES = 8

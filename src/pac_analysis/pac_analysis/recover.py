@@ -13,8 +13,10 @@ import argparse
 import sys
 from pathlib import Path
 
+from pac_bag.reader import BagError
+from pac_bag.recovery import iter_records
+from pac_bag.writer import BagWriter
 from pac_common import messages
-from pac_rig.bag import BagError, BagWriter, iter_records
 
 
 def recover(path: Path, out: Path) -> tuple[dict[str, int], list[str]]:

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from pac_bag.reader import BagData, BagError, read_bag
 from pac_common import jsonio
-from pac_rig.bag import BagData, BagError, read_bag
 
 from .metrics import compute_metrics, loop_timing, markdown_table, missing_inputs, timing_table
 from .plots import overlay_figure, run_figure

@@ -41,6 +41,8 @@ DIAGNOSTICS_TOPIC = "/diagnostics"
 WATCHED_TOPICS: dict[str, str] = {**TOPICS, "diagnostics": DIAGNOSTIC_ARRAY}
 GRAPH_NAMES: dict[str, str] = {**{t: t for t in TOPICS}, "diagnostics": DIAGNOSTICS_TOPIC}
 
+# The .msg files' constants (tests/test_messages.py checks each against its .msg file, and every
+# field dictionary below against the message's fields).
 MODES = {"active": 0, "passive": 1, "fallback": 2}
 COMMAND_FRESH, COMMAND_HELD, COMMAND_PASSIVE = 0, 1, 2
 RUN_RUNNING, RUN_ENDED = 0, 1
@@ -135,9 +137,18 @@ def command_fields(c: Any, stamp_ns: int, *, estimate_age_ticks: int = 0) -> dic
     }
 
 
-def run_status_fields(tick: int, state: int, duration: float, stamp_ns: int) -> dict[str, Any]:
-    """RunStatus: the plant's run started (tick 0) or ended (its last tick)."""
-    return {"header": header(stamp_ns), "tick": tick, "state": state, "duration": duration}
+def run_status_fields(
+    tick: int, state: int, duration: float, stamp_ns: int, catenary_model: str = "", span_length: float = 0.0
+) -> dict[str, Any]:
+    """RunStatus: the plant's run started (tick 0) or ended (its last tick), and its line."""
+    return {
+        "header": header(stamp_ns),
+        "tick": tick,
+        "state": state,
+        "duration": duration,
+        "catenary_model": catenary_model,
+        "span_length": span_length,
+    }
 
 
 def cdr_tick(data: bytes | memoryview) -> int:

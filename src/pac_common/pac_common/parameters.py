@@ -17,8 +17,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-Scalar = float | int | str | bool
-
 
 class ParameterError(ValueError):
     """A parameter value is outside its allowed range.
@@ -271,6 +269,14 @@ class NodeOptions(SchedulingOptions):
 
     wait_for_recorder: bool = parameter(
         False, "do not start the loop until a recorder is subscribed to this node's outputs too"
+    )
+    start_timeout: float = parameter(
+        60.0,
+        "give up (exit 1, naming what is missing) when the peers this node waits for at start "
+        "(and the recorder, with wait_for_recorder) are not all matched within this time; 0: wait forever",
+        "s",
+        low=0.0,
+        high=86400.0,
     )
 
 

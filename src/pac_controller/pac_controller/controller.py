@@ -150,7 +150,7 @@ class Controller:
         has_last = self.last_u is not None
         applied = limit_command(
             float(u),
-            float(self.last_u) if has_last else 0.0,
+            float(self.last_u) if self.last_u is not None else 0.0,
             has_last,
             tick - self.last_tick,
             float(p.slew_rate_max),

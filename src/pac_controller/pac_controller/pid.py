@@ -98,10 +98,10 @@ def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float)
             f"pid_phase_margin = {laws.pid_phase_margin:g} deg needs ({achievable} with "
             f"pid_integral_ratio = {ratio:g}, pid_derivative_filter = {n:g})",
         )
-    x = scipy.optimize.brentq(lambda v: phase(v) - needed, xs[0], xs[top], xtol=1e-12)
+    x = float(scipy.optimize.brentq(lambda v: phase(v) - needed, xs[0], xs[top], xtol=1e-12))
     td = x / wc
     ti = ratio * td
-    kp = 1.0 / abs(_ideal_pid(wc, ti, td, n) * g)
+    kp = 1.0 / abs(complex(_ideal_pid(wc, ti, td, n)) * g)
     gains = PidGains(
         kp=kp,
         ki=kp / ti,

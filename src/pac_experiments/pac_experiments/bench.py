@@ -25,8 +25,8 @@ from datetime import datetime
 from pathlib import Path
 
 from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
+from pac_bag.reader import read_bag
 from pac_common import messages
-from pac_rig.bag import read_bag
 from pac_rig.batch import run_batch
 from pac_rig.closed_loop import Scenario, run
 from pac_rig.launcher import Rig
@@ -145,8 +145,8 @@ def bag_writing(workdir: Path, seconds: float = 10.0) -> list[tuple[str, float, 
     The run's ticks are collected first (the simulator's own field dictionaries), then written
     through the bulk path (columns -> CDR -> chunks) with each compression, and message by
     message with the rosbags serialiser (the path before #10) for comparison; best of 3."""
-    from pac_rig.bag import BagWriter
-    from pac_rig.mcap_writer import COMPRESSIONS
+    from pac_bag.mcap_writer import COMPRESSIONS
+    from pac_bag.writer import BagWriter
     from pac_rig.simulate import scenario_from_flat, tick_fields, write_ticks
 
     scenario = scenario_from_flat({"duration": seconds})
@@ -202,12 +202,13 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """
     import domain_coordinator
 
-    from pac_common.node import LOOP_QOS, PUBLISH_QOS, rclpy
+    from pac_common.node import LOOP_QOS, PUBLISH_QOS, loopback_only, rclpy
     from pac_interfaces import msg as pac_msg
 
     out: dict[str, list[float]] = {name: [] for name in _STARTUP}
     with domain_coordinator.domain_id() as domain_id:
         context = rclpy.Context()
+        loopback_only()
         rclpy.init(context=context, domain_id=domain_id)
         node = rclpy.create_node("bench_startup", context=context)
         executor = rclpy.executors.SingleThreadedExecutor(context=context)

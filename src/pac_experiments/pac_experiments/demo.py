@@ -17,7 +17,7 @@ from pathlib import Path
 
 from pac_analysis.metrics import compute_metrics, loop_timing, markdown_table, timing_table
 from pac_analysis.plots import run_figure
-from pac_rig.bag import read_bag
+from pac_bag.reader import read_bag
 from pac_rig.launcher import Rig
 
 

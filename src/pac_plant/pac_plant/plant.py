@@ -33,7 +33,7 @@ class Truth:
 
     tick: int
     time: float
-    z: tuple[float, float, float, float]
+    z: tuple[float, ...]  # (z1, z2, z1dot, z2dot), eq. (4)
     stiffness: float
     contact_force: float
     in_contact: bool

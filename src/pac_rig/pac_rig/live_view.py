@@ -7,7 +7,7 @@ default: open the Foxglove app, *Open connection* -> *Foxglove WebSocket*,
 ``/command.u`` and ``/estimate.stiffness_hat``.
 
 The channels carry the serialised CDR bytes as received, with the same ``ros2msg``
-schemas the bags carry (pac_rig.bag's type store), so nothing is deserialised here.
+schemas the bags carry (pac_bag's type store), so nothing is deserialised here.
 It stays off the loop's critical path: it subscribes a topic only while a client
 watches it, best effort and keep last ``depth`` (a slow viewer loses samples instead
 of holding back a publisher), and forwards at most ``rate_hz`` messages per topic and
@@ -22,11 +22,10 @@ from dataclasses import dataclass
 
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from pac_bag.typestore import typestore
 from pac_common import messages
 from pac_common.node import PacNode, run_node
 from pac_common.parameters import ParameterError, ParameterSet, parameter
-
-from .bag import typestore
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,9 @@ from pathlib import Path
 
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.qos import qos_dict
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import diagnostics, messages
 from pac_common.lifecycle import LifecycleOptions
 from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
@@ -35,9 +38,6 @@ from pac_common.parameters import (
     check_new_directory,
     parameter,
 )
-
-from .bag import DEFAULT_COMPRESSION, BagWriter, qos_dict
-from .mcap_writer import COMPRESSIONS
 
 RECORDABLE, GRAPH_NAMES = messages.WATCHED_TOPICS, messages.GRAPH_NAMES
 

@@ -15,10 +15,10 @@ import sys
 import time
 from pathlib import Path
 
+from pac_bag.reader import BagError
+from pac_bag.recovery import iter_records
 from pac_common import messages
-from pac_common.node import PUBLISH_QOS
-
-from .bag import BagError, iter_records
+from pac_common.node import PUBLISH_QOS, loopback_only
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -56,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.node import Node
 
+    loopback_only()
     rclpy.init()
     node = Node("replay")
     factory = messages.RclpyFactory()

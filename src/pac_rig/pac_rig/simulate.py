@@ -6,20 +6,20 @@ import argparse
 import dataclasses
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter, columns_of
 from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet
 
-from .bag import DEFAULT_COMPRESSION, BagWriter, columns_of
 from .cli import OverrideError, add_override_arguments, overrides_from_args
 from .closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run
-from .mcap_writer import COMPRESSIONS
 from .progress import progress
 
 
@@ -38,7 +38,7 @@ def scenario_from_flat(values: dict[str, Any], base: Scenario | None = None) -> 
     """A scenario with ``values`` (flat parameter names) over ``base``; unknown names are errors."""
     base = base or Scenario()
     known: set[str] = set()
-    updated = {}
+    updated: dict[str, Any] = {}
     for name, pset in scenario_sets(base).items():
         names = {spec.name for spec in pset.specs()}
         known |= names
@@ -119,7 +119,7 @@ def simulate_to_bag(
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
         try:
-            records = run(scenario)
+            records: Iterable[TickRecord] = run(scenario)
             if show_progress:
                 records = progress(records, scenario.loop.ticks, label or "simulate", "tick")
             for rec in records:
