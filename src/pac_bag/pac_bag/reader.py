@@ -97,6 +97,29 @@ def _column(values: list[Any]) -> np.ndarray:
     return np.array(values)
 
 
+#: The first bytes of every MCAP file (the MCAP specification's magic).
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def bag_files(path: Path) -> list[Path]:
+    """The MCAP files of a bag (a rosbag2 directory or a bare .mcap); :class:`BagError` (one line,
+    the same for every tool) when ``path`` is not a bag."""
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    if not files:
+        raise BagError(f"{path}: not a bag (no .mcap file)")
+    for file in files:
+        try:
+            with open(file, "rb") as handle:
+                head = handle.read(len(MCAP_MAGIC))
+        except OSError as exc:
+            raise BagError(f"{file}: cannot read ({exc.strerror or exc})") from None
+        if head != MCAP_MAGIC:
+            raise BagError(f"{path}: not a bag ({file.name} is not an MCAP file)")
+    return files
+
+
 def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
     """Read a pac bag (rosbag2 directory or a bare .mcap) into columns.
 
@@ -108,11 +131,7 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
     """
     path = Path(path)
     wanted = None if topics is None else set(topics)
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
-    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
-    if not files:
-        raise BagError(f"{path}: not a bag (no .mcap file)")
+    bag_files(path)
     store = typestore()
     warnings: list[str] = []
     rows: dict[str, list[tuple[int, Any]]] = {}

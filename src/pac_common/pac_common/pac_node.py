@@ -236,17 +236,19 @@ class PacNode(ManagedNode, Node):
 
         ``missing()`` names each absent peer, e.g. "a recorder subscribed to measurement".
         """
-        started = time.monotonic()
-        state = {"reported": started}
+        state = {"reported": time.monotonic(), "started": time.monotonic()}
 
         def check() -> None:
+            now = time.monotonic()
+            if not self.active:  # a managed node waits for its activation, not for its peers
+                state["started"] = state["reported"] = now
+                return
             absent = missing()
             if not absent:
                 self.destroy_timer(timer)
                 return
-            now = time.monotonic()
             limit = self.node_options.start_timeout if self.node_options is not None else 0.0
-            waited = now - started
+            waited = now - state["started"]
             if limit > 0 and waited >= limit:
                 self.get_logger().error(
                     f"gave up after {waited:.0f} s waiting for {'; '.join(absent)} "

@@ -120,6 +120,7 @@ class ControllerNode(PacNode):
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", self.on_estimate, LOOP_QOS
         )
         self.follow_run()
+        self.watch_start(self.missing)
         self.last_estimate_tick = -1
         self.last_estimate_wall: float | None = None
         self.last_answer = None  # the command that answered the last fresh estimate
@@ -147,6 +148,15 @@ class ControllerNode(PacNode):
             f"parameters changed: law {self.core.name}, c = ({params.c1:g}, {params.c2:g}, "
             f"{params.c3:g}), reference {reference.shape} {reference.force_amplitude:g} N"
         )
+
+    def missing(self) -> list[str]:
+        """The peers this node's output still waits for, by name (empty: ready)."""
+        recorder = int(self.node_options.wait_for_recorder)
+        readers = self.command_pub.get_subscription_count()
+        if readers >= 1 + recorder:
+            return []
+        who = "a plant and a recorder (wait_for_recorder)" if recorder else "a plant"
+        return [f"{who} subscribed to command ({readers} of {1 + recorder})"]
 
     def ready(self) -> bool:
         return self.active and self.command_pub.get_subscription_count() >= 1 + int(

@@ -90,6 +90,7 @@ class ObserverNode(PacNode):
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS
         )
         self.follow_run()
+        self.watch_start(self.missing)
         self.last_estimate = None  # (estimate, status, rejected, reinitialisations) last published
         self.last_seen_tick = -1
         self.reinitialisations = 0
@@ -102,6 +103,15 @@ class ObserverNode(PacNode):
 
     def apply_parameters(self, changed: dict) -> None:
         self.limits = changed.get(MeasurementLimits, self.limits)
+
+    def missing(self) -> list[str]:
+        """The peers this node's output still waits for, by name (empty: ready)."""
+        recorder = int(self.node_options.wait_for_recorder)
+        readers = self.estimate_pub.get_subscription_count()
+        if readers >= 1 + recorder:
+            return []
+        who = "a controller and a recorder (wait_for_recorder)" if recorder else "a controller"
+        return [f"{who} subscribed to estimate ({readers} of {1 + recorder})"]
 
     def ready(self) -> bool:
         return self.active and self.estimate_pub.get_subscription_count() >= 1 + int(
