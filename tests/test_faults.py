@@ -19,7 +19,7 @@ from rclpy.parameter_client import AsyncParameterClient
 
 from pac_analysis.recover import recover
 from pac_bag.reader import read_bag
-from pac_common import messages
+from pac_common import diagnostics, messages
 from pac_common.node import PUBLISH_QOS
 from pac_common.parameters import ParameterError, RateParameters
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
@@ -378,6 +378,11 @@ def test_full_disk_gives_a_clear_error_and_keeps_what_was_written(rigs, tmp_path
         assert recorder.wait(60.0) == 1, recorder.log()[-2000:]
         errors = [line for line in recorder.log().splitlines() if "recording stopped" in line]
         assert len(errors) == 1 and "No space left on device" in errors[0]
+        # Its counters and its last /diagnostics status say so too (ERROR: recording stopped).
+        stats = node_stats(recorder.log(), "recorder")
+        assert stats["failed"] and stats["failure"] == "No space left on device"
+        status = diagnostics.recorder_status("recorder", stats, None)
+        assert status.level == diagnostics.ERROR and "No space left on device" in status.message
         assert all(p.poll() is None for n, p in rig.processes.items() if n != "recorder")  # the loop goes on
         rig.stop()
         counts, _ = recover(rig.bag_path, tmp_path / "recovered")

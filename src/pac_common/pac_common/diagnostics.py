@@ -136,7 +136,7 @@ def _state_message(node: str, now: Counters) -> str:
         return "idle: no run yet"
     if state in ("unconfigured", "inactive"):
         return f"lifecycle state {state}"
-    return f"running, tick {now.get('last_tick', '?')}"
+    return f"running, tick {now['last_tick']}" if "last_tick" in now else "running"
 
 
 def _status(node: str, what: str, level: int, problems: list[str], now: Counters) -> Status:
@@ -214,6 +214,16 @@ def relay_status(node: str, now: Counters, before: Counters | None) -> Status:
 def _stale(now: Counters) -> bool:
     age = now.get("input_age_s")
     return now.get("state") == "running" and age is not None and math.isfinite(age) and age > STALE_INPUT
+
+
+#: Each node's rule, by the name its class gives (``PacNode.HEALTH``).
+RULES = {
+    "plant": plant_status,
+    "observer": observer_status,
+    "controller": controller_status,
+    "recorder": recorder_status,
+    "node": relay_status,
+}
 
 
 def worst(levels: list[int]) -> int:

@@ -22,13 +22,18 @@ from __future__ import annotations
 import time
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetAvailableTransitions, GetState
 from rclpy.lifecycle import LifecycleNodeMixin, LifecycleState, TransitionCallbackReturn
 
 from .parameters import ParameterError, ParameterSet, parameter
+
+if TYPE_CHECKING:  # what ManagedNode is mixed into (pac_common.pac_node.PacNode)
+    from rclpy.node import Node as _Node
+else:
+    _Node = object
 
 
 @dataclass(frozen=True)
@@ -53,7 +58,7 @@ TRANSITIONS = {
 }
 
 
-class ManagedNode(LifecycleNodeMixin):
+class ManagedNode(LifecycleNodeMixin, _Node):
     """The lifecycle half of :class:`pac_common.node.PacNode` (mixed in before ``rclpy.node.Node``).
 
     The node's body is its ``configure()`` method; ``active`` is the gate its loop callbacks

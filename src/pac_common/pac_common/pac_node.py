@@ -22,7 +22,7 @@ from rclpy.parameter import Parameter
 
 from . import diagnostics, messages
 from .command_line import ROS_OWN_PARAMETERS, process_arguments
-from .health import NodeHealth, StatusRule
+from .health import NodeHealth
 from .lifecycle import LifecycleOptions, ManagedNode
 from .parameters import (
     NodeOptions,
@@ -84,14 +84,14 @@ class PacNode(ManagedNode, Node):
     A subclass builds itself in ``configure()`` (:mod:`pac_common.lifecycle`): at once, or, with
     ``lifecycle:=true`` (``LifecycleOptions`` in its sets), when a lifecycle manager says so; its
     loop callbacks check ``active``. Every node reports ``health_counters()`` on ``/diagnostics``
-    with its ``HEALTH_RULE`` (:mod:`pac_common.diagnostics`).
+    with the rule its ``HEALTH`` names (:mod:`pac_common.diagnostics`).
     """
 
     PARAMETER_SETS: ClassVar[Sequence[type[ParameterSet]]] = ()
     #: Why a parameter declared without ``runtime=True`` is refused at run time.
     FROZEN_REASON: ClassVar[str] = "fixed for a run: restart the node to change it"
-    #: The node's rule from counters to its ``/diagnostics`` status (pac_common.diagnostics).
-    HEALTH_RULE: ClassVar[StatusRule] = staticmethod(diagnostics.relay_status)
+    #: The node's rule from counters to its ``/diagnostics`` status (``pac_common.diagnostics.RULES``).
+    HEALTH: ClassVar[str] = "node"
 
     def __init__(self, name: str) -> None:
         # Undeclared names reach our checks, which refuse them by name (rclpy's own refusal
@@ -111,7 +111,7 @@ class PacNode(ManagedNode, Node):
         scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
         if scheduling:
             set_realtime_priority(self, scheduling[0].realtime_priority)
-        self.health = NodeHealth(self, self._health_counters, self.HEALTH_RULE)
+        self.health = NodeHealth(self, self._health_counters, diagnostics.RULES[self.HEALTH])
         lifecycle = self._sets.get(LifecycleOptions)
         self.start_lifecycle(bool(lifecycle is not None and lifecycle.lifecycle))  # type: ignore[attr-defined]
 

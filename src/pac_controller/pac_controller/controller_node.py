@@ -86,7 +86,7 @@ class ControllerNode(PacNode):
     #: The core's factory; ``controller_relay`` swaps in one that does no work (the floor of
     #: ``make bench``).
     CORE: Callable[..., Controller] = staticmethod(make_controller)
-    HEALTH_RULE = staticmethod(diagnostics.controller_status)
+    HEALTH = "controller"
 
     def __init__(self) -> None:
         super().__init__("controller_node")

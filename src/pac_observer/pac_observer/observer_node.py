@@ -69,7 +69,7 @@ class ObserverNode(PacNode):
     FROZEN_REASON = "the observer's model and tuning are fixed for a run: restart the node"
     #: The core; ``observer_relay`` swaps in one that does no work (the floor of ``make bench``).
     CORE: type[AdaptiveObserver] = AdaptiveObserver
-    HEALTH_RULE = staticmethod(diagnostics.observer_status)
+    HEALTH = "observer"
 
     def __init__(self) -> None:
         super().__init__("observer_node")

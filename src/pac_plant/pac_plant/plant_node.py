@@ -84,7 +84,7 @@ class PlantNode(PacNode):
     #: The plant's factory (lumped k(t) or the FE line, by catenary_model); ``plant_relay`` swaps in
     #: one that does no work (the floor of ``make bench``).
     CORE: Callable[..., Plant] = staticmethod(make_plant)
-    HEALTH_RULE = staticmethod(diagnostics.plant_status)
+    HEALTH = "plant"
 
     def __init__(self) -> None:
         super().__init__("plant_node")

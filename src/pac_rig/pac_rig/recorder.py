@@ -27,7 +27,7 @@ from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from pac_bag.mcap_writer import COMPRESSIONS
 from pac_bag.qos import qos_dict
 from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
-from pac_common import diagnostics, messages
+from pac_common import messages
 from pac_common.lifecycle import LifecycleOptions
 from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
 from pac_common.parameters import (
@@ -75,7 +75,7 @@ class RecorderParameters(ParameterSet):
 class RecorderNode(PacNode):
     PARAMETER_SETS = [RecorderParameters, RunEndOptions, SchedulingOptions, LifecycleOptions]
     FROZEN_REASON = "fixed for a recording: start another recorder"
-    HEALTH_RULE = staticmethod(diagnostics.recorder_status)
+    HEALTH = "recorder"
 
     def __init__(self) -> None:
         super().__init__("recorder")
