@@ -69,15 +69,17 @@ def test_a_waiting_plant_names_what_is_missing_and_gives_up(domain_id):
 # -- 2. one-line errors instead of tracebacks ----------------------------------------------------------
 
 
-def test_simulate_into_an_existing_or_read_only_folder_is_one_line(tmp_path, domain_id):
-    env = node_env(domain_id)
+@pytest.mark.offline
+def test_simulate_into_an_existing_or_read_only_folder_is_one_line(tmp_path):
+    env = node_env()
     existing = tmp_path / "run"
     existing.mkdir()
     one_line(simulate(str(existing), env=env), 2, "'bag'", str(existing), "does not exist yet")
     one_line(simulate(str(READ_ONLY / "run"), env=env), 2, "'bag'", "writable folder")
 
 
-def test_campaign_out_on_a_read_only_path_is_one_line(tmp_path, domain_id):
+@pytest.mark.offline
+def test_campaign_out_on_a_read_only_path_is_one_line(tmp_path):
     spec = tmp_path / "spec.yaml"
     spec.write_text("grid: {speed_kmh: [300.0]}\nfixed: {duration: 0.1}\nwindow: [0.0, 0.1]\n")
     proc = ros2(
@@ -86,8 +88,9 @@ def test_campaign_out_on_a_read_only_path_is_one_line(tmp_path, domain_id):
     one_line(proc, 2, "'--out'", "writable")
 
 
-def test_report_from_a_read_only_working_directory_is_one_line(tmp_path, domain_id):
-    env = node_env(domain_id)
+@pytest.mark.offline
+def test_report_from_a_read_only_working_directory_is_one_line(tmp_path):
+    env = node_env()
     bag = tmp_path / "bag"
     assert simulate(str(bag), "-p", "duration:=0.05", env=env).returncode == 0
     proc = ros2("run", "pac_analysis", "report", str(bag), env=env, cwd=READ_ONLY)
@@ -97,6 +100,7 @@ def test_report_from_a_read_only_working_directory_is_one_line(tmp_path, domain_
 # -- 3 and 5. params files with ROS's semantics ---------------------------------------------------------
 
 
+@pytest.mark.unit
 def test_params_file_sections_follow_ros():
     assert section_matches("/**", "/controller_node")
     assert section_matches("controller_node", "/controller_node")
@@ -106,6 +110,7 @@ def test_params_file_sections_follow_ros():
     assert not section_matches("/*", "/rig/controller_node")
 
 
+@pytest.mark.unit
 def test_a_params_file_splits_shared_and_own_sections(tmp_path):
     path = tmp_path / "p.yaml"
     path.write_text(
@@ -173,11 +178,12 @@ def test_a_dump_loads_with_params_file_and_shared_files_follow_ros(domain_id, tm
 # -- 4. Ctrl-C during simulate -----------------------------------------------------------------------
 
 
-def test_ctrl_c_during_simulate_closes_the_bag_with_what_was_simulated(tmp_path, domain_id):
+@pytest.mark.offline
+def test_ctrl_c_during_simulate_closes_the_bag_with_what_was_simulated(tmp_path):
     bag = tmp_path / "long"
     proc = subprocess.Popen(
         [ROS2, "run", "pac_rig", "simulate", str(bag), "-p", "duration:=3600.0"],
-        env=node_env(domain_id),
+        env=node_env(),
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -208,8 +214,9 @@ def test_ctrl_c_during_simulate_closes_the_bag_with_what_was_simulated(tmp_path,
 # -- 8. the plant's line, and a diverged offline run ---------------------------------------------------
 
 
-def test_simulate_announces_the_line_warns_on_a_span_mismatch_and_a_diverged_run_fails(tmp_path, domain_id):
-    env = node_env(domain_id)
+@pytest.mark.offline
+def test_simulate_announces_the_line_warns_on_a_span_mismatch_and_a_diverged_run_fails(tmp_path):
+    env = node_env()
     fe = simulate(str(tmp_path / "fe"), "-p", "catenary_model:=fe", "-p", "duration:=0.02", env=env)
     assert fe.returncode == 0, fe.stderr
     assert (
@@ -239,16 +246,33 @@ def test_observer_and_controller_warn_when_the_plants_span_differs(rigs):
 # -- 9. an out-of-range domain id ------------------------------------------------------------------------
 
 
+@pytest.mark.offline
 def test_ros2_node_list_in_an_impossible_domain_is_one_line():
     env = {**node_env(), "ROS_DOMAIN_ID": "300"}
     one_line(ros2("node", "list", env=env), 2, "ROS_DOMAIN_ID='300' is out of range")
 
 
+@pytest.mark.unit
+def test_make_demo_uses_an_exported_domain_id(monkeypatch):
+    from pac_experiments.demo import free_domain
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", "42")
+    with free_domain() as domain_id:
+        assert domain_id == 42
+    monkeypatch.setenv("ROS_DOMAIN_ID", "300")
+    with pytest.raises(UsageError, match="out of range"):
+        free_domain()
+    monkeypatch.delenv("ROS_DOMAIN_ID")
+    with free_domain() as domain_id:  # none exported: a free one, reserved
+        assert 0 <= domain_id <= 232
+
+
 # -- 10. diagnostics that describe what is there ---------------------------------------------------------
 
 
-def test_tools_describe_a_directory_that_is_not_a_bag_the_same_way(tmp_path, domain_id):
-    env = node_env(domain_id)
+@pytest.mark.offline
+def test_tools_describe_a_directory_that_is_not_a_bag_the_same_way(tmp_path):
+    env = node_env()
     folder = tmp_path / "notabag"
     folder.mkdir()
     (folder / "notes.txt").write_text("hello\n")
@@ -269,8 +293,9 @@ def test_tools_describe_a_directory_that_is_not_a_bag_the_same_way(tmp_path, dom
     one_line(ros2("run", "pac_analysis", "info", str(text), env=env), 1, "notes.mcap is not an MCAP file")
 
 
-def test_bag_info_counts_missing_ticks_only_on_per_tick_topics(tmp_path, domain_id):
-    env = node_env(domain_id)
+@pytest.mark.offline
+def test_bag_info_counts_missing_ticks_only_on_per_tick_topics(tmp_path):
+    env = node_env()
     bag = tmp_path / "bag"
     assert simulate(str(bag), "-p", "duration:=0.2", env=env).returncode == 0
     info = ros2("bag", "info", str(bag), env=env)

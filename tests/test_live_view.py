@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
 from pac_bag.reader import read_bag
@@ -91,6 +92,11 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
         )
     processes.append(viewer)
     url = wait_for_line(viewer, log, r"serving .* on (ws://127\.0\.0\.1:\d+)", 60).group(1)
+    # A client offering only the old name is refused in the handshake, and the start line says so.
+    assert "subprotocol foxglove.sdk.v1" in log.read_text() and "foxglove.websocket.v1" in log.read_text()
+    with pytest.raises(InvalidStatus) as refused:
+        connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=10, proxy=None)
+    assert refused.value.response.status_code == 400
 
     received: dict[str, list] = {t: [] for t in (*TOPICS, "diagnostics")}
     # foxglove-sdk 0.30 speaks the v1 protocol under its new name foxglove.sdk.v1 (identical to

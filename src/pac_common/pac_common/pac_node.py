@@ -230,6 +230,16 @@ class PacNode(ManagedNode, Node):
     #: Seconds between two "still waiting for ..." lines.
     WAIT_REPORT_PERIOD = 5.0
 
+    def readers_missing(self, publisher: Any, topic: str, peer: str) -> list[str]:
+        """What ``publisher`` still waits for: its ``peer`` reader and, with wait_for_recorder, a
+        recorder; one line naming them (empty: both there)."""
+        recorder = int(self.node_options is not None and self.node_options.wait_for_recorder)
+        readers = publisher.get_subscription_count()
+        if readers >= 1 + recorder:
+            return []
+        who = f"{peer} and a recorder (wait_for_recorder)" if recorder else peer
+        return [f"{who} subscribed to {topic} ({readers} of {1 + recorder})"]
+
     def watch_start(self, missing: Callable[[], list[str]]) -> None:
         """Until ``missing()`` is empty: say what is missing every WAIT_REPORT_PERIOD s, and after
         ``start_timeout`` s (NodeOptions; 0: never) stop with exit status 1 and one error line.

@@ -112,6 +112,7 @@ class ControllerNode(PacNode):
             self.laws,
             self.catenary,
         )
+        self.core.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.get_logger().info(f"control law: {self.core.name}")
         self.command_pub = self.create_publisher(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", PUBLISH_QOS
@@ -151,12 +152,7 @@ class ControllerNode(PacNode):
 
     def missing(self) -> list[str]:
         """The peers this node's output still waits for, by name (empty: ready)."""
-        recorder = int(self.node_options.wait_for_recorder)
-        readers = self.command_pub.get_subscription_count()
-        if readers >= 1 + recorder:
-            return []
-        who = "a plant and a recorder (wait_for_recorder)" if recorder else "a plant"
-        return [f"{who} subscribed to command ({readers} of {1 + recorder})"]
+        return self.readers_missing(self.command_pub, "command", "a plant")
 
     def ready(self) -> bool:
         return self.active and self.command_pub.get_subscription_count() >= 1 + int(

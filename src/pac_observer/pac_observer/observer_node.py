@@ -83,6 +83,7 @@ class ObserverNode(PacNode):
             self.parameters(ObserverParameters),
             self.loop.sample_period,
         )
+        self.core.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.estimate_pub = self.create_publisher(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", PUBLISH_QOS
         )
@@ -106,12 +107,7 @@ class ObserverNode(PacNode):
 
     def missing(self) -> list[str]:
         """The peers this node's output still waits for, by name (empty: ready)."""
-        recorder = int(self.node_options.wait_for_recorder)
-        readers = self.estimate_pub.get_subscription_count()
-        if readers >= 1 + recorder:
-            return []
-        who = "a controller and a recorder (wait_for_recorder)" if recorder else "a controller"
-        return [f"{who} subscribed to estimate ({readers} of {1 + recorder})"]
+        return self.readers_missing(self.estimate_pub, "estimate", "a controller")
 
     def ready(self) -> bool:
         return self.active and self.estimate_pub.get_subscription_count() >= 1 + int(

@@ -99,6 +99,7 @@ class PlantNode(PacNode):
             self.parameters(PlantOptions),
             loop.sample_period,
         )
+        self.plant.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.measurement_pub = self.create_publisher(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS
         )
@@ -154,11 +155,7 @@ class PlantNode(PacNode):
     def missing(self) -> list[str]:
         """The peers the run still waits for, by name (empty: ready)."""
         recorder = int(self.node_options.wait_for_recorder)
-        out = []
-        readers = self.measurement_pub.get_subscription_count()
-        if readers < 1 + recorder:
-            who = "an observer and a recorder (wait_for_recorder)" if recorder else "an observer"
-            out.append(f"{who} subscribed to measurement ({readers} of {1 + recorder})")
+        out = self.readers_missing(self.measurement_pub, "measurement", "an observer")
         if self.truth_pub.get_subscription_count() < recorder:
             out.append("a recorder subscribed to plant_truth (wait_for_recorder)")
         if self.command_sub.get_publisher_count() < 1:

@@ -6,6 +6,7 @@ import argparse
 import dataclasses
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -20,7 +21,17 @@ from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
 
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
-from .closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run
+from .closed_loop import (
+    BLOCK,
+    DivergenceError,
+    Scenario,
+    TickRecord,
+    build_cores,
+    run_blocks,
+    run_cores,
+    tick_records,
+)
+from .loop import compile_loop
 from .progress import progress
 
 
@@ -102,13 +113,19 @@ def simulate_to_bag(
     compression: str = DEFAULT_COMPRESSION,
     show_progress: bool = False,
     on_record: Callable[[TickRecord], None] | None = None,
+    stop_requested: Callable[[], bool] | None = None,
+    compiled: bool = True,
 ) -> RunResult:
     """Run ``scenario`` offline and record the pac topics; log time = simulated time.
 
     Each tick's field dictionaries are the nodes' own (pac_common.messages); they are
     collected per topic and written in blocks through the vectorised CDR path.
     ``show_progress``: a tick progress bar on stderr when it is a terminal. ``on_record``
-    sees every tick's record too (e.g. to compute measures without reading the bag)."""
+    sees every tick's record too (e.g. to compute measures without reading the bag).
+    ``stop_requested`` (asked after every tick, or every block of ticks on the compiled path):
+    stop there, and close the bag with what was simulated (``RunResult.interrupted``).
+    ``compiled=False``: the core objects tick by tick and one field dictionary per message, the
+    path before the loop was compiled (the bench compares the two; the bags are the same)."""
     rate = scenario.loop.rate_hz
     start = time.perf_counter()
     ticks = 0
@@ -130,8 +147,28 @@ def simulate_to_bag(
             bag.write("run_status", fields, stamp)
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
+        plant, observer, controller = build_cores(scenario)
+        delay = scenario.loop.command_delay_ticks
+        loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
-            records: Iterable[TickRecord] = run(scenario)
+            if loop is not None:  # compiled: whole blocks of ticks, written as columns
+                blocks: Iterable[np.ndarray] = run_blocks(scenario, plant, loop)
+                if show_progress:
+                    blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
+                for block in blocks:
+                    for topic, columns in messages.tick_columns(block, rate, delay).items():
+                        bag.write_many(topic, columns, messages.tick_stamp_ns(1, rate) * block["tick"])
+                    bag.flush()
+                    ticks += block.size
+                    if on_record is not None:
+                        for rec in tick_records(block):
+                            on_record(rec)
+                    if stop_requested is not None and stop_requested():
+                        interrupted = True
+                        break
+                records: Iterable[TickRecord] = iter(())
+            else:
+                records = run_cores(scenario, plant, observer, controller)
             if show_progress:
                 records = progress(records, scenario.loop.ticks, label or "simulate", "tick")
             for rec in records:
@@ -146,13 +183,15 @@ def simulate_to_bag(
                     bag.flush()
                     rows = {topic: [] for topic in messages.LOOP_TOPICS}
                     stamps = []
+                if stop_requested is not None and stop_requested():
+                    interrupted = True
+                    break
         except DivergenceError as exc:
             diverged = str(exc)
             bag.set_metadata("diverged", {"tick": exc.tick, "reason": exc.reason})
-        except KeyboardInterrupt:
-            # Ctrl-C: keep what was simulated; a second Ctrl-C must not cut the bag's closing short.
+        except KeyboardInterrupt:  # a caller without stop_requested: keep what was simulated
             interrupted = True
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        if interrupted:
             bag.set_metadata("interrupted", {"ticks": ticks})
         write_ticks(bag, rows, stamps)
         write_run_status(bag, max(ticks - 1, 0), messages.RUN_ENDED)
@@ -218,13 +257,24 @@ def main(argv: list[str] | None = None) -> int:
             f"controller assume span_length {scenario.track.span_length:g} m (set -p span_length:={span:g})",
             file=sys.stderr,
         )
+    # Ctrl-C asks the loop to stop after the current tick (a KeyboardInterrupt raised inside the
+    # compiled cores surfaced as a SystemError traceback); the bag is then closed as usual.
+    requested = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda *_: requested.set())
     try:
         result = simulate_to_bag(
-            scenario, args.bag, label=args.bag.name, compression=compression, show_progress=True
+            scenario,
+            args.bag,
+            label=args.bag.name,
+            compression=compression,
+            show_progress=True,
+            stop_requested=requested.is_set,
         )
     except OSError as exc:  # e.g. the disk filled up or the folder vanished mid-run
         print(f"simulate: cannot write {args.bag}: {exc.strerror or exc}", file=sys.stderr)
         return 1
+    finally:
+        signal.signal(signal.SIGINT, previous)
     speed = result.simulated_seconds / max(result.wall_seconds, 1e-9)
     print(
         f"wrote {result.bag_path}: {result.ticks} ticks, {result.simulated_seconds:g} s simulated "
