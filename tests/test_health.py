@@ -26,6 +26,9 @@ from pac_common.diagnostics import ERROR, OK, WARN, LoopTiming
 from pac_rig.launcher import NODES, node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
+# The pure rules are unit tests; every test below that starts nodes uses domain_id: live.
+pytestmark = pytest.mark.unit
+
 # -- the pure rules --------------------------------------------------------------------------------
 
 
