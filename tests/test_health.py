@@ -114,6 +114,22 @@ def test_stats_line_is_one_strict_json_line_the_tests_parse():
     assert node_stats(log, "plant_node")["resends"] == 3
 
 
+def test_a_diagnostic_array_echoes_as_ros2cli_prints_it():
+    """What `ros2 topic echo /diagnostics` prints: the stand-in decodes the type, a level is a number."""
+    from pac_common.health import to_message
+    from pac_ros2cli.common import plain
+
+    status = diagnostics.controller_status(
+        "controller_node", {"state": "running", "last_tick": 7, "fallback_active": False, "refused": 0}, None
+    )
+    data = plain(to_message([status], 1_500_000_000))
+    assert data["header"]["stamp"] == {"sec": 1, "nanosec": 500_000_000}
+    (entry,) = data["status"]
+    assert entry["level"] == OK and entry["name"] == "controller_node: control"
+    assert entry["message"] == "running, tick 7" and entry["hardware_id"] == "pac"
+    assert {"key": "last_tick", "value": "7"} in entry["values"]
+
+
 # -- live nodes ------------------------------------------------------------------------------------
 
 
