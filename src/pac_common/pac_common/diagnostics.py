@@ -19,6 +19,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from . import jsonio
 
 #: diagnostic_msgs/DiagnosticStatus levels (its byte constants OK, WARN, ERROR, STALE).
@@ -77,35 +79,28 @@ class LoopTiming:
     def last_ns(self) -> int | None:
         return self.starts_ns[(self.count - 1) % self.size] if self.count else None
 
-    def window(self) -> tuple[list[int], list[float]]:
+    def window(self) -> tuple[np.ndarray, np.ndarray]:
         """The recorded events, oldest first."""
         n = min(self.count, self.size)
         first = (self.count - n) % self.size
-        order = [(first + j) % self.size for j in range(n)]
-        return [self.starts_ns[i] for i in order], [self.latencies[i] for i in order]
+        order = (first + np.arange(n)) % self.size
+        return np.asarray(self.starts_ns, dtype=np.int64)[order], np.asarray(self.latencies)[order]
 
     def summary(self) -> dict[str, float]:
-        """Percentiles [ms] of the period between events and of the latency over the window."""
+        """Percentiles [ms] of the period between events and of the latency over the window
+        (numpy: about a tenth of a millisecond for a full window, once a second)."""
         starts, latencies = self.window()
-        periods = [(b - a) * 1e-6 for a, b in zip(starts, starts[1:], strict=False)]
-        finite = [x * 1e3 for x in latencies if math.isfinite(x)]
+        periods = np.diff(starts) * 1e-6
+        finite = latencies[np.isfinite(latencies)] * 1e3
         out: dict[str, float] = {}
         for label, values in (("period", periods), ("latency", finite)):
-            out[f"{label}_p50_ms"] = percentile(values, 50.0)
-            out[f"{label}_p99_ms"] = percentile(values, 99.0)
-            out[f"{label}_max_ms"] = max(values) if values else math.nan
+            if values.size:
+                p50, p99 = np.percentile(values, [50.0, 99.0])
+                out[f"{label}_p50_ms"], out[f"{label}_p99_ms"] = float(p50), float(p99)
+                out[f"{label}_max_ms"] = float(values.max())
+            else:
+                out[f"{label}_p50_ms"] = out[f"{label}_p99_ms"] = out[f"{label}_max_ms"] = math.nan
         return out
-
-
-def percentile(values: list[float], q: float) -> float:
-    """The ``q``-th percentile (linear interpolation, as numpy's default); NaN for no values."""
-    if not values:
-        return math.nan
-    ordered = sorted(values)
-    pos = (len(ordered) - 1) * q / 100.0
-    lo = math.floor(pos)
-    hi = min(lo + 1, len(ordered) - 1)
-    return ordered[lo] + (ordered[hi] - ordered[lo]) * (pos - lo)
 
 
 def _text(value: Any) -> str:
