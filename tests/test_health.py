@@ -296,6 +296,42 @@ def test_a_managed_lockstep_run_configured_and_activated_by_a_manager_equals_the
     assert node_stats(rig.processes["plant"].log(), "plant_node")["last_tick"] == n - 1
 
 
+def test_a_managed_recorder_deactivates_cleans_up_its_bag_and_shuts_down(domain_id, tmp_path, monitor):
+    from pac_common.lifecycle import change_state, get_state, managed_nodes
+
+    bag = tmp_path / "bag"
+    log = tmp_path / "recorder.log"
+    args = ["--ros-args", "-p", f"bag_path:={bag}", "-p", "lifecycle:=true"]
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(
+            ["ros2", "run", "pac_rig", "recorder", *args],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            env=node_env(domain_id),
+        )
+    try:
+        deadline = time.monotonic() + 60
+        while "/recorder" not in managed_nodes(monitor.node):
+            assert time.monotonic() < deadline and proc.poll() is None, log.read_text()[-2000:]
+            monitor.executor.spin_once(timeout_sec=0.1)
+        node, executor = monitor.node, monitor.executor
+        assert get_state(node, executor, "/recorder") == "unconfigured" and not bag.exists()
+        monitor.wait_for("recorder: recording", OK, "lifecycle state unconfigured", timeout=30.0)
+        assert change_state(node, executor, "/recorder", "configure") == "inactive" and bag.is_dir()
+        assert change_state(node, executor, "/recorder", "activate") == "active"
+        monitor.wait_for("recorder: recording", OK, "recording", timeout=30.0)  # it records its own status
+        assert change_state(node, executor, "/recorder", "deactivate") == "inactive"
+        assert change_state(node, executor, "/recorder", "cleanup") == "unconfigured"
+        assert (bag / "metadata.yaml").is_file()  # closed: complete and indexed
+        assert len(read_bag(bag).topics["diagnostics"]) >= 1
+        change_state(node, executor, "/recorder", "shutdown")
+        assert proc.wait(30) == 0, log.read_text()[-2000:]
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            proc.wait(30)
+
+
 def test_lifecycle_verbs_refuse_a_node_that_is_not_managed(domain_id):
     env = node_env(domain_id)
     out = subprocess.run(

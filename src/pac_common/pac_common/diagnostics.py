@@ -196,7 +196,7 @@ def recorder_status(node: str, now: Counters, before: Counters | None) -> Status
         warnings.append(f"{now['queued']} messages waiting to be written")
     level = ERROR if errors else WARN if warnings else OK
     problems = errors + warnings
-    if not problems:
+    if not problems and now.get("state") == "recording":
         problems = [f"recording {now.get('messages', 0)} messages, {now.get('bag_bytes', 0)} bytes written"]
     return _status(node, "recording", level, problems, now)
 
