@@ -20,6 +20,17 @@ import pytest
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # also for anything imported below
 
 
+def node_stats(log: str, node: str) -> dict:
+    """A node's end-of-run counters: its ``pac-stats {json}`` line in ``log`` (the process's output).
+
+    Tests read the counters from this line, never from the nodes' prose (which may be reworded)."""
+    from pac_common.diagnostics import parse_stats
+
+    stats = parse_stats(log)
+    assert node in stats, f"no pac-stats line of {node} in:\n{log[-2000:]}"
+    return stats[node]
+
+
 @pytest.fixture
 def domain_id():
     """A ROS_DOMAIN_ID no other test (or test run) on this machine holds."""

@@ -24,6 +24,8 @@ ROSDEP_KEYS = {
     "tqdm": "python3-tqdm",
     "rclpy": "rclpy",
     "rcl_interfaces": "rcl_interfaces",
+    "diagnostic_msgs": "diagnostic_msgs",
+    "lifecycle_msgs": "lifecycle_msgs",
     "ament_index_python": "ament_index_python",
     "domain_coordinator": "domain_coordinator",
 }

@@ -1,6 +1,5 @@
 """The rig as real processes over DDS: lock step = offline, real time, bad input, stops."""
 
-import re
 import signal
 import subprocess
 import time
@@ -8,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PHYSICS, assert_starts_and_stops_cleanly, first_per_tick
+from conftest import PHYSICS, assert_starts_and_stops_cleanly, first_per_tick, node_stats
 from mcap.reader import make_reader
 
 from pac_analysis.metrics import compute_metrics
@@ -39,12 +38,6 @@ def test_lockstep_run_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
     assert result["compared"] == 2000 and all(f["identical"] for f in result["fields"].values())
 
 
-def published_count(log: str, pattern: str) -> int:
-    match = re.search(pattern, log)
-    assert match, log[-1000:]
-    return int(match.group(1))
-
-
 def test_realtime_loop_tracks_and_records_everything(rigs):
     duration = 6.0
     rig = rigs("realtime", duration=duration)
@@ -60,9 +53,8 @@ def test_realtime_loop_tracks_and_records_everything(rigs):
     for topic in ("measurement", "plant_truth"):
         ticks, _ = first_per_tick(bag.topics[topic])
         np.testing.assert_array_equal(ticks, np.arange(6000), err_msg=topic)
-    processed = published_count(rig.processes["observer"].log(), r"processed (\d+) measurements")
-    controller_log = rig.processes["controller"].log()
-    sent = published_count(controller_log, r"sent (\d+) commands")
+    processed = node_stats(rig.processes["observer"].log(), "observer_node")["processed"]
+    sent = node_stats(rig.processes["controller"].log(), "controller_node")["sent"]
     assert np.unique(bag.topics["estimate"]["tick"]).size == processed
     # The run has an end: the plant announced it, the controller answered the last tick
     # and went idle (no watchdog fallback after it), every node stopped by itself.
