@@ -450,24 +450,6 @@ window: [0.5, 1.0]
 """
 
 
-def fe_tick(repeats: int, ticks: int = 300) -> float:
-    """CPU µs per FE plant tick (advance + measurement + truth), median of ``repeats``."""
-    from pac_rig.closed_loop import build_cores
-    from pac_rig.simulate import scenario_from_flat
-
-    costs = []
-    for _ in range(repeats):
-        plant = build_cores(scenario_from_flat({"catenary_model": "fe", "duration": 1.0}))[0]
-        plant.advance(100.0)
-        start = time.process_time()
-        for _ in range(ticks):
-            plant.measurement()
-            plant.truth()
-            plant.advance(100.0)
-        costs.append(1e6 * (time.process_time() - start) / ticks)
-    return median(costs)
-
-
 def load_average() -> str:
     return ", ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -523,13 +505,21 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         whole, inner, wall = campaign_rate(fe_spec, workdir)
         figures["campaign_fe_rate"] = whole
         notes.append(
-            f"FE campaign (2 laws x 2 speeds x 1 s, core objects tick by tick: the FE step is not "
-            f"compiled yet): {wall:.1f} s as a whole command, runs alone {inner:.2f} scenario-s per wall-s"
+            f"FE campaign (2 laws x 2 speeds x 1 s, through the core objects tick by tick: the closed "
+            f"loop has no compiled FE plant step yet): {wall:.1f} s as a whole command, runs alone "
+            f"{inner:.2f} scenario-s per wall-s"
         )
     print("bench: FE tick ...", flush=True)
-    fe_us = fe_tick(args.repeats)
-    figures["fe_tick_x"] = 1e3 / fe_us
-    notes.append(f"FE plant tick {fe_us:.0f} µs CPU (advance + measurement + truth)")
+    from .bench_fe import fe_tick_figures  # the FE line's own timing (by part, old and new step)
+
+    fe = fe_tick_figures()
+    figures["fe_tick_x"] = fe["fe_plant_realtime_factor"]
+    today["fe_tick_x"] = {"value": 1e3 / fe["step_old_us"], "what": "numpy step alone"}
+    notes.append(
+        f"FE plant tick {fe['fe_plant_tick_us']:.0f} µs CPU (advance + measurement + truth; compiled step "
+        f"{fe['step_new_us']:.0f} µs, numpy step {fe['step_old_us']:.0f} µs): "
+        "`python -m pac_experiments.bench_fe` for the parts"
+    )
     if startup:
         medians = {name: median(times) for name, times in startup.items()}
         figures["startup_s"] = max(medians.values()) if all(startup.values()) else None
