@@ -1,9 +1,10 @@
-"""Issue #4: report, info, replay, re-estimate, and bad bags — on bags the tests generate."""
+"""The analysis tools: report, info, replay, re-estimate, and bad bags — on bags the tests generate."""
 
 import json
 import shutil
 import signal
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -289,3 +290,40 @@ def test_empty_bag_and_no_bag(tmp_path):
     )
     assert proc.returncode == 1
     assert proc.stderr.strip().splitlines() == [f"report: {empty}: no readable message"]
+
+
+def _live_bag(rate_hz, wall_periods_s):
+    """BagData with only the plant_truth of a live run at rate_hz, woken up after wall_periods_s."""
+    from pac_bag.reader import BagData, TopicData
+
+    n = len(wall_periods_s) + 2  # tick 0 (the start-up handshake) and the first period's start
+    ticks = np.arange(n)
+    stamp_ns = ticks * int(round(1e9 / rate_hz))
+    wall_ns = (1_000_000_000 + 1e9 * np.concatenate([[0.0, 0.5], 0.5 + np.cumsum(wall_periods_s)])).astype(
+        np.int64
+    )
+    columns = {
+        "tick": ticks,
+        "header.stamp.sec": stamp_ns // 1_000_000_000,
+        "header.stamp.nanosec": stamp_ns % 1_000_000_000,
+        "wall_stamp.sec": wall_ns // 1_000_000_000,
+        "wall_stamp.nanosec": wall_ns % 1_000_000_000,
+        "round_trip_latency": np.full(n, 1e-3),
+        "command_age_ticks": np.full(n, 2),
+        "applied_command_tick": ticks - 1,
+    }
+    truth = TopicData(messages.PLANT_TRUTH, stamp_ns, columns)
+    return BagData(Path("synthetic"), {"plant_truth": truth}, {}, [])
+
+
+@pytest.mark.parametrize("rate_hz", [1000.0, 500.0, 200.0])
+def test_late_periods_are_counted_against_the_runs_own_period(rate_hz):
+    """A period is late beyond 1.5 nominal periods, whatever rate_hz is (not a fixed 1.5 ms)."""
+    from pac_analysis.metrics import loop_timing
+
+    t = 1.0 / rate_hz
+    periods = [t] * 96 + [1.4 * t, 1.6 * t, 2.0 * t, 1.49 * t]  # two late, two on time
+    timing = loop_timing(_live_bag(rate_hz, periods))
+    assert timing.nominal_period_ms == pytest.approx(1e3 * t)
+    assert timing.late_periods == 2
+    assert timing.on_time_periods_percent == pytest.approx(98.0)

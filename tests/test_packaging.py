@@ -24,6 +24,8 @@ ROSDEP_KEYS = {
     "tqdm": "python3-tqdm",
     "rclpy": "rclpy",
     "rcl_interfaces": "rcl_interfaces",
+    "diagnostic_msgs": "diagnostic_msgs",
+    "lifecycle_msgs": "lifecycle_msgs",
     "ament_index_python": "ament_index_python",
     "domain_coordinator": "domain_coordinator",
 }
@@ -35,6 +37,7 @@ PYPI_ONLY = {
     "zstandard": "zstandard",
     "lz4": "lz4",
     "numba": "numba",
+    "llvmlite": "llvmlite",
     "distributed": "distributed",
     "foxglove": "foxglove-sdk",
 }
@@ -127,8 +130,13 @@ def test_no_import_cycle_between_packages():
 
 
 def test_design_doc_maps_every_package():
-    """docs/design.md's package map has one line per package, and no package that does not exist."""
+    """docs/design.md's package map has one row per package, none that does not exist, and each
+    row names exactly the pac packages its package imports."""
     text = (SRC.parent / "docs" / "design.md").read_text()
-    block = text.split("## Package map", 1)[1].split("```", 2)[1]
-    mapped = {line.split()[0] for line in block.splitlines() if line.strip() and line.startswith("pac_")}
-    assert mapped == {p.name for p in packages()}
+    block = text.split("## Package map", 1)[1].split("\n## ", 1)[0]
+    rows = [line for line in block.splitlines() if line.startswith("| `pac_")]
+    mapped = {line.split("`")[1]: line.rstrip(" |").rsplit("|", 1)[1].strip() for line in rows}
+    assert sorted(mapped) == sorted(p.name for p in packages())
+    for package in packages():
+        real = sorted(m for m in imports(package) if m.startswith("pac_"))
+        assert mapped[package.name] == (", ".join(real) or "—"), package.name

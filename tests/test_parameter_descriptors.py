@@ -15,13 +15,17 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from pac_common.ros_parameters import DOUBLE_LIMIT, INTEGER_LIMIT, descriptor
-from pac_rig.configs import NODE_MODULES, parameter_sets
+from pac_rig.configs import parameter_sets
 from pac_rig.launcher import node_env
 from pac_rig.live_view import LiveViewParameters
+from pac_rig.nodes import NODES as RIG_NODES
+
+# The descriptor checks are unit tests; the live one is live (it uses domain_id: conftest).
+pytestmark = pytest.mark.unit
 
 #: node name -> (package, executable, extra --ros-args, its parameter sets)
 NODES = {
-    **{name: (pkg, name, [], parameter_sets(name)) for name, (pkg, _) in NODE_MODULES.items()},
+    **{n.executable: (n.package, n.executable, [], parameter_sets(role)) for role, n in RIG_NODES.items()},
     "live_view": ("pac_rig", "live_view", ["-p", "port:=0"], [LiveViewParameters]),
 }
 TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER}

@@ -11,6 +11,8 @@ from pac_ros2cli.common import CliError, plain, split_type
 from pac_ros2cli.graph import Graph
 from pac_ros2cli.interface import show_lines
 
+pytestmark = pytest.mark.unit
+
 
 def test_every_verb_and_sub_verb_resolves_to_its_own_function():
     functions = [f for table in main.COMMANDS.values() for f in table.values()]

@@ -14,7 +14,10 @@ setup(
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="A stand-in for ros2cli: the daily ros2 verbs (scripts/bin/ros2 calls it).",
+    description=(
+        "A stand-in for ros2cli (not installable from PyPI): the daily `ros2` verbs over rclpy's graph "
+        "API and pac's tools; scripts/bin/ros2 calls it."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={"console_scripts": []},

@@ -13,20 +13,19 @@ import argparse
 import sys
 from pathlib import Path
 
-from pac_bag.reader import BagError
+from pac_bag.reader import BagError, bag_files
 from pac_bag.recovery import iter_records
 from pac_bag.writer import BagWriter
 from pac_common import messages
 
 
 def recover(path: Path, out: Path) -> tuple[dict[str, int], list[str]]:
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
+    bag_files(path)  # not a bag: the one line every tool gives
     warnings: list[str] = []
     records = list(iter_records(path, warnings))
     if not records:
         raise BagError(f"{path}: no readable message" + (f" ({'; '.join(warnings)})" if warnings else ""))
-    topics = {t: ty for t, ty, _, _ in records if t in messages.TOPICS}
+    topics = {t: ty for t, ty, _, _ in records if t in messages.WATCHED_TOPICS}
     for topic in sorted({t for t, _, _, _ in records} - set(topics)):
         warnings.append(f"topic '{topic}': not a pac topic, not recovered")
     with BagWriter(

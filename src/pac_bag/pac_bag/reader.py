@@ -86,6 +86,40 @@ def declared_counts(path: Path) -> dict[str, int]:
     return counts
 
 
+def _column(values: list[Any]) -> np.ndarray:
+    """One field of every message.  rosbags gives numeric arrays as numpy arrays and sequences of
+    messages or strings (``/diagnostics``' ``status``) as lists: those stay one list per message,
+    in an object array (numpy cannot stack lists of varying length)."""
+    if values and isinstance(values[0], list):
+        out = np.empty(len(values), dtype=object)
+        out[:] = values
+        return out
+    return np.array(values)
+
+
+#: The first bytes of every MCAP file (the MCAP specification's magic).
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+def bag_files(path: Path) -> list[Path]:
+    """The MCAP files of a bag (a rosbag2 directory or a bare .mcap); :class:`BagError` (one line,
+    the same for every tool) when ``path`` is not a bag."""
+    if not path.exists():
+        raise BagError(f"{path}: no such bag")
+    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
+    if not files:
+        raise BagError(f"{path}: not a bag (no .mcap file)")
+    for file in files:
+        try:
+            with open(file, "rb") as handle:
+                head = handle.read(len(MCAP_MAGIC))
+        except OSError as exc:
+            raise BagError(f"{file}: cannot read ({exc.strerror or exc})") from None
+        if head != MCAP_MAGIC:
+            raise BagError(f"{path}: not a bag ({file.name} is not an MCAP file)")
+    return files
+
+
 def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
     """Read a pac bag (rosbag2 directory or a bare .mcap) into columns.
 
@@ -97,11 +131,7 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
     """
     path = Path(path)
     wanted = None if topics is None else set(topics)
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
-    files = [path] if path.is_file() else sorted(path.glob("*.mcap"))
-    if not files:
-        raise BagError(f"{path}: not a bag (no .mcap file)")
+    bag_files(path)
     store = typestore()
     warnings: list[str] = []
     rows: dict[str, list[tuple[int, Any]]] = {}
@@ -144,6 +174,6 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
         data = TopicData(typenames[topic], np.array([t for t, _ in items], dtype=np.int64))
         flat = [dict(_flatten(m)) for _, m in items]
         for key in flat[0]:
-            data.columns[key] = np.array([f[key] for f in flat])
+            data.columns[key] = _column([f[key] for f in flat])
         result[topic] = data
     return BagData(path, result, read_custom_metadata(path) if path.is_dir() else {}, warnings)

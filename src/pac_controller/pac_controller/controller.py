@@ -17,6 +17,7 @@ u_law for a tick.  Everything else is the same for every law:
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from typing import Protocol
@@ -134,6 +135,13 @@ class Controller:
         self.law.commit(tick, cmd.u)
         self.law_tick = tick
         return cmd
+
+    def warm_up(self) -> None:
+        """Commands on a copy (the law, then the fallback): numba loads the compiled code now, not at
+        the loop's first tick."""
+        twin = copy.deepcopy(self)
+        twin.compute(0, np.zeros(4), np.array([4000.0, 0.0, 0.0]))
+        twin.compute(1, np.full(4, np.nan), np.array([4000.0, 0.0, 0.0]))
 
     def fallback(self, tick: int) -> Command:
         """The safe command: the static uplift ``fallback_force``, reached within the slew limit."""

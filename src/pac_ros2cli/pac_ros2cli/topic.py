@@ -96,7 +96,9 @@ def topic_echo(args: list[str]) -> int:
             state["n"] += 1
 
         graph.node.create_subscription(cls, topic, callback, qos)
-        graph.spin(lambda: state["bad_field"] or (bool(wanted) and state["n"] >= wanted), a.timeout or None)
+        graph.spin(
+            lambda: bool(state["bad_field"]) or (bool(wanted) and state["n"] >= wanted), a.timeout or None
+        )
     if state["bad_field"]:
         fail(f"field '{a.field}' is not in {typename}", 2)
     if wanted and state["n"] < wanted:
@@ -153,7 +155,10 @@ def topic_hz(args: list[str]) -> int:
         # Raw (no deserialisation) and best effort, as ros2cli's hz: cheap for a 1 kHz publisher. A
         # deeper queue than sensor data's 5, so a burst is counted rather than dropped by a busy CLI.
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
-        graph.node.create_subscription(message_class(typename), topic, callback, qos, raw=True)
+        assert typename is not None  # the wait above returned only once the topic was seen
+        # rclpy passes the message info to a callback that takes two arguments (its annotation
+        # names only the one-argument form).
+        graph.node.create_subscription(message_class(typename), topic, callback, qos, raw=True)  # type: ignore[arg-type]
         graph.spin(lambda: False, a.duration or None, report)
     return 0
 
