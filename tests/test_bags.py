@@ -78,7 +78,7 @@ def test_vectorised_cdr_is_byte_for_byte_rosbags(typename, frame_id):
     """Every pac message, with frame_ids of every length mod 8 that shifts what follows (and its
     other string fields, e.g. RunStatus.catenary_model, one length less)."""
     store = typestore()
-    strings = {path: frame_id[:-1] for path in cdr.string_fields(store, typename)}
+    strings = dict.fromkeys(cdr.string_fields(store, typename), frame_id[:-1])
     assert_bytes_equal_rosbags(store, typename, strings={**strings, "header.frame_id": frame_id})
 
 
