@@ -125,10 +125,11 @@ def test_bulk_bag_equals_the_same_run_written_message_by_message(tmp_path, monke
     scenario = scenario_from_flat({"duration": 1.3, "command_delay_ticks": 2})
     simulate_to_bag(scenario, tmp_path / "bulk", label="x")
     rate, duration = scenario.loop.rate_hz, scenario.loop.duration
+    line = simulate.plant_line(scenario)  # the plant's line, as run_status names it
 
     def run_status(bag, tick, state):
         stamp = messages.tick_stamp_ns(tick, rate)
-        bag.write("run_status", messages.run_status_fields(tick, state, duration, stamp), stamp)
+        bag.write("run_status", messages.run_status_fields(tick, state, duration, stamp, *line), stamp)
 
     with BagWriter(tmp_path / "single", {"source": "offline", "label": "x"}) as bag:
         run_status(bag, 0, messages.RUN_RUNNING)
