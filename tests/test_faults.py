@@ -1,4 +1,4 @@
-"""Issue #5: the rig under faults — crashes, bad data, bad parameters, full disks, neighbours.
+"""The rig under faults — crashes, bad data, bad parameters, full disks, neighbours.
 
 Live nodes in this test's own ROS domain. Timing numbers printed here (fallback delay,
 recovery time) are measurements; the assertions are the safety properties and loose bounds.

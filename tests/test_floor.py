@@ -1,4 +1,4 @@
-"""The floor rig (relay nodes), real-time priorities and their refusal (issue #10). No timing asserted."""
+"""The floor rig (relay nodes), real-time priorities and their refusal. No timing asserted."""
 
 import os
 import re

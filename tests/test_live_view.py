@@ -1,4 +1,4 @@
-"""Issue #9: the live view serves the rig's topics to a Foxglove WebSocket client (Foxglove's v1 protocol)."""
+"""The live view serves the rig's topics to a Foxglove WebSocket client (Foxglove's v1 protocol)."""
 
 import json
 import re

@@ -37,6 +37,7 @@ PYPI_ONLY = {
     "zstandard": "zstandard",
     "lz4": "lz4",
     "numba": "numba",
+    "llvmlite": "llvmlite",
     "distributed": "distributed",
     "foxglove": "foxglove-sdk",
 }

@@ -1,4 +1,4 @@
-"""The rig as real processes over DDS (issue #3): lock step = offline, real time, bad input, stops."""
+"""The rig as real processes over DDS: lock step = offline, real time, bad input, stops."""
 
 import signal
 import subprocess
@@ -33,7 +33,7 @@ def test_lockstep_run_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
         np.testing.assert_array_equal(ticks, np.arange(2000), err_msg=topic)
         for column in columns:
             np.testing.assert_array_equal(live[topic][column][idx], offline[topic][column], err_msg=column)
-    # re-estimation from the live bag's measurements is exact (issue #4)
+    # re-estimation from the live bag's measurements is exact
     result = re_estimate(rig.bag_path, {})
     assert result["compared"] == 2000 and all(f["identical"] for f in result["fields"].values())
 
@@ -56,14 +56,14 @@ def test_realtime_loop_tracks_and_records_everything(rigs):
     processed = node_stats(rig.processes["observer"].log(), "observer_node")["processed"]
     sent = node_stats(rig.processes["controller"].log(), "controller_node")["sent"]
     assert np.unique(bag.topics["estimate"]["tick"]).size == processed
-    # The run has an end (issue #9): the plant announced it, the controller answered the last tick
+    # The run has an end: the plant announced it, the controller answered the last tick
     # and went idle (no watchdog fallback after it), every node stopped by itself.
     commands = bag.topics["command"]["tick"]
     assert commands.max() == 5999
     assert np.unique(commands).size == sent
     assert np.all(bag.topics["command"]["mode"] == 0)
     assert processed > 3000 and sent > 3000  # a loop, not a trickle
-    # re-estimation over the ticks the live observer processed reproduces it exactly (issue #4)
+    # re-estimation over the ticks the live observer processed reproduces it exactly
     result = re_estimate(rig.bag_path, {})
     assert result["compared"] == processed and all(f["identical"] for f in result["fields"].values())
 
