@@ -47,7 +47,7 @@ def compiled_functions() -> dict[str, CPUDispatcher]:
 
 def exercise() -> None:
     """Call the cores with the argument types production code uses (nodes, simulate, replay, batch)."""
-    from pac_rig.batch import run_batch
+    from pac_rig.batch import batchable, run_batch
     from pac_rig.closed_loop import run
     from pac_rig.simulate import scenario_from_flat
 
@@ -63,7 +63,7 @@ def exercise() -> None:
     for s in scenarios:
         for _ in run(s):
             pass
-    run_batch([s for s in scenarios if s.plant.catenary_model == "lumped" and s.controller.law != "passive"])
+    run_batch([s for s in scenarios if batchable(s) and s.controller.law != "passive"])
     # What the nodes do besides the loop: a gap bridged, a fallback, a reset, the plant's helpers.
     from pac_rig.closed_loop import build_cores
 
