@@ -9,19 +9,31 @@ BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs.
 CAMPAIGNS ?= laws_speeds robustness
 
-.PHONY: setup test lint clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
+# Test kinds: pytest.ini (unit, offline, live); `make test-fast` = unit + offline, no DDS processes.
+FAST_TESTS := (unit or offline) and not live
+
+.PHONY: setup test test-fast lint typecheck clean demo reproduce catenary bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
 
-# Style first (ruff, the project's packages first-party), then the tests: CI runs exactly this.
+# Style first (ruff, the project's packages first-party), types (mypy), then the tests: CI runs exactly this.
 test: setup
 	scripts/with_env.sh ruff check src tests scripts
 	scripts/with_env.sh ruff format --check src tests scripts
+	scripts/with_env.sh mypy
 	bash scripts/run_tests.sh
+
+# The fast kinds only (cores, offline tools): no node process, no DDS.
+test-fast: setup
+	bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 
 lint: setup
 	scripts/with_env.sh ruff check src tests scripts
+
+# mypy on src/ as configured in mypy.ini (the code as annotated; not strict).
+typecheck: setup
+	scripts/with_env.sh mypy
 
 clean:
 	rm -rf build install log

@@ -1,7 +1,19 @@
-"""Shared fixtures: every test that touches DDS gets its own ROS domain and cleans up its processes."""
+"""Shared fixtures and helpers of the tests, and their kinds.
+
+Every test that touches DDS gets its own ROS domain and cleans up its processes.  Every test
+has a kind (pytest.ini): ``unit``, ``offline`` or ``live``, set per module with
+``pytestmark = pytest.mark.<kind>`` (or on a test); a test that uses the ``domain_id`` fixture
+(every DDS test does) is ``live`` whatever its module says.  ``make test-fast`` runs
+``unit or offline`` without ``live``; ``make test`` runs them all.
+"""
 
 import os
+import signal
+import subprocess
+import time
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # also for anything imported below
@@ -32,3 +44,61 @@ def rigs(domain_id, tmp_path):
     for rig in made:
         rig.stop(grace=5.0)
         assert all(p.poll() is not None for p in rig.processes.values())
+
+
+# -- test kinds --------------------------------------------------------------------------------
+KINDS = ("unit", "offline", "live")
+
+
+@pytest.hookimpl(tryfirst=True)  # before -m selects on the markers
+def pytest_collection_modifyitems(config, items):
+    unmarked = []
+    for item in items:
+        kinds = {m.name for m in item.iter_markers() if m.name in KINDS}
+        if "domain_id" in getattr(item, "fixturenames", ()) and "live" not in kinds:
+            item.add_marker(pytest.mark.live)
+            kinds.add("live")
+        if not kinds:
+            unmarked.append(item.nodeid)
+    if unmarked:
+        raise pytest.UsageError(
+            "tests without a kind (add `pytestmark = pytest.mark.unit|offline|live` to the module, "
+            "see pytest.ini): " + ", ".join(unmarked)
+        )
+
+
+# -- helpers shared by several test modules ------------------------------------------------------
+#: The physics fields of each loop topic (what a lock-step run and the offline simulator share).
+PHYSICS = {
+    "measurement": ["z1", "z2", "actuator_force"],
+    "plant_truth": ["z", "stiffness", "contact_force", "in_contact", "u_applied", "applied_command_tick"],
+    "estimate": ["z_hat", "theta_hat", "stiffness_hat", "contact_force_hat", "innovation"],
+    "command": ["u", "u_unsaturated", "force_reference", "tracking_error", "saturated", "mode"],
+}
+
+
+def first_per_tick(topic):
+    """(ticks, index of each tick's first message) of a topic read from a bag."""
+    ticks, idx = np.unique(topic["tick"], return_index=True)
+    return ticks, idx
+
+
+def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[str, str], log: Path) -> None:
+    """Start ``cmd``, wait until its log shows ``ready_text``, SIGINT it: it must exit 0.
+
+    The process is killed on any failure, so nothing outlives the test.
+    """
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT, env=env)
+    try:
+        deadline = time.monotonic() + 30
+        while ready_text not in log.read_text() and time.monotonic() < deadline:
+            assert proc.poll() is None, log.read_text()
+            time.sleep(0.05)
+        assert ready_text in log.read_text()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

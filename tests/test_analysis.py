@@ -4,6 +4,7 @@ import json
 import shutil
 import signal
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,10 +16,15 @@ from pac_analysis.info import describe
 from pac_analysis.re_estimate import re_estimate
 from pac_analysis.recover import recover
 from pac_analysis.report import report
+from pac_bag.reader import BagError, read_bag
+from pac_bag.typestore import interface_dir
+from pac_bag.writer import BagWriter
 from pac_common import messages
-from pac_rig.bag import BagError, BagWriter, read_bag
+from pac_common.messages import RosbagsFactory
 from pac_rig.launcher import node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.offline
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -235,19 +241,39 @@ def test_missing_topics_are_named_and_the_rest_is_reported(offline_bags, tmp_pat
     assert m["u_max_abs"] == pytest.approx(np.max(np.abs(src["u"][src["header.stamp.sec"] >= 3])))
 
 
-def test_unknown_type_is_skipped_with_a_warning(offline_bags, tmp_path):
-    path = tmp_path / "foreign"
+def _foreign_bag(path, with_pac_topic):
+    """A bag written by rosbags with a type pac does not know (and, if asked, a pac topic)."""
     store = get_typestore(Stores.ROS2_JAZZY)
     store.register(get_types_from_msg("float64 x", "other_pkg/msg/Thing"))
+    store.register(get_types_from_msg((interface_dir() / "RunStatus.msg").read_text(), messages.RUN_STATUS))
     writer = Writer(path, version=9, storage_plugin=StoragePlugin.MCAP)
     writer.open()
     thing = writer.add_connection("thing", "other_pkg/msg/Thing", typestore=store)
     cls = store.types["other_pkg/msg/Thing"]
     for i in range(10):
         writer.write(thing, i, store.serialize_cdr(cls(x=float(i)), "other_pkg/msg/Thing"))
+    if with_pac_topic:
+        status = writer.add_connection("/run_status", messages.RUN_STATUS, typestore=store)
+        msg = RosbagsFactory(store).make(
+            messages.RUN_STATUS, messages.run_status_fields(7, messages.RUN_ENDED, 1.0, 0)
+        )
+        writer.write(status, 20, store.serialize_cdr(msg, messages.RUN_STATUS))
     writer.close()
+    return path
+
+
+def test_unknown_type_is_skipped_with_a_warning(tmp_path):
+    bag = read_bag(_foreign_bag(tmp_path / "mixed", with_pac_topic=True))
+    assert list(bag.topics) == ["run_status"] and list(bag.topics["run_status"]["tick"]) == [7]
+    assert bag.warnings == [
+        "topic 'thing': unknown message type other_pkg/msg/Thing, skipped",
+        "topic 'thing': 0 of 10 messages readable (per metadata.yaml)",
+    ]
+
+
+def test_a_bag_of_unknown_types_only_is_refused_naming_the_type(tmp_path):
     with pytest.raises(BagError, match="no readable message.*unknown message type other_pkg/msg/Thing"):
-        read_bag(path)
+        read_bag(_foreign_bag(tmp_path / "foreign", with_pac_topic=False))
 
 
 def test_empty_bag_and_no_bag(tmp_path):
@@ -264,3 +290,40 @@ def test_empty_bag_and_no_bag(tmp_path):
     )
     assert proc.returncode == 1
     assert proc.stderr.strip().splitlines() == [f"report: {empty}: no readable message"]
+
+
+def _live_bag(rate_hz, wall_periods_s):
+    """BagData with only the plant_truth of a live run at rate_hz, woken up after wall_periods_s."""
+    from pac_bag.reader import BagData, TopicData
+
+    n = len(wall_periods_s) + 2  # tick 0 (the start-up handshake) and the first period's start
+    ticks = np.arange(n)
+    stamp_ns = ticks * int(round(1e9 / rate_hz))
+    wall_ns = (1_000_000_000 + 1e9 * np.concatenate([[0.0, 0.5], 0.5 + np.cumsum(wall_periods_s)])).astype(
+        np.int64
+    )
+    columns = {
+        "tick": ticks,
+        "header.stamp.sec": stamp_ns // 1_000_000_000,
+        "header.stamp.nanosec": stamp_ns % 1_000_000_000,
+        "wall_stamp.sec": wall_ns // 1_000_000_000,
+        "wall_stamp.nanosec": wall_ns % 1_000_000_000,
+        "round_trip_latency": np.full(n, 1e-3),
+        "command_age_ticks": np.full(n, 2),
+        "applied_command_tick": ticks - 1,
+    }
+    truth = TopicData(messages.PLANT_TRUTH, stamp_ns, columns)
+    return BagData(Path("synthetic"), {"plant_truth": truth}, {}, [])
+
+
+@pytest.mark.parametrize("rate_hz", [1000.0, 500.0, 200.0])
+def test_late_periods_are_counted_against_the_runs_own_period(rate_hz):
+    """A period is late beyond 1.5 nominal periods, whatever rate_hz is (not a fixed 1.5 ms)."""
+    from pac_analysis.metrics import loop_timing
+
+    t = 1.0 / rate_hz
+    periods = [t] * 96 + [1.4 * t, 1.6 * t, 2.0 * t, 1.49 * t]  # two late, two on time
+    timing = loop_timing(_live_bag(rate_hz, periods))
+    assert timing.nominal_period_ms == pytest.approx(1e3 * t)
+    assert timing.late_periods == 2
+    assert timing.on_time_periods_percent == pytest.approx(98.0)

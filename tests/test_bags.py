@@ -15,12 +15,18 @@ from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from pac_bag import cdr
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.reader import read_bag
+from pac_bag.recovery import iter_records
+from pac_bag.typestore import typestore
+from pac_bag.writer import BagWriter
 from pac_common import messages
-from pac_rig import cdr, simulate
-from pac_rig.bag import BagWriter, iter_records, read_bag, typestore
+from pac_rig import simulate
 from pac_rig.closed_loop import run
-from pac_rig.mcap_writer import COMPRESSIONS
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag, tick_fields
+
+pytestmark = pytest.mark.offline
 
 RNG = np.random.default_rng(5)
 

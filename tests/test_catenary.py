@@ -6,11 +6,13 @@ import math
 import numpy as np
 import pytest
 
+from pac_common.contact_statistics import contact_statistics
 from pac_plant.catenary.data import CatenaryData, NumericalOptions
-from pac_plant.catenary.enstats import contact_statistics
 from pac_plant.catenary.integrator import ContactSimulation
 from pac_plant.catenary.line import DOFS_PER_NODE, WC, Line
 from pac_plant.catenary.pantographs import paper_pantograph, three_mass_pantograph
+
+pytestmark = pytest.mark.offline
 
 DATA = CatenaryData()
 
@@ -180,7 +182,7 @@ def _passive_sigma(h: float, dt: float) -> float:
         xs.append(sim.x)
         fs.append(sim.contact_force)
     stats = contact_statistics(np.array(fs), np.array(xs), dt, 2 * DATA.span, 4 * DATA.span)
-    return stats.sigma
+    return stats.contact_force_std
 
 
 def test_mesh_and_step_convergence_of_contact_force_sigma():
@@ -189,18 +191,6 @@ def test_mesh_and_step_convergence_of_contact_force_sigma():
     fine = _passive_sigma(0.25, 5e-4)
     assert abs(coarse - fine) / fine < 0.02
     assert fine > 5.0  # a real dynamic response
-
-
-def test_contact_statistics_filter_and_window():
-    """The statistics see only the window and the 20 Hz low-pass removes a 60 Hz ripple."""
-    dt = 1e-3
-    t = np.arange(0, 4, dt)
-    x = 50.0 * t
-    f = 100 + 10 * np.sin(2 * math.pi * 2 * t) + 20 * np.sin(2 * math.pi * 60 * t)
-    s = contact_statistics(f, x, dt, 50.0, 150.0)
-    assert s.mean == pytest.approx(100.0, abs=0.3)
-    assert s.sigma == pytest.approx(10 / math.sqrt(2), rel=0.03)
-    assert s.loss_percent == 0.0
 
 
 def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
@@ -259,7 +249,7 @@ def test_endless_window_equals_a_long_fixed_line():
 
 def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path):
     """plant_node with catenary_model fe, 4 processes over DDS in lock step == pac_rig.closed_loop."""
-    from pac_rig.bag import read_bag
+    from pac_bag.reader import read_bag
     from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
     duration = 1.0
@@ -280,3 +270,123 @@ def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path
         _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
         np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
     assert np.max(offline["plant_truth"]["contact_force"]) > 10.0  # the run pressed on the wire
+
+
+# -- the compiled step (kernels.fe_step) against the numpy step it replaced (step_reference) -------
+#: Largest difference allowed between the two paths, relative to the largest value of each
+#: quantity: rounding (sums in another order, the two-chunk solve, the M-only right-hand side).
+COMPILED_TOLERANCE = 1e-9
+
+
+def _twin_simulations(line, endless=False, x0=None):
+    make = lambda: ContactSimulation(  # noqa: E731
+        line, three_mass_pantograph(), 1e-3, 300 / 3.6, DATA.span if x0 is None else x0, endless=endless
+    )
+    return make(), make()
+
+
+def _assert_same_state(fast, ref):
+    for name in ("d", "v", "a", "p", "vp", "ap"):
+        got, want = getattr(fast, name), getattr(ref, name)
+        scale = max(float(np.max(np.abs(want))), 1e-30)
+        assert np.max(np.abs(got - want)) <= COMPILED_TOLERANCE * scale, name
+    assert fast.in_contact == ref.in_contact
+    np.testing.assert_array_equal(fast.slack, ref.slack)
+    assert fast.delta == pytest.approx(ref.delta, rel=COMPILED_TOLERANCE, abs=1e-15)
+    assert fast.x == ref.x and fast.offset == ref.offset
+
+
+def test_compiled_step_equals_the_numpy_step_on_random_states():
+    """Random line and pantograph states (contact on and off, droppers slack and taut, the window
+    shift due): one compiled step equals one numpy step to rounding."""
+    line = Line(n_spans=4)
+    rng = np.random.default_rng(7)
+    seen_slack = seen_free = seen_shift = 0
+    for trial in range(24):
+        shift = trial % 6 == 5  # just before the endless window's shift point
+        x0 = (line.n_spans // 2 + 1) * DATA.span - 0.01 if shift else float(rng.uniform(60.0, 160.0))
+        fast, ref = _twin_simulations(line, endless=True, x0=x0)
+        d = rng.normal(0.0, 10 ** rng.uniform(-4.0, -2.5), line.n_dof)
+        v = rng.normal(0.0, 0.05, line.n_dof)
+        head = line.static_height(x0) + rng.normal(0.0, 0.004)
+        p = ref.panto.static_positions(head, 0.0) + rng.normal(0.0, 1e-3, 3)
+        for sim in (fast, ref):
+            sim.set_line_state(d, v)
+        fast.p = ref.p = p
+        fast.vp = ref.vp = rng.normal(0.0, 0.1, 3)
+        fast.ap = ref.ap = rng.normal(0.0, 1.0, 3)
+        fast.in_contact = ref.in_contact = bool(trial % 2)
+        force = float(rng.uniform(0.0, 300.0))
+        fast.step(force)
+        ref.step_reference(force)
+        _assert_same_state(fast, ref)
+        seen_slack += len(ref.slack) > 0
+        seen_free += not ref.in_contact
+        seen_shift += ref.offset > 0.0
+    assert seen_slack >= 3 and seen_free >= 3 and seen_shift >= 3  # every branch was exercised
+
+
+def test_fast_kernels_equal_the_banded_reference():
+    """Two-chunk solve = one banded Cholesky solve; the M-only right-hand side = M x1 + beta K w;
+    a stored contact-column patch = the full column A^-1 e_i (outside the patch: < 1e-19)."""
+    from pac_plant.catenary import kernels as kn
+
+    line = Line(n_spans=4)
+    sim, _ = _twin_simulations(line)
+    c = sim.constants
+    rng = np.random.default_rng(3)
+    d, v, a = (rng.normal(0.0, s, line.n_dof) for s in (1e-3, 0.05, 5.0))
+    for q in (d, v, a):
+        q[line.fixed] = 0.0
+    rhs = np.empty(line.n_dof)
+    scratch = np.empty((2, line.n_dof))
+    kn.newmark_rhs(sim._m, sim._k, d, v, a, sim.dt, sim.alpha, sim.beta, scratch[0], scratch[1], rhs)
+    want = rhs.copy()
+    kn.band_chol_solve(sim._chol, want)
+    got, tail = np.empty_like(d), np.empty_like(d)
+    z = np.zeros(line.n_dof + 2 * kn.KD)
+    kn.newmark_rhs_mass(c.m_pad, d, v, a, sim.dt, sim.alpha, sim.beta, z, tail, got)
+    work = np.zeros_like(sim.state.chunk_work)
+    kn.chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, got, work, tail)
+    assert np.max(np.abs(got - want)) < 1e-12 * np.max(np.abs(want))
+    plain = rhs.copy()
+    kn.chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, plain, work, tail[:0])
+    assert np.max(np.abs(plain - want)) < 1e-13 * np.max(np.abs(want))
+    # Contact-column patches against full columns, at a support, a dropper and mid-element nodes.
+    node = 2 * line.nodes_per_span
+    for i in (node, node + 9, node + 50):
+        sim.state.unit_ready[i] = 0
+        sim.state.work[0, :] = 0.0
+        kn._unit_patches(c, sim.state, i)
+        width = sim.state.unit_patches.shape[2]
+        lo = kn.unit_start(line.n_dof, width, i)
+        for r in range(2):
+            col = np.zeros(line.n_dof)
+            col[4 * i + r] = 1.0
+            kn.band_chol_solve(sim._chol, col)
+            peak = np.max(np.abs(col))
+            assert np.max(np.abs(sim.state.unit_patches[i, r] - col[lo : lo + width])) < 1e-13 * peak
+            outside = np.concatenate([col[:lo], col[lo + width :]])
+            assert np.max(np.abs(outside)) < 1e-19 * peak
+
+
+def test_compiled_reference_run_equals_the_numpy_run():
+    """The 300 km/h reference run (10-span line, 3-mass, passive): contact force, uplift and
+    slack droppers of the compiled path equal the numpy path's over the whole run."""
+    line = Line()
+    fast, ref = _twin_simulations(line)
+    force = 0.00097 * 300**2 + 70
+    fast.start_static(force)
+    ref.start_static(force)
+    f_fast, f_ref, slack = [], [], 0
+    while ref.x + ref.speed * ref.dt < 6.5 * DATA.span:
+        fast.step(force)
+        ref.step_reference(force)
+        f_fast.append(fast.contact_force)
+        f_ref.append(ref.contact_force)
+        slack = max(slack, len(ref.slack))
+        np.testing.assert_array_equal(fast.slack, ref.slack)
+    f_fast, f_ref = np.array(f_fast), np.array(f_ref)
+    assert slack >= 1  # droppers went slack on the way
+    assert np.max(np.abs(f_fast - f_ref)) <= COMPILED_TOLERANCE * np.max(np.abs(f_ref))
+    assert fast.uplift() == pytest.approx(ref.uplift(), rel=COMPILED_TOLERANCE)

@@ -19,10 +19,13 @@ import numpy as np
 import pytest
 import yaml
 
-from pac_rig.bag import interface_dir, read_bag
+from pac_bag.reader import read_bag
+from pac_bag.typestore import interface_dir
 from pac_rig.configs import defaults_yaml
 from pac_rig.launcher import Rig, node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.offline
 
 ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 RATE_HZ = 200.0
@@ -161,7 +164,7 @@ def test_param_dump_and_a_node_that_is_not_there(live):
     dump = ros2(env, "param", "dump", "/controller_node")
     assert dump.returncode == 0, dump.stderr
     dumped = yaml.safe_load(dump.stdout)["/controller_node"]["ros__parameters"]
-    declared = yaml.safe_load(defaults_yaml("controller_node"))["/**"]["ros__parameters"]
+    declared = yaml.safe_load(defaults_yaml("controller"))["/**"]["ros__parameters"]
     expected = {**declared, **rig.params["controller"]}
     for name, value in expected.items():
         assert dumped[name] == pytest.approx(value), name

@@ -8,12 +8,15 @@ import pytest
 
 from pac_controller.parameters import ReferenceParameters
 from pac_controller.reference import ForceReference
+from pac_experiments.bench import allocations_per_tick, loop_allocations
 from pac_experiments.reproduce import COMMON
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 from pac_rig.closed_loop import run
 from pac_rig.simulate import scenario_from_flat
+
+pytestmark = pytest.mark.unit
 
 DT = 1e-3
 
@@ -81,3 +84,14 @@ def test_reference_agrees_with_numpy_oracle(shape):
     for t in [0.0, 1e-3, 0.25, 1.5, 1.5001, 3.7, 100.0, 1000.123]:
         np.testing.assert_array_equal(ref.at(t), oracle.reference_at(params, t))
         assert ref.steps_before(t) == oracle.reference_steps_before(params, t)
+
+
+def test_compiled_tick_allocates_nothing():
+    """numba's own allocation counter (NRT statistics): a call of 9980 ticks allocates what a call of
+    10 ticks does (the arrays handed over by Python, adopted once per call), for every law: 0 per tick."""
+    counts = loop_allocations()  # in a fresh process with NUMBA_NRT_STATS=1
+    assert len(counts) == 5
+    for law, calls in counts.items():
+        assert calls["9980 ticks"] == calls["10 ticks"], (law, calls)
+        assert calls["10 ticks"][0] <= 10, (law, calls)  # the call's arguments, not its ticks
+    assert allocations_per_tick(counts) == 0.0

@@ -14,6 +14,8 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
+pytestmark = pytest.mark.unit
+
 DT = RateParameters().sample_period  # the nodes' default rate
 PANTO, TRACK, CAT = PantographParameters(), TrackParameters(), CatenaryParameters()
 

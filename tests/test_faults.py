@@ -17,16 +17,18 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from pac_analysis.recover import recover
+from pac_bag.reader import read_bag
 from pac_common import messages
 from pac_common.node import PUBLISH_QOS
 from pac_common.parameters import ParameterError, RateParameters
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference
 from pac_plant.plant_node import PlantNodeOptions
-from pac_rig.bag import read_bag
-from pac_rig.configs import NODE_MODULES, parameter_sets
+from pac_rig.configs import parameter_sets
 from pac_rig.launcher import NODES
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.live
 
 U_MIN, U_MAX = ControllerParameters().u_min, ControllerParameters().u_max
 WATCHDOG = ControllerParameters().watchdog_ticks
@@ -99,7 +101,7 @@ def test_observer_crash_fallback_and_restart(rigs):
     wait_for_log(rig.processes["controller"], "back to active control", timeout=30)
     time.sleep(4.0)  # run time: re-convergence
     codes = rig.stop()
-    assert {n: c for n, c in codes.items()} == dict.fromkeys(NODES, 0)
+    assert dict(codes) == dict.fromkeys(NODES, 0)
     bag = read_bag(rig.bag_path)
     assert_commands_safe(bag)
     cmd = bag.topics["command"]
@@ -257,12 +259,14 @@ def invalid_value(spec):
     return int(value) if spec.kind is int and math.isfinite(value) else float(value)
 
 
-ALL_SPECS = [(node, spec) for node in NODE_MODULES for cls in parameter_sets(node) for spec in cls.specs()]
+ALL_SPECS = [(node, spec) for node in NODES for cls in parameter_sets(node) for spec in cls.specs()]
 
 
 @pytest.mark.parametrize(("node", "spec"), ALL_SPECS, ids=[f"{n}.{s.name}" for n, s in ALL_SPECS])
-def test_every_parameter_refuses_an_invalid_value(node, spec):
-    """The rule the nodes apply at start (declare_parameter_sets) for every parameter."""
+def test_every_parameter_declaration_refuses_an_invalid_value(node, spec):
+    """Every parameter's declared rule (``spec.check``, what declare_parameter_sets applies when a
+    node starts) refuses a value outside its range, naming the parameter.  No node is started
+    here: the live nodes are the next test's (run time) and test_node_cli's (start)."""
     value = invalid_value(spec)
     if value is None:
         pytest.skip("free string, validated by the node at start")
@@ -275,7 +279,8 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
     a valid runtime change of a live parameter is taken."""
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain_id), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     procs = {}
-    for name, (pkg, exe) in NODES.items():
+    for name, entry in NODES.items():
+        pkg, exe = entry.package, entry.executable
         args = ["--ros-args", "-p", f"bag_path:={tmp_path / 'bag'}"] if name == "recorder" else []
         procs[name] = subprocess.Popen(
             ["ros2", "run", pkg, exe, *args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
@@ -293,8 +298,8 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
 
     try:
         refused = 0
-        for name in NODE_MODULES:
-            client = AsyncParameterClient(node, name)
+        for name in NODES:
+            client = AsyncParameterClient(node, NODES[name].executable)
             assert client.wait_for_services(timeout_sec=30), name
             specs = [s for cls in parameter_sets(name) for s in cls.specs()]
             for spec in specs:
@@ -312,7 +317,7 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
         result = call(controller.set_parameters([Parameter("c1", value=30.0)])).results[0]
         assert result.successful
         assert call(controller.get_parameters(["c1"])).values[0].double_value == 30.0
-        print(f"\n{refused} invalid runtime changes refused over {len(NODE_MODULES)} nodes")
+        print(f"\n{refused} invalid runtime changes refused over {len(NODES)} nodes")
     finally:
         node.destroy_node()
         rclpy.shutdown(context=context)

@@ -9,8 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from pac_rig.bag import read_bag
+from pac_bag.reader import read_bag
 from pac_rig.launcher import NODES, REALTIME_PRIORITIES
+
+pytestmark = pytest.mark.live
 
 NO_SYS_NICE = "setpriv --bounding-set=-sys_nice"
 
@@ -114,7 +116,7 @@ def test_refused_realtime_priority_warns_once_and_runs(rigs):
 def test_composed_lockstep_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
     """The three loop nodes in one process (one executor) are the same nodes: a lock-step run
     equals the offline simulator bit for bit, every tick on every topic."""
-    from test_suite import PHYSICS, first_per_tick
+    from conftest import PHYSICS, first_per_tick
 
     from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 

@@ -8,6 +8,8 @@ import pytest
 
 from pac_common import jsonio
 
+pytestmark = pytest.mark.unit
+
 
 def strict_loads(text: str):
     def refuse(constant: str):
@@ -50,8 +52,8 @@ def test_report_json_of_a_run_with_undefined_measures_is_strict(offline_bags_for
 @pytest.fixture
 def offline_bags_for_json(tmp_path):
     """A bag without plant_truth: the contact-force measures are NaN in memory."""
+    from pac_bag.writer import BagWriter
     from pac_common import messages
-    from pac_rig.bag import BagWriter
 
     path = tmp_path / "no_truth"
     with BagWriter(path, topics={"command": messages.ACTUATOR_COMMAND}) as bag:

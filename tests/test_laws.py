@@ -11,7 +11,7 @@ import subprocess
 import numpy as np
 import pytest
 import scipy.signal
-from node_process import assert_starts_and_stops_cleanly
+from conftest import assert_starts_and_stops_cleanly
 
 from pac_common.parameters import ParameterError
 from pac_controller.laws import LAWS, make_controller
@@ -23,6 +23,8 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from pac_rig.closed_loop import build_cores
 from pac_rig.launcher import node_env
 from pac_rig.simulate import scenario_from_flat
+
+pytestmark = pytest.mark.offline
 
 DT = 1e-3
 PANTO, TRACK, CAT = PantographParameters(), TrackParameters(), CatenaryParameters()
@@ -355,7 +357,7 @@ def test_simulate_refuses_a_bad_law_setting(tmp_path, capsys, params, name):
 def test_lockstep_rig_with_a_law_equals_the_offline_simulation(rigs, tmp_path, law):
     """The node runs the same law core as the offline loop: a stateful law (lqr) and the one that is
     told the catenary (backstepping_known) give the very same commands, bit for bit."""
-    from pac_rig.bag import read_bag
+    from pac_bag.reader import read_bag
     from pac_rig.launcher import NODES
     from pac_rig.simulate import simulate_to_bag
 

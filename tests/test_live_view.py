@@ -10,11 +10,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from pac_rig.bag import read_bag, typestore
+from pac_bag.reader import read_bag
+from pac_bag.typestore import typestore
 from pac_rig.launcher import node_env
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.live
 
 TOPICS = ("measurement", "plant_truth", "estimate", "command")
 ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
@@ -88,6 +92,11 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
         )
     processes.append(viewer)
     url = wait_for_line(viewer, log, r"serving .* on (ws://127\.0\.0\.1:\d+)", 60).group(1)
+    # A client offering only the old name is refused in the handshake, and the start line says so.
+    assert "subprotocol foxglove.sdk.v1" in log.read_text() and "foxglove.websocket.v1" in log.read_text()
+    with pytest.raises(InvalidStatus) as refused:
+        connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=10, proxy=None)
+    assert refused.value.response.status_code == 400
 
     received: dict[str, list] = {t: [] for t in TOPICS}
     # foxglove-sdk 0.30 speaks the v1 protocol under its new name foxglove.sdk.v1 (identical to
@@ -110,7 +119,7 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
             assert ch["schemaName"] == bag.topics[topic[1:]].typename
             assert "MSG: std_msgs/Header" in ch["schema"]  # dependencies included: Foxglove can decode
         assert subscribed_topics(env) == []  # nobody watches yet: not even a matched reader
-        subscriptions = {i: ch for i, ch in enumerate(channels.values(), start=1)}
+        subscriptions = dict(enumerate(channels.values(), start=1))
         ws.send(
             json.dumps(
                 {

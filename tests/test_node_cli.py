@@ -13,13 +13,15 @@ from pac_common.node import MAX_DOMAIN_ID
 from pac_rig.configs import parameter_sets
 from pac_rig.launcher import NODES, node_env
 
+pytestmark = pytest.mark.live
+
 ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 
 
 def run_node(
     node: str, *args: str, env: dict[str, str], timeout: float = 60.0
 ) -> subprocess.CompletedProcess:
-    pkg, exe = NODES[node]
+    pkg, exe = NODES[node].package, NODES[node].executable
     return subprocess.run(
         [ROS2, "run", pkg, exe, *args], capture_output=True, text=True, timeout=timeout, env=env
     )
@@ -39,8 +41,8 @@ def one_line_refusal(proc: subprocess.CompletedProcess, *needles: str) -> str:
 def test_help_lists_every_parameter_and_exits_0(domain_id, node):
     proc = run_node(node, "--help", env=node_env(domain_id))
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.startswith(f"usage: {NODES[node][1]}")
-    for cls in parameter_sets(NODES[node][1]):
+    assert proc.stdout.startswith(f"usage: {NODES[node].executable}")
+    for cls in parameter_sets(node):
         for spec in cls.specs():
             assert f"{spec.name} (default" in proc.stdout, spec.name
 
@@ -127,7 +129,7 @@ def test_the_by_hand_recipe_ends_by_itself(domain_id, tmp_path):
     procs = {}
     try:
         for name, args in commands.items():
-            pkg, exe = NODES[name]
+            pkg, exe = NODES[name].package, NODES[name].executable
             procs[name] = subprocess.Popen(
                 [ROS2, "run", pkg, exe, *args],
                 env=env,
@@ -143,9 +145,7 @@ def test_the_by_hand_recipe_ends_by_itself(domain_id, tmp_path):
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-    plant_rate = next(
-        s for c in parameter_sets("plant_node") for s in c.specs() if s.name == "rate_hz"
-    ).default
+    plant_rate = next(s for c in parameter_sets("plant") for s in c.specs() if s.name == "rate_hz").default
     last_tick = int(round(3.0 * plant_rate)) - 1
     (mcap_file,) = bag.glob("*.mcap")
     ticks = {}

@@ -12,6 +12,8 @@ from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
+pytestmark = pytest.mark.unit
+
 DT = RateParameters().sample_period  # the nodes' default rate
 PANTO, TRACK, CAT = PantographParameters(), TrackParameters(), CatenaryParameters()
 

@@ -7,10 +7,12 @@ import pytest
 from mcap_ros2.reader import read_ros2_messages
 
 from pac_analysis.metrics import compute_metrics
+from pac_bag.reader import read_bag
 from pac_controller.parameters import ControllerParameters
 from pac_experiments.reproduce import COMMON, PAPER_GAINS
-from pac_rig.bag import read_bag
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.offline
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,8 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from pac_observer.parameters import ObserverParameters
 from pac_plant.parameters import PlantOptions
 
+pytestmark = pytest.mark.unit
+
 ALL_SETS = [
     PantographParameters,
     TrackParameters,

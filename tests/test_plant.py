@@ -12,6 +12,8 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 
+pytestmark = pytest.mark.unit
+
 DT = RateParameters().sample_period  # the nodes' default rate
 SCALE = np.array([0.03, 0.03, 0.5, 0.5])  # typical magnitudes of z at 100 N
 

@@ -8,27 +8,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import PHYSICS, assert_starts_and_stops_cleanly, first_per_tick
 from mcap.reader import make_reader
-from node_process import assert_starts_and_stops_cleanly
 
 from pac_analysis.metrics import compute_metrics
 from pac_analysis.re_estimate import re_estimate
-from pac_rig.bag import read_bag
-from pac_rig.configs import NODE_MODULES, config_path, defaults_yaml, installed_config_path
+from pac_bag.reader import read_bag
+from pac_rig.configs import config_path, defaults_yaml, installed_config_path
 from pac_rig.launcher import NODES, node_env, ros_args
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
-PHYSICS = {
-    "measurement": ["z1", "z2", "actuator_force"],
-    "plant_truth": ["z", "stiffness", "contact_force", "in_contact", "u_applied", "applied_command_tick"],
-    "estimate": ["z_hat", "theta_hat", "stiffness_hat", "contact_force_hat", "innovation"],
-    "command": ["u", "u_unsaturated", "force_reference", "tracking_error", "saturated", "mode"],
-}
-
-
-def first_per_tick(topic):
-    ticks, idx = np.unique(topic["tick"], return_index=True)
-    return ticks, idx
+pytestmark = pytest.mark.live
 
 
 def test_lockstep_run_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
@@ -100,7 +90,7 @@ BAD_PARAMETERS = [
 
 @pytest.mark.parametrize(("node", "name", "value", "allowed"), BAD_PARAMETERS)
 def test_node_refuses_bad_parameter_before_starting(domain_id, node, name, value, allowed):
-    pkg, exe = NODES[node]
+    pkg, exe = NODES[node].package, NODES[node].executable
     proc = subprocess.run(
         ["ros2", "run", pkg, exe, "--ros-args", "-p", f"{name}:={value}"],
         capture_output=True,
@@ -128,7 +118,7 @@ def test_params_file_is_read_and_validated(domain_id, tmp_path):
     assert proc.returncode == 2 and "invalid parameter 'm1' = -8.0" in proc.stderr
 
 
-@pytest.mark.parametrize("node", list(NODE_MODULES))
+@pytest.mark.parametrize("node", list(NODES))
 def test_shipped_parameter_files_are_the_declared_defaults(node):
     expected = defaults_yaml(node)
     assert config_path(node, Path(__file__).resolve().parents[1] / "src").read_text() == expected
@@ -137,7 +127,7 @@ def test_shipped_parameter_files_are_the_declared_defaults(node):
 
 def test_shipped_parameter_file_is_installed_and_accepted(domain_id, tmp_path):
     """The installed share/<pkg>/config YAML starts a node (which then waits for its loop)."""
-    path = str(installed_config_path("plant_node"))
+    path = str(installed_config_path("plant"))
     assert_starts_and_stops_cleanly(
         ["ros2", "run", "pac_plant", "plant_node", "--ros-args", "--params-file", path],
         "waiting for the loop",

@@ -4,7 +4,11 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from pac_rig.launcher import NODES
+
+pytestmark = pytest.mark.live
 
 LOOP_NODES = ("plant", "observer", "controller")
 

@@ -14,7 +14,9 @@ setup(
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Reads pac bags: metrics (EN 50367 style), figures, report, info, recover, re-estimation.",
+    description=(
+        "Reads pac bags: contact-force metrics, loop timing, figures, report, info, recover, re-estimation."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={

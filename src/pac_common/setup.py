@@ -1,6 +1,3 @@
-import os
-from glob import glob
-
 from setuptools import setup
 
 package_name = "pac_common"
@@ -12,14 +9,16 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        # Zero matches is fine: the entry then installs nothing.
-        (os.path.join("share", package_name, "config"), glob("config/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Shared models, parameters and utilities of the PAC rig (no nodes).",
+    description=(
+        "What every pac package shares: parameter declarations and validation, rclpy node glue, "
+        "message fields, contact-force statistics (EN 50317/50318/50367), strict JSON and Markdown "
+        "writers (no nodes)."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={

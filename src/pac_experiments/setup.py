@@ -14,7 +14,10 @@ setup(
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Studies that run and analyse the rig: demo, bench, sweep, reproduce, campaign.",
+    description=(
+        "Studies that run and analyse the rig: demo, bench, sweep, reproduce, campaigns, the FE "
+        "catenary experiment, soak."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={

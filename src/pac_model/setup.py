@@ -14,7 +14,9 @@ setup(
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="The paper's pantograph-catenary model (eqs. 2-15) and its parameter sets (no ROS).",
+    description=(
+        "The paper's pantograph-catenary model (eqs. 2-15) and its parameter sets: no ROS, no simulation."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
 )

@@ -12,14 +12,17 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        # Zero matches is fine: the entry then installs nothing.
+        # config/<node>.yaml: generated from the parameter declarations (python -m pac_rig.configs --write).
         (os.path.join("share", package_name, "config"), glob("config/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Simulated plant node: publishes measurements and ground truth, applies commands.",
+    description=(
+        "Simulated plant: the lumped model or the finite-element catenary, plant_node "
+        "(measurements, ground truth, commands applied)."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={

@@ -12,14 +12,17 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
-        # Zero matches is fine: the entry then installs nothing.
+        # config/<node>.yaml: generated from the parameter declarations (python -m pac_rig.configs --write).
         (os.path.join("share", package_name, "config"), glob("config/*.yaml")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
     maintainer="PAC maintainers",
     maintainer_email="pac@example.com",
-    description="Running the rig: recorder, launcher, offline closed loop and simulate, bag I/O, replay.",
+    description=(
+        "Running the rig: node registry, recorder, launcher, offline closed loop, compiled batch, "
+        "simulate, replay, live view."
+    ),
     license="Apache-2.0",
     tests_require=["pytest"],
     entry_points={

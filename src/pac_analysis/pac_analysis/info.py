@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from pac_rig.bag import BagError, read_bag
+from pac_bag.reader import BagError, read_bag
+from pac_common import messages
 
 
 def describe(path: Path) -> tuple[str, list[str]]:
@@ -32,7 +33,7 @@ def describe(path: Path) -> tuple[str, list[str]]:
         dur = (data.log_time_ns.max() - data.log_time_ns.min()) * 1e-9 if n > 1 else 0.0
         rate = (n - 1) / dur if dur > 0 else float("nan")
         gap = float(np.max(np.diff(data.log_time_ns)) * 1e-6) if n > 1 else float("nan")
-        if "tick" in data.columns:
+        if "tick" in data.columns and topic in messages.LOOP_TOPICS:  # one message per tick
             ticks = data["tick"]
             unique = np.unique(ticks)
             span = f"{int(ticks.min())}..{int(ticks.max())}"

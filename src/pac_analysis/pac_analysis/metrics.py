@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from pac_common import messages
-from pac_rig.bag import BagData, TopicData
+from pac_bag.reader import BagData, TopicData
+from pac_common import contact_statistics, markdown, messages
 
 
 def stamp_seconds(topic: TopicData) -> np.ndarray:
@@ -18,7 +18,10 @@ def stamp_seconds(topic: TopicData) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Metrics:
-    """Over the window [window_from, window_to] of simulated time."""
+    """Over the window [window_from, window_to] of simulated time.
+
+    The contact-force fields are ``contact_statistics.ContactStatistics``'s, by the same names.
+    """
 
     window_from: float
     window_to: float
@@ -88,15 +91,15 @@ def metrics_from_series(s: RunSeries, window_from: float = 3.0, window_to: float
         raise ValueError("no tick in the run")
     end = float(s.time.max()) if window_to is None else window_to
     nan = math.nan
-    mean = std = fmin = fmax = loss = tracking = stiff = u_max = u_rms = nan
+    tracking = stiff = u_max = u_rms = nan
+    contact = contact_statistics.statistics(np.zeros(0))  # NaN: no contact force in the run
     if s.contact_force is not None and s.contact_force.size:
         win = _in_window(s.time, window_from, end)
         force = s.contact_force[win]
         if force.size == 0:
             raise ValueError(f"no plant_truth samples in the window [{window_from}, {end}] s")
-        mean, std = float(force.mean()), float(force.std())
-        fmin, fmax = float(force.min()), float(force.max())
-        loss = 100.0 * float(np.mean(force <= 0.0))
+        # The rig's force is its 1 kHz truth, not a measurement: no low-pass.
+        contact = contact_statistics.statistics(force)
         if s.force_reference is not None and s.reference_index is not None and s.force_reference.size:
             it = s.reference_index
             keep = win[it]
@@ -116,13 +119,7 @@ def metrics_from_series(s: RunSeries, window_from: float = 3.0, window_to: float
     return Metrics(
         window_from=window_from,
         window_to=end,
-        contact_force_mean=mean,
-        contact_force_std=std,
-        contact_force_min=fmin,
-        contact_force_max=fmax,
-        statistical_min=mean - 3.0 * std,
-        statistical_max=mean + 3.0 * std,
-        contact_loss_percent=loss,
+        **contact.as_dict(),
         tracking_rms=tracking,
         stiffness_rel_rms_percent=stiff,
         u_max_abs=u_max,
@@ -139,18 +136,19 @@ def series_from_bag(bag: BagData) -> RunSeries:
     present = [t for t in bag.topics.values() if len(t) and "tick" in t.columns]
     if not present:
         raise ValueError("no pac topic with ticks in the bag")
-    has_truth = truth is not None and len(truth) > 0
-    clock = truth if has_truth else present[0]
+    if truth is not None and not len(truth):
+        truth = None
+    clock = truth if truth is not None else present[0]
     fields: dict[str, Any] = {"tick": clock["tick"], "time": stamp_seconds(clock)}
-    if has_truth:
+    if truth is not None:
         fields["contact_force"] = truth["contact_force"]
         fields["stiffness"] = truth["stiffness"]
     if command is not None and len(command):
         fields["u_time"], fields["u"] = stamp_seconds(command), command["u"]
-        if has_truth:
+        if truth is not None:
             ic, it = _by_tick(command, truth)
             fields["reference_index"], fields["force_reference"] = it, command["force_reference"][ic]
-    if has_truth and estimate is not None and len(estimate):
+    if truth is not None and estimate is not None and len(estimate):
         ie, it = _by_tick(estimate, truth)
         fields["estimate_index"], fields["stiffness_hat"] = it, estimate["stiffness_hat"][ie]
     return RunSeries(**fields)
@@ -189,7 +187,7 @@ _ROWS = (
     ("contact_loss_percent", "contact lost (F <= 0)", "%"),
     ("tracking_rms", "tracking RMS, F - F_r", "N"),
     ("stiffness_rel_rms_percent", "k_hat relative RMS error", "%"),
-    ("u_max_abs", "max \\|u\\|", "N"),  # "|" escaped: a Markdown table cell
+    ("u_max_abs", "max |u|", "N"),
     ("u_rms", "RMS u", "N"),
     ("ticks_expected", "ticks expected", ""),
     ("ticks_recorded", "ticks recorded", ""),
@@ -201,19 +199,21 @@ def markdown_table(runs: dict[str, Metrics]) -> str:
     """One column per run, one row per measure."""
     names = list(runs)
     first = next(iter(runs.values()))
-    lines = [
-        f"Window: t in [{first.window_from:g}, {first.window_to:g}] s",
-        "",
-        "| measure | unit | " + " | ".join(names) + " |",
-        "|---|---|" + "---:|" * len(names),
-    ]
+    rows = []
     for key, label, unit in _ROWS:
         cells = []
         for name in names:
             value = getattr(runs[name], key)
             cells.append(f"{value:d}" if isinstance(value, int) else f"{value:.4g}")
-        lines.append(f"| {label} | {unit} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append([label, unit, *cells])
+    body = markdown.table(
+        ["measure", "unit", *names], rows, [markdown.LEFT] * 2 + [markdown.RIGHT] * len(names)
+    )
+    return f"Window: t in [{first.window_from:g}, {first.window_to:g}] s\n\n{body}\n"
+
+
+#: A wake-up period longer than this many nominal periods is late.
+LATE_PERIOD_FACTOR = 1.5
 
 
 @dataclass(frozen=True)
@@ -222,12 +222,14 @@ class LoopTiming:
 
     ticks: int
     steps_per_second: float
+    nominal_period_ms: float  # 1 / rate_hz, from the ticks' simulated stamps
     period_mean_ms: float
     period_p99_ms: float
     period_p999_ms: float
     period_max_ms: float
-    periods_over_1_5_ms: int
-    periods_under_1_5_ms_percent: float
+    #: wake-up periods longer than 1.5 nominal periods (1.5 ms at 1 kHz): a tick that came late
+    late_periods: int
+    on_time_periods_percent: float  # periods <= 1.5 nominal periods
     latency_p50_ms: float
     latency_p99_ms: float
     latency_max_ms: float
@@ -249,6 +251,11 @@ def loop_timing(bag: BagData) -> LoopTiming:
     # Tick 0 is re-sent until the loop is closed (start-up handshake): periods start at tick 1.
     wall = wall[1:]
     period = np.diff(wall) * 1e3
+    # The nominal period from the simulated stamps (tick k is at k / rate_hz, exactly).
+    stamps = stamp_seconds(truth)[first]
+    ticks = truth["tick"][first]
+    nominal_ms = 1e3 * float((stamps[-1] - stamps[0]) / (ticks[-1] - ticks[0]))
+    late_ms = LATE_PERIOD_FACTOR * nominal_ms
     latency = truth["round_trip_latency"][first]
     latency = latency[np.isfinite(latency)] * 1e3
     age = truth["command_age_ticks"][first]
@@ -271,12 +278,13 @@ def loop_timing(bag: BagData) -> LoopTiming:
     return LoopTiming(
         ticks=span,
         steps_per_second=float((wall.size - 1) / (wall[-1] - wall[0])),
+        nominal_period_ms=nominal_ms,
         period_mean_ms=float(period.mean()),
         period_p99_ms=pct(period, 99),
         period_p999_ms=pct(period, 99.9),
         period_max_ms=float(period.max()),
-        periods_over_1_5_ms=int(np.sum(period > 1.5)),
-        periods_under_1_5_ms_percent=100.0 * float(np.mean(period <= 1.5)),
+        late_periods=int(np.sum(period > late_ms)),
+        on_time_periods_percent=100.0 * float(np.mean(period <= late_ms)),
         latency_p50_ms=pct(latency, 50),
         latency_p99_ms=pct(latency, 99),
         latency_max_ms=float(latency.max()) if latency.size else math.nan,
@@ -293,20 +301,15 @@ def timing_table(runs: dict[str, LoopTiming]) -> str:
         ("period_p99_ms", "period p99 [ms]", "{:.3f}"),
         ("period_p999_ms", "period p99.9 [ms]", "{:.3f}"),
         ("period_max_ms", "period max [ms]", "{:.2f}"),
-        ("periods_over_1_5_ms", "periods > 1.5 ms", "{:d}"),
-        ("periods_under_1_5_ms_percent", "periods <= 1.5 ms [%]", "{:.2f}"),
+        ("nominal_period_ms", "nominal period T [ms]", "{:.3f}"),
+        ("late_periods", "periods > 1.5 T", "{:d}"),
+        ("on_time_periods_percent", "periods <= 1.5 T [%]", "{:.2f}"),
         ("latency_p50_ms", "y -> u latency p50 [ms]", "{:.3f}"),
         ("latency_p99_ms", "y -> u latency p99 [ms]", "{:.3f}"),
         ("latency_max_ms", "y -> u latency max [ms]", "{:.2f}"),
         ("commands_on_time_percent", "u applied one tick after y [%]", "{:.1f}"),
     ]
-    lines = ["| measure | " + " | ".join(names) + " |", "|---|" + "---:|" * len(names)]
-    for key, label, fmt in rows:
-        lines.append(f"| {label} | " + " | ".join(fmt.format(getattr(runs[n], key)) for n in names) + " |")
+    table = [[label, *(fmt.format(getattr(runs[n], key)) for n in names)] for key, label, fmt in rows]
     for topic in runs[names[0]].messages_lost:
-        lines.append(
-            f"| ticks without {topic} | "
-            + " | ".join(str(runs[n].messages_lost.get(topic, "")) for n in names)
-            + " |"
-        )
-    return "\n".join(lines) + "\n"
+        table.append([f"ticks without {topic}", *(str(runs[n].messages_lost.get(topic, "")) for n in names)])
+    return markdown.table(["measure", *names], table, [markdown.LEFT] + [markdown.RIGHT] * len(names)) + "\n"

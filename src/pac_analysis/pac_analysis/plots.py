@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from pac_rig.bag import BagData  # noqa: E402
+from pac_bag.reader import BagData  # noqa: E402
 
 from .metrics import stamp_seconds  # noqa: E402
 

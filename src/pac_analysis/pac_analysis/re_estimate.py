@@ -14,14 +14,15 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from pac_bag.reader import BagError, read_bag
 from pac_common.parameters import ParameterError, RateParameters
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_observer.observer import AdaptiveObserver, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
-from pac_rig.bag import BagError, read_bag
 from pac_rig.cli import OverrideError, add_override_arguments, overrides_from_args
 
 FIELDS = ("z_hat", "theta_hat", "stiffness_hat", "contact_force_hat", "innovation")
@@ -33,10 +34,10 @@ def re_estimate(bag_path: Path, overrides: dict) -> dict:
     if meas is None or not len(meas):
         raise BagError(f"{bag_path}: no 'measurement' messages to re-estimate from")
     values = {**bag.metadata.get("parameters", {}), **overrides}
-    panto, track, params, rate = (
-        cls.from_mapping(values)
-        for cls in (PantographParameters, TrackParameters, ObserverParameters, RateParameters)
-    )
+    panto = PantographParameters.from_mapping(values)
+    track = TrackParameters.from_mapping(values)
+    params = ObserverParameters.from_mapping(values)
+    rate = RateParameters.from_mapping(values)
     ticks, first = np.unique(meas["tick"], return_index=True)
     recorded = bag.topics.get("estimate")
     if recorded is not None and len(recorded):
@@ -57,8 +58,9 @@ def re_estimate(bag_path: Path, overrides: dict) -> dict:
         done.append(int(tick))
         for f in FIELDS:
             out[f].append(np.asarray(getattr(est, f), dtype=float))
-    result = {"ticks": len(done), "compared": 0, "fields": {}}
-    if rec_ticks.size:
+    fields: dict[str, dict[str, Any]] = {}
+    result: dict[str, Any] = {"ticks": len(done), "compared": 0, "fields": fields}
+    if recorded is not None and rec_ticks.size:
         common, ia, ib = np.intersect1d(np.array(done), rec_ticks, return_indices=True)
         result["compared"] = int(common.size)
         for f in FIELDS:
@@ -66,7 +68,7 @@ def re_estimate(bag_path: Path, overrides: dict) -> dict:
             theirs = np.asarray(recorded[f][rec_idx][ib], dtype=float)
             diff = np.abs(mine - theirs)
             scale = np.maximum(np.abs(theirs), 1e-300)
-            result["fields"][f] = {
+            fields[f] = {
                 "max_abs_diff": float(diff.max()) if diff.size else 0.0,
                 "max_rel_diff": float((diff / scale).max()) if diff.size else 0.0,
                 "identical": bool(np.array_equal(mine, theirs)),

@@ -13,13 +13,14 @@ import argparse
 import sys
 from pathlib import Path
 
+from pac_bag.reader import BagError, bag_files
+from pac_bag.recovery import iter_records
+from pac_bag.writer import BagWriter
 from pac_common import messages
-from pac_rig.bag import BagError, BagWriter, iter_records
 
 
 def recover(path: Path, out: Path) -> tuple[dict[str, int], list[str]]:
-    if not path.exists():
-        raise BagError(f"{path}: no such bag")
+    bag_files(path)  # not a bag: the one line every tool gives
     warnings: list[str] = []
     records = list(iter_records(path, warnings))
     if not records:

@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from pac_bag.reader import BagData, BagError, read_bag
 from pac_common import jsonio
-from pac_rig.bag import BagData, BagError, read_bag
 
 from .metrics import compute_metrics, loop_timing, markdown_table, missing_inputs, timing_table
 from .plots import overlay_figure, run_figure
@@ -86,7 +86,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     name = "_vs_".join(b.name for b in args.bags)
     out = args.out or Path("reports") / name
-    results, problems = report(args.bags, out, args.window_from, args.window_to)
+    try:
+        results, problems = report(args.bags, out, args.window_from, args.window_to)
+    except OSError as exc:  # e.g. run from a read-only folder: ./reports cannot be created
+        where = exc.filename or out
+        reason = exc.strerror or exc
+        print(f"report: cannot write {where}: {reason} (choose another folder with --out)", file=sys.stderr)
+        return 2
     for problem in problems:
         print(f"report: {problem}", file=sys.stderr)
     if not results:

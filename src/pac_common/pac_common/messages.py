@@ -33,6 +33,8 @@ LOOP_TOPICS: dict[str, str] = {
 #: Every pac topic: the loop's, and the plant's run start and end.
 TOPICS: dict[str, str] = {**LOOP_TOPICS, "run_status": RUN_STATUS}
 
+# The .msg files' constants (tests/test_messages.py checks each against its .msg file, and every
+# field dictionary below against the message's fields).
 MODES = {"active": 0, "passive": 1, "fallback": 2}
 COMMAND_FRESH, COMMAND_HELD, COMMAND_PASSIVE = 0, 1, 2
 RUN_RUNNING, RUN_ENDED = 0, 1
@@ -127,9 +129,18 @@ def command_fields(c: Any, stamp_ns: int, *, estimate_age_ticks: int = 0) -> dic
     }
 
 
-def run_status_fields(tick: int, state: int, duration: float, stamp_ns: int) -> dict[str, Any]:
-    """RunStatus: the plant's run started (tick 0) or ended (its last tick)."""
-    return {"header": header(stamp_ns), "tick": tick, "state": state, "duration": duration}
+def run_status_fields(
+    tick: int, state: int, duration: float, stamp_ns: int, catenary_model: str = "", span_length: float = 0.0
+) -> dict[str, Any]:
+    """RunStatus: the plant's run started (tick 0) or ended (its last tick), and its line."""
+    return {
+        "header": header(stamp_ns),
+        "tick": tick,
+        "state": state,
+        "duration": duration,
+        "catenary_model": catenary_model,
+        "span_length": span_length,
+    }
 
 
 def cdr_tick(data: bytes | memoryview) -> int:
@@ -194,3 +205,76 @@ class RosbagsFactory:
                 value = self.make(ftype[1], value)
             kwargs[name] = value
         return cls(**kwargs)
+
+
+def _header_columns(stamps_ns: np.ndarray) -> dict[str, Any]:
+    return {
+        "header.stamp.sec": stamps_ns // 1_000_000_000,
+        "header.stamp.nanosec": stamps_ns % 1_000_000_000,
+        "header.frame_id": "",
+    }
+
+
+def tick_columns(block: Any, rate_hz: float, command_delay_ticks: int) -> dict[str, dict[str, Any]]:
+    """The four loop topics of many offline ticks as columns for ``BagWriter.write_many``.
+
+    ``block`` is an array of ``pac_rig.loop.TICK`` records: the same values, field by field, as
+    :func:`measurement_fields`, :func:`truth_fields` (applied_command_tick as the offline
+    simulator gives it), :func:`estimate_fields` and :func:`command_fields` of each tick's records,
+    without building them (``tests/test_offline.py`` compares the two bags).
+    """
+    ticks = block["tick"].astype(np.int64)
+    head = _header_columns(ticks * int(round(1e9 / rate_hz)))
+    applied = np.maximum(-1, ticks - 1 - command_delay_ticks)
+    nan = np.full(ticks.size, math.nan)
+    return {
+        "measurement": {
+            **head,
+            "tick": ticks,
+            "z1": block["y"][:, 0],
+            "z2": block["y"][:, 1],
+            "actuator_force": block["actuator_force"],
+        },
+        "plant_truth": {
+            **head,
+            "tick": ticks,
+            "z": block["z"],
+            "stiffness": block["stiffness"],
+            "contact_force": block["contact_force"],
+            "in_contact": block["in_contact"],
+            "u_applied": block["u_applied"],
+            "applied_command_tick": applied,
+            "command_age_ticks": np.where(applied >= 0, np.maximum(0, ticks - applied), 0),
+            "command_source": COMMAND_FRESH,
+            "command_timeouts": 0,
+            "round_trip_latency": nan,
+            "wall_stamp.sec": 0,
+            "wall_stamp.nanosec": 0,
+            "contact_uplift": nan,
+            "support_uplift": nan,
+            "contact_position": nan,
+        },
+        "estimate": {
+            **head,
+            "tick": ticks,
+            "z_hat": block["z_hat"],
+            "theta_hat": block["theta_hat"],
+            "stiffness_hat": block["stiffness_hat"],
+            "contact_force_hat": block["contact_force_hat"],
+            "innovation": block["innovation"],
+            "status": STATUS_OK,
+            "rejected_measurements": 0,
+            "reinitialisations": 0,
+        },
+        "command": {
+            **head,
+            "tick": ticks,
+            "u": block["u"],
+            "u_unsaturated": block["u_unsaturated"],
+            "force_reference": block["force_reference"],
+            "tracking_error": block["tracking_error"],
+            "saturated": block["saturated"],
+            "mode": block["mode"],  # pac_controller.kernels.MODES is in the order of MODES here
+            "estimate_age_ticks": 0,
+        },
+    }

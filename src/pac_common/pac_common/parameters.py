@@ -17,8 +17,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
-Scalar = float | int | str | bool
-
 
 class ParameterError(ValueError):
     """A parameter value is outside its allowed range.
@@ -141,13 +139,35 @@ def check_new_directory(name: str, path: Path) -> None:
     """A directory to be created (a bag): it must not exist and its parent must be a writable folder."""
     if path.exists():
         raise ParameterError(name, str(path), "a path that does not exist yet")
+    check_output_folder(name, path)
+
+
+def check_output_folder(name: str, path: Path) -> None:
+    """A folder to write into (it may exist already): it, or its nearest existing parent, must be a
+    folder this process can create files in."""
+    if path.is_dir():
+        if not _can_create_in(path):
+            raise ParameterError(name, str(path), "a folder this process can write in")
+        return
     parent = path.absolute().parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent  # missing folders are created: the nearest existing one decides
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK) or not _can_create_in(parent):
         raise ParameterError(
             name, str(path), f"a new directory under a writable folder ({parent} is not one)"
         )
+
+
+def _can_create_in(folder: Path) -> bool:
+    """Whether a file can be created in ``folder``: ``os.access`` says yes to root on a read-only
+    file system or /proc, where creating the bag then failed with a traceback."""
+    import tempfile
+
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
 
 
 def _fmt(x: float) -> str:
@@ -271,6 +291,14 @@ class NodeOptions(SchedulingOptions):
 
     wait_for_recorder: bool = parameter(
         False, "do not start the loop until a recorder is subscribed to this node's outputs too"
+    )
+    start_timeout: float = parameter(
+        60.0,
+        "give up (exit 1, naming what is missing) when the peers this node waits for at start "
+        "(and the recorder, with wait_for_recorder) are not all matched within this time; 0: wait forever",
+        "s",
+        low=0.0,
+        high=86400.0,
     )
 
 

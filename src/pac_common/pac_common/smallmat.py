@@ -7,7 +7,9 @@ cost a few nanoseconds.  Results are the textbook sums in index order.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from llvmlite import ir  # type: ignore[import-untyped]
+from numba import njit, types
+from numba.extending import intrinsic
 
 
 @njit(cache=True)
@@ -35,3 +37,28 @@ def matvec(a: np.ndarray, x: np.ndarray) -> np.ndarray:
             s += a[i, k] * x[k]
         out[i] = s
     return out
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """LLVM's fused multiply-add (one rounding), in software where the CPU has none."""
+    sig = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        double = ir.DoubleType()
+        fnty = ir.FunctionType(double, [double, double, double])
+        fn = builder.module.declare_intrinsic("llvm.fma", [double], fnty)
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True)
+def fma(a: float, b: float, c: float) -> float:
+    """a b + c rounded once.
+
+    numpy's ``a @ x`` of two short float64 vectors is, on this machine, OpenBLAS's ddot tail loop
+    ``s += a[i] x[i]`` compiled with FMA contraction: ``s = fma(a[i], x[i], s)`` in index order
+    reproduces it bit for bit (the lqr law's feedback, computed so before it was compiled).
+    """
+    return _fma(float(a), float(b), float(c))  # type: ignore[call-arg]  # numba's intrinsic call

@@ -17,6 +17,7 @@ u_law for a tick.  Everything else is the same for every law:
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 from typing import Protocol
@@ -147,6 +148,13 @@ class Controller:
         self.law_tick = tick
         return cmd
 
+    def warm_up(self) -> None:
+        """Commands on a copy (the law, then the fallback): numba loads the compiled code now, not at
+        the loop's first tick."""
+        twin = copy.deepcopy(self)
+        twin.compute(0, np.zeros(4), np.array([4000.0, 0.0, 0.0]), 100.0)  # F_hat for laws that read it
+        twin.compute(1, np.full(4, np.nan), np.array([4000.0, 0.0, 0.0]))
+
     def fallback(self, tick: int) -> Command:
         """The safe command: the static uplift ``fallback_force``, reached within the slew limit."""
         t = tick * self.sample_period
@@ -162,7 +170,7 @@ class Controller:
         has_last = self.last_u is not None
         applied = limit_command(
             float(u),
-            float(self.last_u) if has_last else 0.0,
+            float(self.last_u) if self.last_u is not None else 0.0,
             has_last,
             tick - self.last_tick,
             float(p.slew_rate_max),

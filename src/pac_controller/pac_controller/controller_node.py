@@ -107,6 +107,7 @@ class ControllerNode(PacNode):
             self.laws,
             self.catenary,
         )
+        self.core.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.get_logger().info(f"control law: {self.core.name}")
         self.command_pub = self.create_publisher(
             self.factory.cls(messages.ACTUATOR_COMMAND), "command", PUBLISH_QOS
@@ -115,6 +116,7 @@ class ControllerNode(PacNode):
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", self.on_estimate, LOOP_QOS
         )
         self.follow_run()
+        self.watch_start(self.missing)
         self.last_estimate_tick = -1
         self.last_estimate_wall: float | None = None
         self.last_answer = None  # the command that answered the last fresh estimate
@@ -141,6 +143,10 @@ class ControllerNode(PacNode):
             f"parameters changed: law {self.core.name}, c = ({params.c1:g}, {params.c2:g}, "
             f"{params.c3:g}), reference {reference.shape} {reference.force_amplitude:g} N"
         )
+
+    def missing(self) -> list[str]:
+        """The peers this node's output still waits for, by name (empty: ready)."""
+        return self.readers_missing(self.command_pub, "command", "a plant")
 
     def ready(self) -> bool:
         return self.command_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)

@@ -57,7 +57,9 @@ def with_delay(ad: np.ndarray, bd: np.ndarray, delay: int) -> tuple[np.ndarray, 
     return a, b
 
 
-def frequency_response(p: PantographParameters, k: float, w: np.ndarray, delay_seconds: float) -> np.ndarray:
+def frequency_response(
+    p: PantographParameters, k: float, w: float | np.ndarray, delay_seconds: float
+) -> np.ndarray:
     """G(j w) e^{-j w tau} at each w: from u to F of the contact model, with a pure delay tau."""
     a, b, c = contact_model(p, k)
     w = np.atleast_1d(np.asarray(w, dtype=float))

@@ -30,17 +30,15 @@ so that u equals the actuator's present force; the pending commands are that for
 from __future__ import annotations
 
 import functools
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
 
 from pac_common.parameters import ParameterError
-from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
-from .controller import Errors, contact_force_estimate
+from .kernels import MAX_PENDING, KernelLaw
 from .linear import contact_model, discretise, spectral_radius, with_delay
 from .parameters import LawParameters
 
@@ -115,11 +113,9 @@ def design_lqr(pantograph: PantographParameters, laws: LawParameters, dt: float)
     return LqrGains(k=k, delay=d, design_stiffness=laws.design_stiffness, spectral_radius=rho, poles=poles)
 
 
-class LqrLaw:
-    """The lqr law core (module docstring). State: q, the pending commands, the last tick."""
-
-    mode = "active"
-    uses_estimate = True
+class LqrLaw(KernelLaw):
+    """The lqr law core (module docstring). State (q, the pending commands, the last tick) and
+    arithmetic: ``kernels.CONTROLLER_STATE`` / ``kernels.law_output``, shared with the compiled loop."""
 
     def __init__(
         self,
@@ -129,53 +125,29 @@ class LqrLaw:
         sample_period: float,
         tracking_time: float,
     ) -> None:
+        if gains.delay > MAX_PENDING:
+            raise ValueError(f"lqr: at most {MAX_PENDING} pending commands, got {gains.delay}")
         self.gains = gains
         self.pantograph = pantograph
         self.omega = track.omega
         self.sample_period = sample_period
-        self.tracking_time = tracking_time
+        super().__init__("lqr", sample_period)
+        p = self.params[0]
+        p["omega"], p["k1"], p["delay"], p["design_stiffness"] = (
+            track.omega, pantograph.k1, gains.delay, gains.design_stiffness,
+        )  # fmt: skip
+        p["gain"][: gains.k.size] = gains.k
+        p["tracking_time"] = tracking_time
         self.restart(None)
 
-    def restart(self, u_applied: float | None) -> None:
-        self.bumpless_from = u_applied
-        self.started = False
-        self.integral = 0.0
-        self.integral_step = 0.0  # q' of the last tick: F_hat - F_r, plus the back-calculation term
-        self.pending_commands: deque[float] = deque(
-            [0.0 if u_applied is None else u_applied] * self.gains.delay, maxlen=max(self.gains.delay, 1)
-        )
-        self.last_tick = 0
-        self.pending: tuple[float, float, float] | None = None
+    @property
+    def tracking_time(self) -> float:
+        """Anti-windup tracking time T_I [s] (module docstring)."""
+        return float(self.params[0]["tracking_time"])
 
-    def output(
-        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
-    ) -> tuple[float, Errors]:
-        g = self.gains
-        u_ss = float(f_r[0])
-        x_ss = model.static_equilibrium(u_ss, g.design_stiffness, self.pantograph)
-        feedback = g.state_gain @ (z_hat - x_ss)
-        if g.delay:
-            feedback += g.pending_gain @ (np.array(self.pending_commands) - u_ss)
-        if self.started:
-            integral = self.integral + (tick - self.last_tick) * self.sample_period * self.integral_step
-        elif self.bumpless_from is not None:
-            integral = -(self.bumpless_from - u_ss + feedback) / g.integral_gain  # u = the actuator's force
-        else:
-            integral = 0.0
-        u = u_ss - feedback - g.integral_gain * integral
-        error = contact_force_estimate(t, self.omega, z_hat, theta_hat) - u_ss
-        self.pending = (error, integral, u)
-        return u, (-error, integral, 0.0)
-
-    def commit(self, tick: int, u_applied: float) -> None:
-        assert self.pending is not None, "commit without output"
-        error, integral, u = self.pending
-        # Back-calculation: while the command is limited, q moves u back towards the limit.
-        self.integral_step = error + (u - u_applied) / (self.gains.integral_gain * self.tracking_time)
-        self.integral, self.last_tick, self.started = integral, tick, True
-        if self.gains.delay:
-            self.pending_commands.append(u_applied)
-        self.pending = None
+    @tracking_time.setter
+    def tracking_time(self, value: float) -> None:
+        self.params[0]["tracking_time"] = value
 
 
 def describe(gains: LqrGains) -> str:

@@ -9,22 +9,14 @@ estimate is not used, so a non-finite one does not force the fallback.
 
 from __future__ import annotations
 
-import numpy as np
-
-from .controller import Errors
+from .kernels import KernelLaw
 
 
-class PassiveLaw:
+class PassiveLaw(KernelLaw):
+    """u = F_r (``kernels.law_output``'s passive branch); stateless, the estimate unused."""
+
     mode = "passive"
     uses_estimate = False
 
-    def restart(self, u_applied: float | None) -> None:
-        """Nothing to forget: the law is stateless."""
-
-    def output(
-        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
-    ) -> tuple[float, Errors]:
-        return float(f_r[0]), (0.0, 0.0, 0.0)
-
-    def commit(self, tick: int, u_applied: float) -> None:
-        """Nothing to update: the law is stateless."""
+    def __init__(self) -> None:
+        super().__init__("passive", 1.0)

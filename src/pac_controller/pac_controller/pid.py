@@ -38,7 +38,7 @@ import scipy.optimize
 from pac_common.parameters import ParameterError
 from pac_model.parameters import PantographParameters, TrackParameters
 
-from .controller import Errors, contact_force_estimate
+from .kernels import KernelLaw
 from .linear import frequency_response, loop_with_output_feedback, spectral_radius, wrap_angle
 from .parameters import LawParameters
 
@@ -98,10 +98,10 @@ def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float)
             f"pid_phase_margin = {laws.pid_phase_margin:g} deg needs ({achievable} with "
             f"pid_integral_ratio = {ratio:g}, pid_derivative_filter = {n:g})",
         )
-    x = scipy.optimize.brentq(lambda v: phase(v) - needed, xs[0], xs[top], xtol=1e-12)
+    x = float(scipy.optimize.brentq(lambda v: phase(v) - needed, xs[0], xs[top], xtol=1e-12))
     td = x / wc
     ti = ratio * td
-    kp = 1.0 / abs(_ideal_pid(wc, ti, td, n) * g)
+    kp = 1.0 / abs(complex(_ideal_pid(wc, ti, td, n)) * g)
     gains = PidGains(
         kp=kp,
         ki=kp / ti,
@@ -130,51 +130,24 @@ def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float)
     return dataclasses.replace(gains, spectral_radius=rho, max_sensitivity=ms)
 
 
-class PidLaw:
-    """The pid law core (module docstring). State: I, D, e and tick of the previous output."""
-
-    mode = "active"
-    uses_estimate = True
+class PidLaw(KernelLaw):
+    """The pid law core (module docstring). State (I, D, e and tick of the previous output) and
+    arithmetic: ``kernels.CONTROLLER_STATE`` / ``kernels.law_output``, shared with the compiled loop."""
 
     def __init__(self, gains: PidGains, track: TrackParameters, sample_period: float) -> None:
-        self.gains = gains
+        super().__init__("pid", sample_period)
         self.omega = track.omega
         self.sample_period = sample_period
-        self.restart(None)
+        self.params[0]["omega"] = track.omega
+        self.gains = gains
 
-    def restart(self, u_applied: float | None) -> None:
-        self.bumpless_from = u_applied
-        self.started = False
-        self.integral = 0.0
-        self.integral_rate = 0.0  # Ki e + (u_applied - u) / Tt of the last tick
-        self.derivative = 0.0
-        self.last_error = 0.0
-        self.last_tick = 0
-        self.pending: tuple[float, float, float, float] | None = None
+    @property
+    def gains(self) -> PidGains:
+        return self._gains
 
-    def output(
-        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
-    ) -> tuple[float, Errors]:
-        g = self.gains
-        e = float(f_r[0]) - contact_force_estimate(t, self.omega, z_hat, theta_hat)
-        if self.started:
-            h = (tick - self.last_tick) * self.sample_period
-            integral = self.integral + h * self.integral_rate
-            derivative = (g.tf * self.derivative + g.kd * (e - self.last_error)) / (g.tf + h)
-        else:
-            integral, derivative = 0.0, 0.0
-        u = f_r[0] + g.kp * e + derivative
-        if not self.started and self.bumpless_from is not None:
-            integral = self.bumpless_from - u  # continue from the actuator's force
-        u += integral
-        self.pending = (e, integral, derivative, u)
-        return u, (e, integral, derivative)
-
-    def commit(self, tick: int, u_applied: float) -> None:
-        assert self.pending is not None, "commit without output"
-        e, integral, derivative, u = self.pending
-        g = self.gains
-        self.integral, self.derivative, self.last_error, self.last_tick = integral, derivative, e, tick
-        self.integral_rate = g.ki * e + (u_applied - u) / g.tt
-        self.started = True
-        self.pending = None
+    @gains.setter
+    def gains(self, gains: PidGains) -> None:
+        """New gains, into the record the compiled law reads."""
+        self._gains = gains
+        p = self.params[0]
+        p["kp"], p["ki"], p["kd"], p["tf"], p["tt"] = gains.kp, gains.ki, gains.kd, gains.tf, gains.tt

@@ -26,19 +26,26 @@ SHAPE_CODES = {"constant": 0, "step": 1, "square": 2}
 
 @njit(cache=True)
 def filtered_step(tau: float, p: float) -> np.ndarray:
-    """Unit step through p^4/(s+p)^4, and derivatives 1..3, at tau >= 0 after the step.
+    """Unit step through p^4/(s+p)^4, and derivatives 1..3, at tau >= 0 after the step (an array)."""
+    s0, s1, s2, s3 = filtered_step4(tau, p)
+    return np.array([s0, s1, s2, s3])
+
+
+@njit(cache=True)
+def filtered_step4(tau: float, p: float) -> tuple[float, float, float, float]:
+    """:func:`filtered_step` as four numbers.
 
     s(tau) = 1 - e^{-x} (1 + x + x^2/2 + x^3/6) with x = p tau; s' = p^4 tau^3 e^{-p tau} / 6.
     """
     if tau <= 0.0:
-        return np.zeros(4)
+        return 0.0, 0.0, 0.0, 0.0
     x = p * tau
     e = math.exp(-x)
     s0 = 1.0 - e * (1.0 + x + x * x / 2.0 + x**3 / 6.0)
     s1 = p * e * x**3 / 6.0
     s2 = p * p * e * (x * x / 2.0 - x**3 / 6.0)
     s3 = p**3 * e * (x - x * x + x**3 / 6.0)
-    return np.array([s0, s1, s2, s3])
+    return s0, s1, s2, s3
 
 
 @njit(cache=True)
@@ -76,15 +83,44 @@ def reference_steps(
 def reference_at(
     t: float, shape: int, amplitude: float, initial: float, step_time: float, period: float, bandwidth: float
 ) -> np.ndarray:
-    """(F_r, F_r', F_r'', F_r''') at time t: the sum of the filtered steps."""
-    times, sizes = reference_steps(t, shape, amplitude, initial, step_time, period, bandwidth)
-    out = np.zeros(4)
-    for i in range(times.size):
-        if times[i] == -math.inf:
-            out[0] += sizes[i]
-        else:
-            out += sizes[i] * filtered_step(t - times[i], bandwidth)
-    return out
+    """(F_r, F_r', F_r'', F_r''') at time t: the sum of the filtered steps (an array)."""
+    f0, f1, f2, f3 = reference_at4(t, shape, amplitude, initial, step_time, period, bandwidth)
+    return np.array([f0, f1, f2, f3])
+
+
+@njit(cache=True)
+def _add_step(acc, t, time, size, bandwidth):
+    """acc + the filtered step of ``size`` at ``time`` (a time of -inf: a level since long ago)."""
+    f0, f1, f2, f3 = acc
+    if not time <= t:  # not yet: reference_steps keeps the steps at or before t only
+        return acc
+    if time == -math.inf:
+        return f0 + size, f1, f2, f3
+    s0, s1, s2, s3 = filtered_step4(t - time, bandwidth)
+    return f0 + size * s0, f1 + size * s1, f2 + size * s2, f3 + size * s3
+
+
+@njit(cache=True)
+def reference_at4(
+    t: float, shape: int, amplitude: float, initial: float, step_time: float, period: float, bandwidth: float
+) -> tuple[float, float, float, float]:
+    """:func:`reference_at` as four numbers, without building the step list: the steps of
+    :func:`reference_steps` in its order, summed as it sums them (nothing allocated)."""
+    acc = (0.0, 0.0, 0.0, 0.0)
+    if shape == 0:
+        return _add_step(acc, t, 0.0, amplitude, bandwidth)
+    if shape == 1:
+        acc = _add_step(acc, t, 0.0, initial, bandwidth)
+        return _add_step(acc, t, step_time, amplitude - initial, bandwidth)
+    half = 0.5 * period
+    horizon = t - _FORGET_AFTER / bandwidth
+    first = max(0, math.floor(horizon / half))
+    last = math.floor(t / half)
+    if first > 0 and first % 2 == 1:  # the level before the first kept step, since long ago
+        acc = _add_step(acc, t, -math.inf, amplitude, bandwidth)
+    for j in range(first, last + 1):
+        acc = _add_step(acc, t, j * half, amplitude if j % 2 == 0 else -amplitude, bandwidth)
+    return acc
 
 
 def reference_args(p: ReferenceParameters) -> tuple[int, float, float, float, float, float]:

@@ -13,24 +13,34 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import itertools
+import json
 import math
+import os
 import platform
+import re
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from collections.abc import Iterator
-from datetime import datetime
+from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
+from pac_bag.reader import read_bag
 from pac_common import messages
-from pac_rig.bag import read_bag
 from pac_rig.batch import run_batch
 from pac_rig.closed_loop import Scenario, run
 from pac_rig.launcher import Rig
 from pac_rig.simulate import simulate_to_bag
+
+from . import bench_report
 
 #: Node -> (topic it answers on, topic it needs an input on, input message type).
 _STARTUP = {
@@ -145,8 +155,8 @@ def bag_writing(workdir: Path, seconds: float = 10.0) -> list[tuple[str, float, 
     The run's ticks are collected first (the simulator's own field dictionaries), then written
     through the bulk path (columns -> CDR -> chunks) with each compression, and message by
     message with the rosbags serialiser (the path before #10) for comparison; best of 3."""
-    from pac_rig.bag import BagWriter
-    from pac_rig.mcap_writer import COMPRESSIONS
+    from pac_bag.mcap_writer import COMPRESSIONS
+    from pac_bag.writer import BagWriter
     from pac_rig.simulate import scenario_from_flat, tick_fields, write_ticks
 
     scenario = scenario_from_flat({"duration": seconds})
@@ -202,12 +212,13 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """
     import domain_coordinator
 
-    from pac_common.node import LOOP_QOS, PUBLISH_QOS, rclpy
+    from pac_common.node import LOOP_QOS, PUBLISH_QOS, loopback_only, rclpy
     from pac_interfaces import msg as pac_msg
 
     out: dict[str, list[float]] = {name: [] for name in _STARTUP}
     with domain_coordinator.domain_id() as domain_id:
         context = rclpy.Context()
+        loopback_only()
         rclpy.init(context=context, domain_id=domain_id)
         node = rclpy.create_node("bench_startup", context=context)
         executor = rclpy.executors.SingleThreadedExecutor(context=context)
@@ -254,9 +265,262 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     return out
 
 
+# -- the speed goals of the offline loop, campaigns and nodes (bench_report.GOALS) -----------------
+
+
+def median(values: list[float]) -> float:
+    return float(statistics.median(values)) if values else math.nan
+
+
+def lumped_tick(repeats: int) -> tuple[float, float]:
+    """(compiled, today's) CPU µs per tick of the default scenario, median of ``repeats``.
+
+    Compiled: :func:`pac_rig.loop.run_block` over 10 s (no Python per tick); today's: the core
+    objects stepped tick by tick (``closed_loop.run_cores``, what ``closed_loop.run`` did before
+    the loop was compiled, and what the nodes still do), over 1 s.
+    """
+    from pac_rig.closed_loop import build_cores, run_cores
+    from pac_rig.loop import TICK, compile_loop
+    from pac_rig.simulate import scenario_from_flat
+
+    compiled, today = [], []
+    for _ in range(repeats):
+        s = scenario_from_flat({"duration": 10.0})
+        loop = compile_loop(*build_cores(s), s.loop.command_delay_ticks)
+        out = np.empty(s.loop.ticks, TICK)
+        noise = np.zeros((1, 2))
+        loop.run(0, 10, noise, out)  # loads the compiled code
+        start = time.process_time()
+        loop.run(10, s.loop.ticks, noise, out[10:])
+        compiled.append(1e6 * (time.process_time() - start) / (s.loop.ticks - 10))
+        s = scenario_from_flat({"duration": 1.0})
+        cores = build_cores(s)
+        start = time.process_time()
+        for _ in run_cores(s, *cores):
+            pass
+        today.append(1e6 * (time.process_time() - start) / s.loop.ticks)
+    return median(compiled), median(today)
+
+
+ALLOCATION_SCRIPT = "from pac_experiments.bench import count_allocations; count_allocations()"
+
+
+def count_allocations() -> None:
+    """Print (JSON) numba's allocation counts of a 10-tick and a 9980-tick call of each law's loop.
+
+    Run in a process started with NUMBA_NRT_STATS=1 (:func:`loop_allocations`).
+    """
+    from numba.core.runtime import rtsys
+
+    from pac_controller.parameters import COMPILED_LAW_NAMES
+    from pac_rig.closed_loop import build_cores
+    from pac_rig.loop import TICK, compile_loop
+    from pac_rig.simulate import scenario_from_flat
+
+    counts = {}
+    for law in COMPILED_LAW_NAMES:
+        values = {"law": law, "duration": 10.0, "noise_std": (1e-6, 1e-6), "command_delay_ticks": 2}
+        s = scenario_from_flat(values)
+        plant, observer, controller = build_cores(s)
+        loop = compile_loop(plant, observer, controller, 2)
+        noise = plant.noise_rows(0, s.loop.ticks)
+        out = np.empty(s.loop.ticks, TICK)
+        loop.run(0, 10, noise, out)  # compiles or loads, outside the count
+        stats = [rtsys.get_allocation_stats()]
+        loop.run(10, 20, noise[10:], out[10:])
+        stats.append(rtsys.get_allocation_stats())
+        reached, code, _ = loop.run(20, s.loop.ticks, noise[20:], out[20:])
+        stats.append(rtsys.get_allocation_stats())
+        if reached != s.loop.ticks or code:
+            raise RuntimeError(f"{law}: the run stopped at tick {reached} (code {code})")
+        short, long = [[b.alloc - a.alloc, b.free - a.free] for a, b in itertools.pairwise(stats)]
+        counts[law] = {"10 ticks": short, "9980 ticks": long}
+    print(json.dumps(counts))
+
+
+def loop_allocations() -> dict[str, dict[str, list[int]]]:
+    """:func:`count_allocations` in a fresh process (NRT statistics are switched on at numba's start)."""
+    env = {**os.environ, "NUMBA_NRT_STATS": "1"}
+    done = subprocess.run(
+        [sys.executable, "-c", ALLOCATION_SCRIPT],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        check=True,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def allocations_per_tick(counts: dict[str, dict[str, list[int]]]) -> float:
+    """Extra allocations per tick of the long call over the short one (the worst law)."""
+    return max((c["9980 ticks"][0] - c["10 ticks"][0]) / 9970 for c in counts.values())
+
+
+def whole_process(cmd: list[str], timeout: float = 900.0) -> tuple[float, str]:
+    """Wall seconds of a whole command (start-up included) and its stdout."""
+    start = time.perf_counter()
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    wall = time.perf_counter() - start
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)}: exit {done.returncode}: {done.stderr.strip()[-500:]}")
+    return wall, done.stdout
+
+
+def simulate_process(workdir: Path, seconds: float = 100.0) -> float:
+    """× real time of ``ros2 run pac_rig simulate BAG duration:=seconds`` as a whole process."""
+    bag = workdir / "simulate_whole"
+    shutil.rmtree(bag, ignore_errors=True)
+    wall, _ = whole_process(["ros2", "run", "pac_rig", "simulate", str(bag), "-p", f"duration:={seconds}"])
+    shutil.rmtree(bag, ignore_errors=True)
+    return seconds / wall
+
+
+def simulate_today(workdir: Path, seconds: float = 10.0) -> float:
+    """× real time of today's per-record path to a bag (in process, ``compiled=False``)."""
+    from pac_rig.simulate import scenario_from_flat
+
+    path = workdir / "simulate_today"
+    start = time.perf_counter()
+    simulate_to_bag(scenario_from_flat({"duration": seconds}), path, compiled=False)
+    wall = time.perf_counter() - start
+    shutil.rmtree(path, ignore_errors=True)
+    return seconds / wall
+
+
+def batch_rates(threads: int) -> tuple[float, float]:
+    """(compiled batch, today's tick by tick) scenario-s per wall-s: the five laws at four speeds, 10 s."""
+    from pac_controller.parameters import COMPILED_LAW_NAMES
+    from pac_rig.closed_loop import build_cores, run_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    scenarios = [
+        scenario_from_flat({"law": law, "speed_kmh": v, "duration": 10.0})
+        for law in COMPILED_LAW_NAMES
+        for v in (200.0, 260.0, 320.0, 380.0)
+    ]
+    run_batch(scenarios[:1])  # loads the compiled code
+    result = run_batch(scenarios, threads=threads)
+    compiled = result.simulated_seconds / result.wall_seconds
+    start = time.perf_counter()
+    simulated = 0.0
+    for law in COMPILED_LAW_NAMES:
+        s = scenario_from_flat({"law": law, "duration": 1.0})
+        for _ in run_cores(s, *build_cores(s)):
+            pass
+        simulated += s.loop.duration
+    return compiled, simulated / (time.perf_counter() - start)
+
+
+def campaign_rate(spec: Path, workdir: Path) -> tuple[float, float, float]:
+    """(scenario-s per wall-s of the whole command, the campaign's own compute-phase rate, wall s)."""
+    out = workdir / f"campaign_{spec.stem}"
+    shutil.rmtree(out, ignore_errors=True)
+    wall, stdout = whole_process(["ros2", "run", "pac_experiments", "campaign", str(spec), "--out", str(out)])
+    shutil.rmtree(out, ignore_errors=True)
+    found = re.search(r"([0-9.]+) scenario-s in ([0-9.]+) s = ([0-9.]+) scenario-s per wall-s", stdout)
+    if not found:
+        raise RuntimeError(f"campaign {spec}: no throughput line in its output: {stdout[-300:]}")
+    return float(found.group(1)) / wall, float(found.group(3)), wall
+
+
+FE_CAMPAIGN = """# bench: a small FE-line campaign (2 laws x 2 speeds, 1 s each)
+grid:
+  law: [passive, adaptive_backstepping]
+  speed_kmh: [300.0, 360.0]
+fixed:
+  catenary_model: fe
+  duration: 1.0
+window: [0.5, 1.0]
+"""
+
+
+def fe_tick(repeats: int, ticks: int = 300) -> float:
+    """CPU µs per FE plant tick (advance + measurement + truth), median of ``repeats``."""
+    from pac_rig.closed_loop import build_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    costs = []
+    for _ in range(repeats):
+        plant = build_cores(scenario_from_flat({"catenary_model": "fe", "duration": 1.0}))[0]
+        plant.advance(100.0)
+        start = time.process_time()
+        for _ in range(ticks):
+            plant.measurement()
+            plant.truth()
+            plant.advance(100.0)
+        costs.append(1e6 * (time.process_time() - start) / ticks)
+    return median(costs)
+
+
+def load_average() -> str:
+    return ", ".join(f"{v:.2f}" for v in os.getloadavg())
+
+
+def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: dict) -> dict:
+    """Every figure of bench_report.GOALS (and today's path beside it): the results dictionary."""
+    figures: dict[str, float | None] = {}
+    today: dict[str, dict[str, Any]] = {}
+    notes: list[str] = []
+    print("bench: compiled tick ...", flush=True)
+    compiled_us, today_us = lumped_tick(args.repeats)
+    figures["lumped_tick_x"] = 1e3 / compiled_us
+    today["lumped_tick_x"] = {"value": 1e3 / today_us, "what": "core objects tick by tick"}
+    notes.append(f"compiled tick {compiled_us:.2f} µs CPU, core objects tick by tick {today_us:.1f} µs CPU")
+    print("bench: allocations ...", flush=True)
+    counts = loop_allocations()
+    figures["lumped_tick_allocations"] = allocations_per_tick(counts)
+    per_call = max(c["10 ticks"][0] for c in counts.values())
+    notes.append(
+        f"allocations: numba NRT counter (NUMBA_NRT_STATS=1), a 9980-tick call of each law allocates "
+        f"what a 10-tick call does ({per_call}: the arrays handed over by Python, once per call)"
+    )
+    print("bench: simulate 100 s as a process ...", flush=True)
+    figures["simulate_100s_x"] = median([simulate_process(workdir) for _ in range(args.repeats)])
+    today["simulate_100s_x"] = {"value": simulate_today(workdir), "what": "per-record path, 10 s, in process"}
+    print("bench: batch ...", flush=True)
+    batch, batch_today = batch_rates(args.batch_threads)
+    figures["batch_rate"] = batch
+    today["batch_rate"] = {"value": batch_today, "what": "core objects tick by tick, 1 thread"}
+    if args.campaigns:
+        print("bench: campaigns ...", flush=True)
+        spec = Path(args.campaign_spec)
+        whole, inner, wall = campaign_rate(spec, workdir)
+        figures["campaign_lumped_rate"] = whole
+        notes.append(
+            f"campaign {spec.name}: {wall:.1f} s as a whole command; its runs alone {inner:.0f} scenario-s "
+            "per wall-s (the campaign's own figure, cluster start and report excluded)"
+        )
+        fe_spec = workdir / "fe_bench.yaml"
+        fe_spec.write_text(FE_CAMPAIGN)
+        whole, inner, wall = campaign_rate(fe_spec, workdir)
+        figures["campaign_fe_rate"] = whole
+        notes.append(
+            f"FE campaign (2 laws x 2 speeds x 1 s, core objects tick by tick: the FE step is not "
+            f"compiled yet): {wall:.1f} s as a whole command, runs alone {inner:.2f} scenario-s per wall-s"
+        )
+    print("bench: FE tick ...", flush=True)
+    fe_us = fe_tick(args.repeats)
+    figures["fe_tick_x"] = 1e3 / fe_us
+    notes.append(f"FE plant tick {fe_us:.0f} µs CPU (advance + measurement + truth)")
+    if startup:
+        medians = {name: median(times) for name, times in startup.items()}
+        figures["startup_s"] = max(medians.values()) if all(startup.values()) else None
+        notes.append("start-up medians: " + ", ".join(f"{n} {v:.2f} s" for n, v in medians.items()))
+    if "lockstep" in runs and "lockstep floor" in runs:
+        figures["lockstep_floor_ratio"] = (
+            runs["lockstep"].steps_per_second / runs["lockstep floor"].steps_per_second
+        )
+        notes.append(
+            f"lock step {runs['lockstep'].steps_per_second:.0f} steps/s, its floor "
+            f"{runs['lockstep floor'].steps_per_second:.0f}"
+        )
+    return {"figures": figures, "today": today, "notes": notes}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench", description=__doc__)
-    parser.add_argument("--realtime-seconds", type=float, default=30.0)
+    parser.add_argument("--realtime-seconds", type=float, default=30.0, help="0: no real-time rigs")
     parser.add_argument("--lockstep-seconds", type=float, default=10.0)
     parser.add_argument(
         "--realtime-priority",
@@ -278,11 +542,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--batch-runs", type=int, default=16)
     parser.add_argument("--batch-threads", type=int, default=2)
     parser.add_argument("--startup-repeats", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=3, help="repeats of each offline figure (median)")
+    parser.add_argument(
+        "--campaigns", action=argparse.BooleanOptionalAction, default=True, help="run the two campaigns"
+    )
+    parser.add_argument("--campaign-spec", default="config/campaigns/laws_speeds.yaml")
+    parser.add_argument("--out-dir", type=Path, default=Path("reports/bench"), help="where latest.md/json go")
+    parser.add_argument(
+        "--readme", action="store_true", help="only regenerate README.md's block from OUT_DIR/latest.json"
+    )
     args = parser.parse_args(argv)
+    if args.readme:
+        results = json.loads((args.out_dir / "latest.json").read_text())
+        bench_report.update_readme(Path("README.md"), results)
+        print("bench: README.md performance block regenerated from", args.out_dir / "latest.json")
+        return 0
     for name, value, low, high in (
         ("--batch-runs", args.batch_runs, 1, 100000),
         ("--batch-threads", args.batch_threads, 1, 64),
         ("--startup-repeats", args.startup_repeats, 0, 100),
+        ("--repeats", args.repeats, 1, 100),
     ):
         if not low <= value <= high:
             print(f"bench: invalid {name} {value!r}: allowed {low}..{high}", file=sys.stderr)
@@ -291,21 +570,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"bench: invalid --load {args.load}: allowed an integer >= 0", file=sys.stderr)
         return 2
     workdir = Path(tempfile.mkdtemp(prefix="pac_bench_"))
+    load_before = load_average()
     try:
         runs, cpus, quality = {}, {}, {}
         # (column, timing mode, seconds, composed, busy loops): each is run as pac, then as its floor.
-        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)]
+        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)] if args.realtime_seconds else []
         if args.offline_only:
             plan = []
-        elif args.load:
+        elif args.load and args.realtime_seconds:
             plan.append((f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load))
         if not args.offline_only:
             plan.append(("lockstep", "lockstep", args.lockstep_seconds, False, 0))
         if args.composed and not args.offline_only:
-            plan += [
-                ("composed realtime", "realtime", args.realtime_seconds, True, 0),
-                ("composed lockstep", "lockstep", args.lockstep_seconds, True, 0),
-            ]
+            if args.realtime_seconds:
+                plan.append(("composed realtime", "realtime", args.realtime_seconds, True, 0))
+            plan.append(("composed lockstep", "lockstep", args.lockstep_seconds, True, 0))
         pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
         for name, mode, seconds, composed, load in plan:
             for relay, column in ((False, name), (True, f"{name} floor")):
@@ -329,6 +608,7 @@ def main(argv: list[str] | None = None) -> int:
         speed_batch, batch_wall = batch_speed(args.batch_runs, args.batch_threads)
         print("bench: node start-up ...", flush=True)
         startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
+        results = goal_figures(args, workdir, runs, startup)
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
     print(
@@ -364,12 +644,22 @@ def main(argv: list[str] | None = None) -> int:
     for name, wall, cpu, size in writing:
         print(f"| {name} | {wall:.1f} | {cpu:.1f} | {size / 1e6:.2f} |")
     print(
-        f"Batch (compiled closed loop): {args.batch_runs} x 10 s scenarios in {batch_wall:.2f} s = "
+        f"\nBatch (compiled closed loop): {args.batch_runs} x 10 s scenarios in {batch_wall:.2f} s = "
         f"{speed_batch:.0f} scenario-s per wall-s ({args.batch_threads} threads)"
     )
     for name, times in startup.items():
         shown = ", ".join(f"{t:.2f}" for t in times) or "no message"
         print(f"Start-up {name}_node (process start -> first published message): {shown} s")
+    results.update(
+        date=f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
+        machine=f"{platform.node()}, {platform.machine()}, {os.cpu_count()} cores",
+        load_before=load_before,
+        load_after=load_average(),
+        repeats=args.repeats,
+    )
+    print("\n" + bench_report.markdown(results))
+    js, md = bench_report.write(results, args.out_dir)
+    print(f"wrote {js} and {md} (README.md's block: ros2 run pac_experiments bench --readme)")
     return 0
 
 

@@ -48,7 +48,7 @@ import numpy as np
 import yaml
 
 from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
-from pac_common.parameters import ParameterError
+from pac_common.parameters import ParameterError, check_output_folder
 from pac_rig.batch import BatchResult, batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, run
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat, simulate_to_bag
@@ -535,9 +535,10 @@ def main(argv: list[str] | None = None) -> int:
                 raise SpecError(
                     f"invalid option '--{name.replace('_', '-')}' = {value}: allowed an integer >= 1"
                 )
+        check_output_folder("--out", args.out)
         spec = load_spec(args.spec)
         points = expand(spec)
-    except SpecError as exc:
+    except (SpecError, ParameterError) as exc:
         print(f"campaign: {exc}", file=sys.stderr)
         return 2
 

@@ -30,24 +30,30 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from pac_common import markdown  # noqa: E402
+from pac_common.contact_statistics import (  # noqa: E402
+    contact_statistics,
+    en50367_criteria,
+    lowpass,
+    target_mean_force,
+)
 from pac_plant.catenary.data import CatenaryData, NumericalOptions  # noqa: E402
-from pac_plant.catenary.enstats import contact_statistics, lowpass  # noqa: E402
 from pac_plant.catenary.integrator import ContactSimulation  # noqa: E402
 from pac_plant.catenary.line import Line  # noqa: E402
 from pac_plant.catenary.pantographs import three_mass_pantograph  # noqa: E402
 
 DATA = CatenaryData()
 SPAN = DATA.span
-#: EN 50318:2002 reference bands (CATENARY_DATA §1): quantity -> {speed: (low, high)}.
+#: EN 50318:2002 reference bands (docs/catenary_data.md §1): quantity -> {speed: (low, high)}.
 EN50318_BANDS = {
-    "mean": {250: (110, 120), 300: (110, 120)},
-    "sigma": {250: (26, 31), 300: (32, 40)},
-    "stat_max": {250: (190, 210), 300: (210, 230)},
-    "stat_min": {250: (20, 40), 300: (-5, 20)},
-    "max": {250: (175, 210), 300: (190, 225)},
-    "min": {250: (50, 75), 300: (30, 55)},
+    "contact_force_mean": {250: (110, 120), 300: (110, 120)},
+    "contact_force_std": {250: (26, 31), 300: (32, 40)},
+    "statistical_max": {250: (190, 210), 300: (210, 230)},
+    "statistical_min": {250: (20, 40), 300: (-5, 20)},
+    "contact_force_max": {250: (175, 210), 300: (190, 225)},
+    "contact_force_min": {250: (50, 75), 300: (30, 55)},
     "support_uplift_mm": {250: (48, 55), 300: (55, 65)},
-    "loss_percent": {250: (0, 0), 300: (0, 0)},
+    "contact_loss_percent": {250: (0, 0), 300: (0, 0)},
 }
 EXPERIMENT_SPEEDS = (250, 300, 320, 360)
 EXPERIMENT_DURATION = 8.0  # s
@@ -60,11 +66,6 @@ EXPERIMENT_RUNS = (
     ("active", "fixed"),
     ("active", "static_wire"),
 )
-
-
-def target_force(speed_kmh: float) -> float:
-    """EN 50367 / TSI target mean contact force Fm(v) = 0.00097 v^2 + 70 N (CATENARY_DATA §3)."""
-    return 0.00097 * speed_kmh**2 + 70.0
 
 
 def band_distance(value: float, band: tuple[float, float]) -> float:
@@ -86,7 +87,7 @@ def passive_reference(
     numerics = NumericalOptions(element_size=element_size, contact_stiffness=contact_stiffness)
     line = Line(DATA, numerics)
     v = speed_kmh / 3.6
-    force = target_force(speed_kmh) if force is None else force
+    force = target_mean_force(speed_kmh) if force is None else force
     sim = ContactSimulation(line, three_mass_pantograph(), dt, v, SPAN, damping=damping)
     sim.start_static(force)
     x_from, x_to = 4 * SPAN, 6 * SPAN
@@ -131,7 +132,7 @@ def closed_loop_run(job: tuple[float, str, str]) -> dict[str, Any]:
     from pac_rig.simulate import scenario_from_flat
 
     speed, mode, datum = job
-    force = target_force(speed)
+    force = target_mean_force(speed)
     scenario = scenario_from_flat(
         {
             "catenary_model": "fe",
@@ -212,6 +213,7 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
             "max_abs_u": float(np.max(np.abs(r["u"]))) if len(t) else None,
         }
     stats = contact_statistics(r["F"], t, dt, *EXPERIMENT_WINDOW)
+    verdict = en50367_criteria(stats.contact_force_mean, stats.contact_force_std)
     u = r["u"][w]
     k, kh = r["k"][w], r["k_hat"][w]
     corr = float(np.corrcoef(k, kh)[0, 1]) if np.std(kh) > 0 and np.std(k) > 0 else 0.0
@@ -222,8 +224,8 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
         "target_Fm": r["force"],
         **(model_fit(r) if r["mode"] == "passive" else {}),
         **stats.as_dict(),
-        "quality_sigma_le_0.3Fm": bool(stats.sigma <= 0.3 * stats.mean),
-        "quality_Fm_minus_3sigma_gt_0": bool(stats.stat_min > 0),
+        "quality_sigma_le_0.3Fm": verdict.sigma_ok,
+        "quality_Fm_minus_3sigma_gt_0": verdict.statistical_min_ok,
         "max_abs_u": float(np.max(np.abs(u))),
         "max_abs_du_dt": float(np.max(np.abs(np.diff(u))) / dt),
         "k_fe_mean": float(np.mean(k)),
@@ -346,36 +348,35 @@ def _fmt(v: Any) -> str:
 
 
 def reference_table(refs: dict[int, dict[str, Any]]) -> str:
-    head = " | ".join(f"{v} km/h: ours | EN 50318:2002 band | distance" for v in refs)
-    rows = [f"| quantity | {head} |"]
-    rows.append("|---|" + "---:|---:|---:|" * len(refs))
+    header = ["quantity"]
+    for v in refs:
+        header += [f"{v} km/h: ours", "EN 50318:2002 band", "distance"]
+    rows = []
     for q, bands in EN50318_BANDS.items():
-        cells = []
+        cells = [q]
         for v, r in refs.items():
             lo, hi = bands[v]
-            cells.append(f"{r[q]:.1f} | {lo}–{hi} | {band_distance(r[q], bands[v]):+.1f}")
-        rows.append(f"| {q} | " + " | ".join(cells) + " |")
-    return "\n".join(rows)
+            cells += [f"{r[q]:.1f}", f"{lo}–{hi}", f"{band_distance(r[q], bands[v]):+.1f}"]
+        rows.append(cells)
+    return markdown.table(header, rows, ["l"] + ["r"] * (len(header) - 1))
 
 
 def _table(metrics: list[dict[str, Any]], keys: list[tuple[str, str]]) -> str:
     cols = [("speed_kmh", "v [km/h]"), ("mode", "mode"), ("datum", "z datum"), *keys]
-    rows = ["| " + " | ".join(label for _, label in cols) + " |", "|" + "---|" * len(cols)]
-    for m in metrics:
-        rows.append("| " + " | ".join(_fmt(m.get(k, "—")) for k, _ in cols) + " |")
-    return "\n".join(rows)
+    rows = [[_fmt(m.get(k, "—")) for k, _ in cols] for m in metrics]
+    return markdown.table([label for _, label in cols], rows)
 
 
 def experiment_table(metrics: list[dict[str, Any]]) -> str:
     quality = [
         ("target_Fm", "target Fm [N]"),
-        ("mean", "Fm [N]"),
-        ("sigma", "σ [N]"),
-        ("stat_max", "Fm+3σ [N]"),
-        ("stat_min", "Fm−3σ [N]"),
-        ("max", "max [N]"),
-        ("min", "min [N]"),
-        ("loss_percent", "loss [%]"),
+        ("contact_force_mean", "Fm [N]"),
+        ("contact_force_std", "σ [N]"),
+        ("statistical_max", "Fm+3σ [N]"),
+        ("statistical_min", "Fm−3σ [N]"),
+        ("contact_force_max", "max [N]"),
+        ("contact_force_min", "min [N]"),
+        ("contact_loss_percent", "loss [%]"),
         ("quality_sigma_le_0.3Fm", "σ ≤ 0.3 Fm"),
         ("quality_Fm_minus_3sigma_gt_0", "Fm−3σ > 0"),
         ("sigma_reduction_percent", "σ reduction [%]"),
@@ -470,8 +471,10 @@ def main(argv: list[str] | None = None) -> int:
         p = by[(v, "passive", "fixed")]
         for datum in ("fixed", "static_wire"):
             a = by[(v, "active", datum)]
-            if "sigma" in p and "sigma" in a:
-                a["sigma_reduction_percent"] = 100.0 * (p["sigma"] - a["sigma"]) / p["sigma"]
+            if "contact_force_std" in p and "contact_force_std" in a:
+                a["sigma_reduction_percent"] = (
+                    100.0 * (p["contact_force_std"] - a["contact_force_std"]) / p["contact_force_std"]
+                )
     report["experiment"] = metrics
 
     # Figures.
@@ -490,7 +493,7 @@ def main(argv: list[str] | None = None) -> int:
         w = (x >= 4 * SPAN) & (x <= 6 * SPAN)
         axes[0, col].plot(x[w], r["_f"][w], color="0.7", lw=0.6, label="raw")
         axes[0, col].plot(x[w], lowpass(r["_f"], 1e-3)[w], "C3", lw=1.0, label="20 Hz low-pass")
-        axes[0, col].set_title(f"3-mass passive, {v} km/h, Fm target {target_force(v):.1f} N")
+        axes[0, col].set_title(f"3-mass passive, {v} km/h, Fm target {target_mean_force(v):.1f} N")
         axes[0, col].set_ylabel("contact force [N]")
         axes[0, col].legend()
         axes[1, col].plot(x[w], 1e3 * r["_uplift"][w], "C0")
@@ -521,7 +524,7 @@ def main(argv: list[str] | None = None) -> int:
                     continue
                 y = lowpass(r[key], 1e-3) if key == "F" else r[key]
                 ax.plot(r["t"], scale * y, color, lw=0.8, label=label)
-            ax.set_title(f"{v} km/h, target Fm {target_force(v):.1f} N")
+            ax.set_title(f"{v} km/h, target Fm {target_mean_force(v):.1f} N")
             ax.set_ylabel(ylabel)
             ax.grid(alpha=0.3)
             ax.legend(loc="upper right")
@@ -545,16 +548,29 @@ def main(argv: list[str] | None = None) -> int:
     plt.close(fig)
 
     # Tables.
-    num_rows = [
-        "| variant (300 km/h, 3-mass passive) | Fm [N] | σ [N] | max [N] | min [N] | loss [%] | "
-        "support uplift [mm] | µs/step |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|",
+    num_header = [
+        "variant (300 km/h, 3-mass passive)",
+        "Fm [N]",
+        "σ [N]",
+        "max [N]",
+        "min [N]",
+        "loss [%]",
+        "support uplift [mm]",
+        "µs/step",
     ]
-    for k, r in numerics.items():
-        num_rows.append(
-            f"| {k} | {r['mean']:.2f} | {r['sigma']:.2f} | {r['max']:.1f} | {r['min']:.1f} | "
-            f"{r['loss_percent']:.2f} | {r['support_uplift_mm']:.1f} | {r['us_per_step']:.0f} |"
-        )
+    num_rows = [
+        [
+            k,
+            f"{r['contact_force_mean']:.2f}",
+            f"{r['contact_force_std']:.2f}",
+            f"{r['contact_force_max']:.1f}",
+            f"{r['contact_force_min']:.1f}",
+            f"{r['contact_loss_percent']:.2f}",
+            f"{r['support_uplift_mm']:.1f}",
+            f"{r['us_per_step']:.0f}",
+        ]
+        for k, r in numerics.items()
+    ]
     text = "\n".join(
         [
             "# make catenary: FE catenary reference runs and the control experiment",
@@ -587,7 +603,7 @@ def main(argv: list[str] | None = None) -> int:
             "",
             "## Numerics at 300 km/h (convergence, penalty, damping)",
             "",
-            "\n".join(num_rows) if numerics else "(skipped)",
+            markdown.table(num_header, num_rows, ["l"] + ["r"] * 7) if numerics else "(skipped)",
             "",
             "Cost per 1 kHz step, 10-span line + 3-mass pantograph "
             f"({cost['n_dof']} DOFs, CPU time on this shared 2-core VM): "

@@ -11,19 +11,31 @@ Fig. 3-5 style figure of the run (reports/<bag name>/<bag name>.png).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from datetime import datetime
 from pathlib import Path
 
 from pac_analysis.metrics import compute_metrics, loop_timing, markdown_table, timing_table
 from pac_analysis.plots import run_figure
-from pac_rig.bag import read_bag
+from pac_bag.reader import read_bag
+from pac_common.command_line import UsageError
 from pac_rig.launcher import Rig
 
 
 def free_domain():
+    """An exported ROS_DOMAIN_ID is used as it is (the user's choice, e.g. to watch the demo with
+    `ros2 topic echo`); else a free one is reserved, so that two demos never hear each other."""
+    import contextlib
+    import os
+
     import domain_coordinator
 
+    from pac_common.command_line import check_domain_id
+
+    if os.environ.get("ROS_DOMAIN_ID", "").strip():
+        check_domain_id()
+        return contextlib.nullcontext(int(os.environ["ROS_DOMAIN_ID"]))
     return domain_coordinator.domain_id()
 
 
@@ -46,9 +58,15 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     bag_path = args.bag or Path("bags") / f"demo_{datetime.now():%Y%m%d_%H%M%S}"
-    with free_domain() as domain_id:
+    try:
+        domain = free_domain()
+    except UsageError as exc:
+        print(f"demo: {exc}", file=sys.stderr)
+        return 2
+    chosen = "yours (exported)" if os.environ.get("ROS_DOMAIN_ID", "").strip() else "a free one"
+    with domain as domain_id:
         print(
-            f"demo: ROS_DOMAIN_ID={domain_id}, loopback discovery; starting recorder, observer, "
+            f"demo: ROS_DOMAIN_ID={domain_id} ({chosen}), loopback discovery; starting recorder, observer, "
             f"controller, plant ({args.timing_mode}, {args.duration:g} s)",
             flush=True,
         )

@@ -16,8 +16,8 @@ from typing import Any
 
 from pac_analysis.metrics import compute_metrics, markdown_table
 from pac_analysis.plots import overlay_figure, run_figure
+from pac_bag.reader import read_bag
 from pac_common import jsonio
-from pac_rig.bag import read_bag
 from pac_rig.progress import progress
 from pac_rig.simulate import RunResult, scenario_from_flat, simulate_to_bag
 
@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     text = "# make reproduce: metrics\n\n" + table + "\n" + "\n".join(notes) + "\n"
     (args.reports / "metrics.md").write_text(text)
-    payload = {name: m.as_dict() for name, m in metrics.items()}
+    payload: dict[str, dict[str, Any]] = {name: m.as_dict() for name, m in metrics.items()}
     payload.update(
         {name: {"diverged": r.diverged, "ticks": r.ticks} for name, r in results.items() if r.diverged}
     )

@@ -10,6 +10,7 @@ and its figures are measured, never asserted.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import tempfile
@@ -20,11 +21,15 @@ from pathlib import Path
 import numpy as np
 
 from pac_analysis.metrics import loop_timing
+from pac_bag.reader import read_bag
+from pac_common import markdown
+from pac_common.contact_statistics import statistics
 from pac_common.parameters import LoopParameters
-from pac_rig.bag import read_bag
 from pac_rig.launcher import Rig
 
-PAGE = 4096
+#: /proc/<pid>/statm counts pages: their size is the machine's (4 KiB on x86-64, 16 or 64 KiB on
+#: some ARM kernels).
+PAGE = os.sysconf("SC_PAGE_SIZE")
 
 
 def rss_mb(pid: int) -> float:
@@ -42,9 +47,11 @@ def sigma_per_minute(bag, rate_hz: float) -> list[tuple[int, float, float]]:
     ticks, first = np.unique(truth["tick"], return_index=True)
     force = truth["contact_force"][first]
     minute = (ticks / rate_hz // 60).astype(int)
-    return [
-        (int(m), float(force[minute == m].mean()), float(force[minute == m].std())) for m in np.unique(minute)
-    ]
+    out = []
+    for m in np.unique(minute):
+        stats = statistics(force[minute == m])
+        out.append((int(m), stats.contact_force_mean, stats.contact_force_std))
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,14 +102,19 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"\n## pac soak, {started:%Y-%m-%d %H:%M} to {datetime.now():%H:%M}, {args.minutes:g} min real time\n"
     )
-    print("| node | RSS after ~10 s [MB] | RSS at the end [MB] | growth [MB] | CPU [%] |")
-    print("|---|---:|---:|---:|---:|")
+    usage = []
     for name, proc in rig.processes.items():
         series = samples.get(name, [])
         start = next((rss for t, rss in series if t >= 10.0), float("nan"))
         end = series[-1][1] if series else float("nan")
-        cpu = 100.0 * proc.cpu_seconds / proc.wall_seconds if proc.cpu_seconds is not None else float("nan")
-        print(f"| {name} | {start:.1f} | {end:.1f} | {end - start:+.1f} | {cpu:.0f} |")
+        cpu = (
+            100.0 * proc.cpu_seconds / proc.wall_seconds
+            if proc.cpu_seconds is not None and proc.wall_seconds
+            else float("nan")
+        )
+        usage.append([name, f"{start:.1f}", f"{end:.1f}", f"{end - start:+.1f}", f"{cpu:.0f}"])
+    header = ["node", "RSS after ~10 s [MB]", "RSS at the end [MB]", "growth [MB]", "CPU [%]"]
+    print(markdown.table(header, usage, ["l", "r", "r", "r", "r"]))
     print(f"\nticks in the run: {timing.ticks}")
     for topic in ("measurement", "plant_truth"):
         print(f"ticks without {topic} in the bag: {timing.messages_lost[topic]}")
@@ -120,15 +132,16 @@ def main(argv: list[str] | None = None) -> int:
             f"({timing.messages_lost[topic]} ticks skipped under load, never published)"
         )
     print(
-        f"periods <= 1.5 ms: {timing.periods_under_1_5_ms_percent:.2f} %, y -> u latency p50 / p99: "
+        f"periods <= 1.5 T: {timing.on_time_periods_percent:.2f} %, y -> u latency p50 / p99: "
         f"{timing.latency_p50_ms:.2f} / {timing.latency_p99_ms:.2f} ms, u applied one tick after y: "
         f"{timing.commands_on_time_percent:.1f} %\n"
     )
     print("Contact force per minute of simulated time (minute 1 holds the start: F_r filtered from 0)\n")
-    print("| minute | mean contact force [N] | sigma [N] |")
-    print("|---:|---:|---:|")
-    for minute, mean, std in sigma_per_minute(bag, LoopParameters().rate_hz):
-        print(f"| {minute + 1} | {mean:.2f} | {std:.3f} |")
+    minutes = [
+        [minute + 1, f"{mean:.2f}", f"{std:.3f}"]
+        for minute, mean, std in sigma_per_minute(bag, LoopParameters().rate_hz)
+    ]
+    print(markdown.table(["minute", "mean contact force [N]", "sigma [N]"], minutes, "r"))
     return 0
 
 

@@ -13,6 +13,7 @@ import sys
 
 import numpy as np
 
+from pac_common import markdown
 from pac_rig.batch import BatchResult, run_batch
 from pac_rig.closed_loop import Scenario
 from pac_rig.simulate import scenario_from_flat
@@ -61,11 +62,12 @@ def main(argv: list[str] | None = None) -> int:
     result = run_batch([scenario(g, d, args.duration) for g in GAINS for d in DELAYS], threads=args.jobs)
     cells = [cell(result, i) for i in range(len(GAINS) * len(DELAYS))]
     print(f"Contact-force std [N] over [3, {args.duration:g}] s, constant 100 N, ideal actuator\n")
-    print("| c1, c2, c3 | " + " | ".join(f"delay {d}" for d in DELAYS) + " |")
-    print("|---|" + "---:|" * len(DELAYS))
-    for i, g in enumerate(GAINS):
-        row = cells[i * len(DELAYS) : (i + 1) * len(DELAYS)]
-        print(f"| {g[0]:g}, {g[1]:g}, {g[2]:g} | " + " | ".join(row) + " |")
+    rows = [
+        [f"{g[0]:g}, {g[1]:g}, {g[2]:g}", *cells[i * len(DELAYS) : (i + 1) * len(DELAYS)]]
+        for i, g in enumerate(GAINS)
+    ]
+    header = ["c1, c2, c3", *(f"delay {d}" for d in DELAYS)]
+    print(markdown.table(header, rows, ["l"] + ["r"] * len(DELAYS)))
     print(
         f"\n{len(cells)} runs, {result.simulated_seconds:.0f} scenario-s in {result.wall_seconds:.2f} s "
         f"({result.simulated_seconds / result.wall_seconds:.0f} scenario-s per wall-s, {args.jobs} threads)"

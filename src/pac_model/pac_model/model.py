@@ -81,9 +81,16 @@ def output_regressor_row(y1: float, t: float, omega: float, p: PantographParamet
 @njit(cache=True)
 def regressor_row(y1: float, t: float, omega: float, m1: float) -> np.ndarray:
     """The only non-zero row of psi(y), eq. (15): -(y1 / m1) v(t)^T (m1 as a number)."""
+    r0, r1, r2 = regressor_row3(y1, t, omega, m1)
+    return np.array([r0, r1, r2])
+
+
+@njit(cache=True)
+def regressor_row3(y1: float, t: float, omega: float, m1: float) -> tuple[float, float, float]:
+    """:func:`regressor_row` as three numbers."""
     wt = omega * t
     c = -y1 / m1
-    return np.array([c, c * math.cos(wt), c * math.sin(wt)])
+    return c, c * math.cos(wt), c * math.sin(wt)
 
 
 @njit(cache=True)
@@ -104,12 +111,20 @@ def dynamics(z: np.ndarray, u: float, force: float, a: np.ndarray, p: Pantograph
 @njit(cache=True)
 def pantograph_rhs(z: np.ndarray, u: float, force: float, a: np.ndarray, m1: float, m2: float) -> np.ndarray:
     """:func:`dynamics` on numbers: A z + phi(u) - F e3 / m1, eqs. (3)/(5)/(14)."""
-    dz = np.zeros(4)
-    for i in range(4):
-        dz[i] = a[i, 0] * z[0] + a[i, 1] * z[1] + a[i, 2] * z[2] + a[i, 3] * z[3]
-    dz[2] -= force / m1
-    dz[3] += actuator_acceleration(u, m2)
-    return dz
+    d0, d1, d2, d3 = pantograph_rhs4(z[0], z[1], z[2], z[3], u, force, a, m1, m2)
+    return np.array([d0, d1, d2, d3])
+
+
+@njit(cache=True)
+def pantograph_rhs4(
+    z0: float, z1: float, z2: float, z3: float, u: float, force: float, a: np.ndarray, m1: float, m2: float
+) -> tuple[float, float, float, float]:
+    """:func:`pantograph_rhs` on four numbers, returned as four numbers (no array: the compiled loop's)."""
+    d0 = a[0, 0] * z0 + a[0, 1] * z1 + a[0, 2] * z2 + a[0, 3] * z3
+    d1 = a[1, 0] * z0 + a[1, 1] * z1 + a[1, 2] * z2 + a[1, 3] * z3
+    d2 = a[2, 0] * z0 + a[2, 1] * z1 + a[2, 2] * z2 + a[2, 3] * z3
+    d3 = a[3, 0] * z0 + a[3, 1] * z1 + a[3, 2] * z2 + a[3, 3] * z3
+    return d0, d1, d2 - force / m1, d3 + actuator_acceleration(u, m2)
 
 
 def static_equilibrium(u: float, k: float, p: PantographParameters) -> np.ndarray:

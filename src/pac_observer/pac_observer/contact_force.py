@@ -29,6 +29,7 @@ observer; ``line_adaptive`` and ``passive`` run on this one.
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -135,6 +136,14 @@ class ContactForceObserver:
     @property
     def z_hat(self) -> np.ndarray:
         return self.x[:4].copy()
+
+    def warm_up(self) -> None:
+        """Updates on a copy (first sample, a tick, a gap): numba loads the compiled step now, not at
+        the loop's first tick."""
+        twin = copy.deepcopy(self)
+        twin.update(0, (0.0, 0.0), 0.0)
+        twin.update(1, (0.0, 0.0), 0.0)
+        twin.update(3, (0.0, 0.0), 0.0)
 
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
         """Process y_k of ``tick`` and the force applied over (t_{k-1}, t_k]; a gap is predicted through."""

@@ -30,6 +30,7 @@ Per sample period [t_{k-1}, t_k] the observer
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -37,8 +38,6 @@ import numpy as np
 import scipy.linalg
 from numba import njit
 
-from pac_common.integrate import rk4_step
-from pac_common.smallmat import matmul, matvec
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
@@ -52,28 +51,78 @@ _DIVERGED_REASONS = {
 }
 
 
-@njit(cache=True, error_model="numpy")
-def cholesky_solve(a: np.ndarray, b: np.ndarray) -> tuple[bool, np.ndarray]:
-    """x = a^-1 b for a symmetric positive definite a (n x n), b (n x m); False if a is not.
+#: The observer's state and its scratch space: one named record (a numpy structured scalar), so that
+#: the compiled step allocates nothing.  ``xi`` .. ``y_prev`` are the state (docs/numerics.md), the
+#: fields after ``y_prev`` are scratch, meaningless between steps.
+OBSERVER_STATE = np.dtype(
+    [
+        ("xi", "f8", 4),
+        ("lam", "f8", (4, 3)),  # Lambda
+        ("s_z", "f8", (4, 4)),
+        ("settled", "b1"),  # S_z has reached its limit: L is constant from here on
+        ("gain", "f8", (4, 2)),  # L = S_z^-1 C^T Sigma at the present S_z
+        ("s_theta", "f8", (3, 3)),
+        ("theta_hat", "f8", 3),
+        ("y_prev", "f8", 2),
+        # scratch
+        ("gains", "f8", (3, 4, 2)),  # L at the start, middle and end of the period
+        ("s_mid", "f8", (4, 4)),
+        ("s_end", "f8", (4, 4)),
+        ("tmp", "f8", (4, 4)),
+        ("lo", "f8", (4, 4)),  # Cholesky factor
+        ("x", "f8", (4, 4)),  # X = [xi | Lambda]
+        ("stage", "f8", (4, 4)),
+        ("k", "f8", (4, 4, 4)),  # the four RK4 slopes
+        ("x_new", "f8", (4, 4)),
+        ("weighted", "f8", (3, 2)),  # Phi^T Sigma
+        ("s_theta_new", "f8", (3, 3)),
+        ("rhs", "f8", (3, 1)),
+        ("step", "f8", (3, 1)),
+        ("innovation", "f8", 2),  # a priori y - C z_hat of the last period
+        ("z_hat", "f8", 4),  # z_hat = xi + Lambda theta_hat after the last update
+    ]
+)
 
-    The Cholesky factor doubles as the positive-definiteness check (a pivot <= 0 or NaN fails,
-    as LAPACK's potrf does).
+#: What the compiled step takes as constants (``AdaptiveObserver.consts``).
+OBSERVER_CONSTS = np.dtype(
+    [
+        ("dt", "f8"),
+        ("a", "f8", (4, 4)),  # A of eq. (12), the observer's (nominal) model
+        ("c_t_sigma", "f8", (4, 2)),  # C^T Sigma
+        ("sigma", "f8", (2, 2)),
+        ("half_map", "f8", (4, 4)),  # E: exact half-period map of S_z
+        ("half_input", "f8", (4, 4)),  # Q_h
+        ("forgetting", "f8"),  # exp(-rho_theta dt)
+        ("floor_input", "f8"),  # (1 - exp(-rho_theta dt)) s_theta_floor
+        ("omega", "f8"),
+        ("m1", "f8"),
+        ("m2", "f8"),
+    ]
+)
+
+
+@njit(cache=True, error_model="numpy")
+def cholesky_solve_into(a: np.ndarray, b: np.ndarray, lo: np.ndarray, x: np.ndarray) -> bool:
+    """x <- a^-1 b for a symmetric positive definite a (n x n), b (n x m); False (x zero) if a is not.
+
+    The Cholesky factor (into ``lo``) doubles as the positive-definiteness check (a pivot <= 0 or
+    NaN fails, as LAPACK's potrf does).
     """
     n = a.shape[0]
-    lo = np.zeros((n, n))
     for j in range(n):
         d = a[j, j]
         for k in range(j):
             d -= lo[j, k] * lo[j, k]
         if not d > 0.0:
-            return False, np.zeros_like(b)
+            x[:] = 0.0
+            return False
         lo[j, j] = math.sqrt(d)
         for i in range(j + 1, n):
             s = a[i, j]
             for k in range(j):
                 s -= lo[i, k] * lo[j, k]
             lo[i, j] = s / lo[j, j]
-    x = b.copy()
+    x[:] = b
     for c in range(b.shape[1]):  # L w = b, then L^T x = w
         for i in range(n):
             s = x[i, c]
@@ -85,142 +134,240 @@ def cholesky_solve(a: np.ndarray, b: np.ndarray) -> tuple[bool, np.ndarray]:
             for k in range(i + 1, n):
                 s -= lo[k, i] * x[k, c]
             x[i, c] = s / lo[i, i]
-    return True, x
+    return True
 
 
 @njit(cache=True, error_model="numpy")
-def _half_step_s_z(s_z: np.ndarray, half_map: np.ndarray, half_input: np.ndarray) -> np.ndarray:
-    """S_z half a period later, exactly: E^T S_z E + Q_h (docs/numerics.md, observer step 1)."""
-    return matmul(matmul(half_map.T, s_z), half_map) + half_input
+def cholesky_solve(a: np.ndarray, b: np.ndarray) -> tuple[bool, np.ndarray]:
+    """x = a^-1 b (:func:`cholesky_solve_into` into new arrays); False if a is not positive definite."""
+    x = np.empty_like(b)
+    ok = cholesky_solve_into(a, b, np.empty_like(a), x)
+    return ok, x
 
 
 @njit(cache=True, error_model="numpy")
-def _observer_rhs(
-    t: float,
-    x: np.ndarray,
-    t0: float,
-    dt: float,
-    gains: np.ndarray,
-    a: np.ndarray,
-    y0: np.ndarray,
-    dy: np.ndarray,
-    u: float,
-    omega: float,
-    m1: float,
-    m2: float,
-) -> np.ndarray:
-    """X' = (A - L C) X + [phi(u) + L y, psi(y)] for X = [xi | Lambda], eq. (17) in xi form.
+def _half_step_s_z(s_z: np.ndarray, half_map: np.ndarray, half_input: np.ndarray, tmp: np.ndarray, out):
+    """out <- S_z half a period later, exactly: E^T S_z E + Q_h (docs/numerics.md, observer step 1)."""
+    for i in range(4):
+        for j in range(4):
+            s = 0.0
+            for k in range(4):
+                s += half_map[k, i] * s_z[k, j]
+            tmp[i, j] = s
+    for i in range(4):
+        for j in range(4):
+            s = 0.0
+            for k in range(4):
+                s += tmp[i, k] * half_map[k, j]
+            out[i, j] = s + half_input[i, j]
+
+
+@njit(cache=True, error_model="numpy")
+def _observer_rhs(t, x, t0, dt, gains, a, y0_1, y0_2, dy_1, dy_2, u, omega, m1, m2, out) -> None:
+    """out <- X' = (A - L C) X + [phi(u) + L y, psi(y)] for X = [xi | Lambda], eq. (17) in xi form.
 
     L is known exactly at the RK4 stage times (start, middle, end of the period:
     ``gains[0..2]``); y is interpolated linearly between the samples.
     """
     frac = (t - t0) / dt
-    gain = gains[round(2.0 * frac)]
-    y1_s, y2_s = y0[0] + frac * dy[0], y0[1] + frac * dy[1]  # y at t (scalars: no allocation)
-    closed = a.copy()  # A - L C
-    closed[:, :2] -= gain
-    out = matmul(closed, x)
+    g = round(2.0 * frac)
+    y1_s, y2_s = y0_1 + frac * dy_1, y0_2 + frac * dy_2  # y at t
     for i in range(4):
-        out[i, 0] += gain[i, 0] * y1_s + gain[i, 1] * y2_s  # + L y
+        for j in range(4):
+            s = 0.0
+            for k in range(4):
+                c = a[i, k] - gains[g, i, k] if k < 2 else a[i, k]  # A - L C
+                s += c * x[k, j]
+            out[i, j] = s
+    for i in range(4):
+        out[i, 0] += gains[g, i, 0] * y1_s + gains[g, i, 1] * y2_s  # + L y
     out[3, 0] += model.actuator_acceleration(u, m2)  # + phi(u), eq. (14)
-    out[2, 1:] += model.regressor_row(y1_s, t, omega, m1)  # + psi(y), eq. (15)
-    return out
-
-
-# The observer's state and constants travel through the compiled functions as tuples:
-#   state  = (xi, Lambda, S_z, S_z settled, L, S_theta, theta_hat, y_prev)
-#   consts = (dt, A, C^T Sigma, Sigma, E, Q_h, exp(-rho_theta dt), (1 - exp(-rho_theta dt)) s_floor,
-#             omega, m1, m2)
+    r0, r1, r2 = model.regressor_row3(y1_s, t, omega, m1)  # + psi(y), eq. (15)
+    out[2, 1] += r0
+    out[2, 2] += r1
+    out[2, 3] += r2
 
 
 @njit(cache=True, error_model="numpy")
-def observer_initial_state(xi0: np.ndarray, theta_hat0: np.ndarray, s_z0: float, s_theta0: float, consts):
-    """The state at the initial conditions: Lambda(0) = 0 (z_hat(0) carries no theta information)."""
-    s_z = s_z0 * np.eye(4)
-    ok, gain = cholesky_solve(s_z, consts[2])  # L = S_z^-1 C^T Sigma
-    if not ok:
-        gain[:] = np.nan
-    s_theta = s_theta0 * np.eye(3)
-    return (xi0.copy(), np.zeros((4, 3)), s_z, False, gain, s_theta, theta_hat0.copy(), np.zeros(2))
+def _axpy_into(x: np.ndarray, a: float, k: np.ndarray, out: np.ndarray) -> None:
+    """out <- x + a k (4 x 4)."""
+    for i in range(4):
+        for j in range(4):
+            out[i, j] = x[i, j] + a * k[i, j]
 
 
 @njit(cache=True, error_model="numpy")
-def observer_output(state) -> np.ndarray:
-    """z_hat = xi + Lambda theta_hat (docs/numerics.md)."""
-    xi, lam, theta_hat = state[0], state[1], state[6]
-    return xi + matvec(lam, theta_hat)
+def observer_init(st, xi0: np.ndarray, theta_hat0: np.ndarray, s_z0: float, s_theta0: float, c) -> None:
+    """st <- the state at the initial conditions: Lambda(0) = 0 (z_hat(0) carries no theta information)."""
+    st.xi[:] = xi0
+    st.lam[:] = 0.0
+    for i in range(4):
+        for j in range(4):
+            st.s_z[i, j] = s_z0 * (1.0 if i == j else 0.0)
+    st.settled = False
+    if not cholesky_solve_into(st.s_z, c.c_t_sigma, st.lo, st.gain):  # L = S_z^-1 C^T Sigma
+        st.gain[:] = np.nan
+    for i in range(3):
+        for j in range(3):
+            st.s_theta[i, j] = s_theta0 * (1.0 if i == j else 0.0)
+    st.theta_hat[:] = theta_hat0
+    st.y_prev[:] = 0.0
+    st.innovation[:] = 0.0
+    observer_output(st)
 
 
 @njit(cache=True, error_model="numpy")
-def observer_step(t0: float, state, y_now: np.ndarray, u: float, consts):
-    """One sample period of the observer from t0 to t0 + dt (docs/numerics.md, steps 1-3).
+def observer_output(st) -> None:
+    """st.z_hat <- xi + Lambda theta_hat (docs/numerics.md)."""
+    for i in range(4):
+        s = 0.0
+        for k in range(3):
+            s += st.lam[i, k] * st.theta_hat[k]
+        st.z_hat[i] = st.xi[i] + s
 
-    Pure: the inputs are not modified.  Returns (status, state, innovation); status 0 is
-    fine, otherwise a key of ``_DIVERGED_REASONS`` and the returned state is the input state.
+
+@njit(cache=True, error_model="numpy")
+def observer_step(t0: float, st, y1: float, y2: float, u: float, c) -> int:
+    """One sample period of the observer from t0 to t0 + dt (docs/numerics.md, steps 1-3), in place.
+
+    Returns the status: 0 fine (the state has moved on and ``st.innovation`` is the a priori
+    y - C z_hat), otherwise a key of ``_DIVERGED_REASONS`` and the state is untouched.
     """
-    xi, lam, s_z, s_z_settled, gain_now, s_theta, theta_hat, y_prev = state
-    dt, a, c_t_sigma, sigma, sz_half_map, sz_half_input, forgetting, floor_input, omega, m1, m2 = consts
+    dt = c.dt
+    gains = st.gains
     # 1. S_z exactly at the start, middle and end of the period (until it has settled).
-    gains = np.empty((3, 4, 2))
-    gains[0] = gain_now
-    if s_z_settled:
-        s_z_end = s_z
-        gains[1] = gain_now
-        gains[2] = gain_now
+    gains[0] = st.gain
+    if st.settled:
+        s_z_end = st.s_z
+        gains[1] = st.gain
+        gains[2] = st.gain
     else:
-        s_z_mid = _half_step_s_z(s_z, sz_half_map, sz_half_input)
-        s_z_end = _half_step_s_z(s_z_mid, sz_half_map, sz_half_input)
-        _, gains[1] = cholesky_solve(s_z_mid, c_t_sigma)  # L = S_z^-1 C^T Sigma
-        _, gains[2] = cholesky_solve(s_z_end, c_t_sigma)
+        _half_step_s_z(st.s_z, c.half_map, c.half_input, st.tmp, st.s_mid)
+        _half_step_s_z(st.s_mid, c.half_map, c.half_input, st.tmp, st.s_end)
+        s_z_end = st.s_end
+        cholesky_solve_into(st.s_mid, c.c_t_sigma, st.lo, gains[1])  # L = S_z^-1 C^T Sigma
+        cholesky_solve_into(st.s_end, c.c_t_sigma, st.lo, gains[2])
 
-    # 2. X = [xi | Lambda], one RK4 step.
-    x = np.empty((4, 4))
-    x[:, 0] = xi
-    x[:, 1:] = lam
-    x = rk4_step(_observer_rhs, t0, x, dt, (t0, dt, gains, a, y_prev, y_now - y_prev, u, omega, m1, m2))
-    innovation = np.zeros(2)
-    if not np.isfinite(x).all():
-        return 1, state, innovation
-    xi_new = x[:, 0].copy()
-    lam_new = x[:, 1:].copy()
+    # 2. X = [xi | Lambda], one RK4 step (the arithmetic of pac_common.integrate.rk4_step).
+    x, stage, k, x_new = st.x, st.stage, st.k, st.x_new
+    x[:, 0] = st.xi
+    x[:, 1:] = st.lam
+    y0_1, y0_2 = st.y_prev[0], st.y_prev[1]
+    dy_1, dy_2 = y1 - y0_1, y2 - y0_2
+    args = (t0, dt, gains, c.a, y0_1, y0_2, dy_1, dy_2, u, c.omega, c.m1, c.m2)
+    h = dt
+    _observer_rhs(t0, x, *args, k[0])
+    _axpy_into(x, 0.5 * h, k[0], stage)
+    _observer_rhs(t0 + 0.5 * h, stage, *args, k[1])
+    _axpy_into(x, 0.5 * h, k[1], stage)
+    _observer_rhs(t0 + 0.5 * h, stage, *args, k[2])
+    _axpy_into(x, h, k[2], stage)
+    _observer_rhs(t0 + h, stage, *args, k[3])
+    finite = True
+    for i in range(4):
+        for j in range(4):
+            v = x[i, j] + (h / 6.0) * (k[0, i, j] + 2.0 * (k[1, i, j] + k[2, i, j]) + k[3, i, j])
+            x_new[i, j] = v
+            finite = finite and math.isfinite(v)
+    if not finite:
+        st.innovation[:] = 0.0
+        return 1
 
-    # 3. RLS: implicit Euler of the theta_hat / S_theta equations.
-    phi_reg = lam_new[:2, :].copy()  # Phi = C Lambda (2x3)
-    weighted = matmul(phi_reg.T, sigma)  # Phi^T Sigma (3x2)
-    s_theta_new = forgetting * s_theta + dt * matmul(weighted, phi_reg) + floor_input * np.eye(3)
-    innovation = y_now - xi_new[:2] - matvec(phi_reg, theta_hat)  # a priori, y - C z_hat
-    rhs = (dt * matvec(weighted, innovation)).reshape((3, 1))
-    ok, step = cholesky_solve(s_theta_new, rhs)
-    if not ok:
-        return 2, state, innovation
-    theta_new = theta_hat + step[:, 0]
-    if not np.isfinite(theta_new).all():
-        return 3, state, innovation
+    # 3. RLS: implicit Euler of the theta_hat / S_theta equations; Phi = C Lambda = x_new[:2, 1:].
+    w, sigma = st.weighted, c.sigma
+    for i in range(3):
+        for j in range(2):
+            s = 0.0
+            for m in range(2):
+                s += x_new[m, 1 + i] * sigma[m, j]
+            w[i, j] = s  # Phi^T Sigma
+    for i in range(3):
+        for j in range(3):
+            s = 0.0
+            for m in range(2):
+                s += w[i, m] * x_new[m, 1 + j]
+            st.s_theta_new[i, j] = (c.forgetting * st.s_theta[i, j] + dt * s) + c.floor_input * (
+                1.0 if i == j else 0.0
+            )
+    th = st.theta_hat
+    for i in range(2):  # a priori, y - C z_hat
+        s = 0.0
+        for m in range(3):
+            s += x_new[i, 1 + m] * th[m]
+        st.innovation[i] = ((y1 if i == 0 else y2) - x_new[i, 0]) - s
+    for i in range(3):
+        s = 0.0
+        for m in range(2):
+            s += w[i, m] * st.innovation[m]
+        st.rhs[i, 0] = dt * s
+    if not cholesky_solve_into(st.s_theta_new, st.rhs, st.lo, st.step):
+        return 2
+    for i in range(3):
+        if not math.isfinite(th[i] + st.step[i, 0]):
+            return 3
 
-    settled = s_z_settled
-    if not s_z_settled:
-        settled = np.max(np.abs(s_z_end - s_z)) <= 1e-13 * np.max(np.abs(s_z_end))
-    new = (xi_new, lam_new, s_z_end, settled, gains[2].copy(), s_theta_new, theta_new, y_now.copy())
-    return 0, new, innovation
+    if not st.settled:
+        big, diff = 0.0, 0.0
+        for i in range(4):
+            for j in range(4):
+                b, d = abs(s_z_end[i, j]), abs(s_z_end[i, j] - st.s_z[i, j])
+                big = b if (b > big or b != b) else big
+                diff = d if (d > diff or d != d) else diff
+        st.s_z[:] = s_z_end
+        st.settled = diff <= 1e-13 * big
+    for i in range(3):
+        th[i] = th[i] + st.step[i, 0]
+    st.xi[:] = x_new[:, 0]
+    st.lam[:] = x_new[:, 1:]
+    st.gain[:] = gains[2]
+    st.s_theta[:] = st.s_theta_new
+    st.y_prev[0], st.y_prev[1] = y1, y2
+    return 0
 
 
 @njit(cache=True, error_model="numpy")
-def observer_advance(tick: int, state, y_now: np.ndarray, gap: int, u: float, consts):
+def observer_advance(tick: int, st, y1: float, y2: float, gap: int, u: float, c) -> tuple[int, int]:
     """From ``tick`` to ``tick + gap``: ``gap`` periods, y interpolated linearly from y_prev, u held.
 
-    Returns (status, tick reached or failed at, state, a priori innovation of the last period);
-    on failure the returned state is the input state.
+    Returns (status, tick reached or failed at); ``st.z_hat`` is then the new estimate and
+    ``st.innovation`` the a priori innovation of the last period.  A failure in period j > 1
+    leaves the state after period j - 1 (the caller restores a copy if it must).
     """
-    dt = consts[0]
-    y_start = state[7]
-    new = state
-    innovation = np.zeros(2)
+    dt = c.dt
+    y_start_1, y_start_2 = st.y_prev[0], st.y_prev[1]
     for j in range(1, gap + 1):
-        y_j = y_start + (j / gap) * (y_now - y_start)
-        status, new, innovation = observer_step((tick + j - 1) * dt, new, y_j, u, consts)
+        f = j / gap
+        y_j1 = y_start_1 + f * (y1 - y_start_1)
+        y_j2 = y_start_2 + f * (y2 - y_start_2)
+        status = observer_step((tick + j - 1) * dt, st, y_j1, y_j2, u, c)
         if status:
-            return status, tick + j, state, innovation
-    return 0, tick + gap, new, innovation
+            return status, tick + j
+    observer_output(st)
+    return 0, tick + gap
+
+
+@njit(cache=True, error_model="numpy")
+def observer_start(st, y1: float, y2: float) -> None:
+    """The first sample: remembered as y_prev, the innovation against the initial z_hat."""
+    st.y_prev[0], st.y_prev[1] = y1, y2
+    observer_output(st)
+    st.innovation[0] = y1 - st.z_hat[0]
+    st.innovation[1] = y2 - st.z_hat[1]
+
+
+@njit(cache=True, error_model="numpy")
+def _init_one(states, xi0, theta_hat0, s_z0, s_theta0, consts) -> None:
+    observer_init(states[0], xi0, theta_hat0, s_z0, s_theta0, consts[0])
+
+
+@njit(cache=True, error_model="numpy")
+def _start_one(states, y1, y2) -> None:
+    observer_start(states[0], y1, y2)
+
+
+@njit(cache=True, error_model="numpy")
+def _advance_one(states, tick, y1, y2, gap, u, consts) -> tuple[int, int]:
+    return observer_advance(tick, states[0], y1, y2, gap, u, consts[0])
 
 
 class ObserverDivergedError(RuntimeError):
@@ -278,22 +425,14 @@ class AdaptiveObserver:
         # contact) cannot let S_theta underflow; floor is ~1e6 times below the information
         # a 100 N contact gives (docs/numerics.md).
         self._floor_input = (1.0 - self._theta_forgetting) * params.s_theta_floor
-        #: What the compiled functions take as ``consts``.
-        # C-contiguous float64 everywhere: one compiled specialisation, the one the cache holds.
-        c_arr = np.ascontiguousarray
-        self.consts = (
-            float(dt),
-            c_arr(a, dtype=np.float64),
-            c_arr(self._c_t_sigma, dtype=np.float64),
-            c_arr(sigma, dtype=np.float64),
-            c_arr(self._sz_half_map, dtype=np.float64),
-            c_arr(self._sz_half_input, dtype=np.float64),
-            float(self._theta_forgetting),
-            float(self._floor_input),
-            float(self.omega),
-            float(pantograph.m1),
-            float(pantograph.m2),
-        )
+        #: What the compiled functions take as constants: one OBSERVER_CONSTS record.
+        self.consts = np.zeros(1, OBSERVER_CONSTS)
+        c = self.consts[0]
+        c["dt"], c["a"], c["c_t_sigma"], c["sigma"] = dt, a, self._c_t_sigma, sigma
+        c["half_map"], c["half_input"] = self._sz_half_map, self._sz_half_input
+        c["forgetting"], c["floor_input"] = self._theta_forgetting, self._floor_input
+        c["omega"], c["m1"], c["m2"] = self.omega, pantograph.m1, pantograph.m2
+        self._st = np.zeros(1, OBSERVER_STATE)
         self.reset()
 
     # -- state -----------------------------------------------------------------
@@ -301,43 +440,38 @@ class AdaptiveObserver:
         """Back to the initial conditions of :class:`ObserverParameters` (tick 0)."""
         p = self.params
         self.tick = -1  # no sample processed yet
-        self._set_state(
-            observer_initial_state(
-                np.array(p.z_hat0, dtype=float),
-                np.array(p.theta_hat0, dtype=float),
-                float(p.s_z0),
-                float(p.s_theta0),
-                self.consts,
-            )
+        _init_one(
+            self._st,
+            np.array(p.z_hat0, dtype=float),
+            np.array(p.theta_hat0, dtype=float),
+            float(p.s_z0),
+            float(p.s_theta0),
+            self.consts,
         )
 
     @property
+    def state(self) -> np.ndarray:
+        """The OBSERVER_STATE record (a 1-element array): what the compiled loop starts from."""
+        return self._st
+
+    @property
     def z_hat(self) -> np.ndarray:
-        return observer_output(self._state())
+        """z_hat = xi + Lambda theta_hat (a copy)."""
+        return self._st["z_hat"][0].copy()
 
-    def _state(self) -> tuple:
-        return (
-            self.xi,
-            self.lam,
-            self.s_z,
-            self._s_z_settled,
-            self._gain_now,
-            self.s_theta,
-            self.theta_hat,
-            self._y_prev,
-        )
+    xi = property(lambda self: self._st["xi"][0])
+    lam = property(lambda self: self._st["lam"][0])
+    s_z = property(lambda self: self._st["s_z"][0])
+    s_theta = property(lambda self: self._st["s_theta"][0])
+    theta_hat = property(lambda self: self._st["theta_hat"][0])
 
-    def _set_state(self, state: tuple) -> None:
-        (
-            self.xi,
-            self.lam,
-            self.s_z,
-            self._s_z_settled,
-            self._gain_now,
-            self.s_theta,
-            self.theta_hat,
-            self._y_prev,
-        ) = state
+    def warm_up(self) -> None:
+        """Updates on a copy (first sample, a tick, a gap): numba loads the compiled code now, not at
+        the loop's first tick."""
+        twin = copy.deepcopy(self)
+        twin.update(0, (0.0, 0.0), 0.0)
+        twin.update(1, (0.0, 0.0), 0.0)
+        twin.update(3, (0.0, 0.0), 0.0)
 
     # -- one tick ----------------------------------------------------------------
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
@@ -349,32 +483,34 @@ class AdaptiveObserver:
         :func:`observer_advance`).  Raises :class:`ObserverDivergedError` and leaves
         the state untouched if the update is not finite or S_theta is not positive definite.
         """
-        y_now = np.array(y, dtype=float)
+        y1, y2 = float(y[0]), float(y[1])
         if self.tick < 0:
             self.tick = tick
-            self._y_prev = y_now
-            return self._estimate(y_now, y_now - self.z_hat[:2])
+            _start_one(self._st, y1, y2)
+            return self._estimate(y1)
         gap = tick - self.tick
         if gap < 1:
             raise ValueError(f"observer expects a tick after {self.tick}, got {tick}")
-        status, reached, state, innovation = observer_advance(
-            self.tick, self._state(), y_now, gap, float(actuator_force), self.consts
-        )
+        saved = self._st.copy() if gap > 1 else None  # a single period leaves the state untouched itself
+        status, reached = _advance_one(self._st, self.tick, y1, y2, gap, float(actuator_force), self.consts)
         if status:
+            if saved is not None:
+                self._st[:] = saved
             raise ObserverDivergedError(reached, _DIVERGED_REASONS[status])
-        self._set_state(state)
         self.tick = reached
-        return self._estimate(y_now, innovation)
+        return self._estimate(y1)
 
-    def _estimate(self, y_now: np.ndarray, innovation: np.ndarray) -> Estimate:
+    def _estimate(self, y1: float) -> Estimate:
         t = self.tick * self.sample_period
-        k_hat = model.stiffness(t, self.omega, self.theta_hat)
+        st = self._st[0]
+        theta_hat = st["theta_hat"].copy()
+        k_hat = model.stiffness(t, self.omega, theta_hat)
         return Estimate(
             tick=self.tick,
             time=t,
-            z_hat=self.z_hat,
-            theta_hat=self.theta_hat.copy(),
+            z_hat=st["z_hat"].copy(),
+            theta_hat=theta_hat,
             stiffness_hat=k_hat,
-            contact_force_hat=k_hat * float(y_now[0]),
-            innovation=innovation,
+            contact_force_hat=k_hat * y1,
+            innovation=st["innovation"].copy(),
         )

@@ -83,6 +83,7 @@ class ObserverNode(PacNode):
             self.parameters(ObserverParameters),
             self.loop.sample_period,
         )
+        self.core.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.estimate_pub = self.create_publisher(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", PUBLISH_QOS
         )
@@ -90,6 +91,7 @@ class ObserverNode(PacNode):
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", self.on_measurement, LOOP_QOS
         )
         self.follow_run()
+        self.watch_start(self.missing)
         self.last_estimate = None  # (estimate, status, rejected, reinitialisations) last published
         self.last_seen_tick = -1
         self.reinitialisations = 0
@@ -101,6 +103,10 @@ class ObserverNode(PacNode):
 
     def apply_parameters(self, changed: dict) -> None:
         self.limits = changed.get(MeasurementLimits, self.limits)
+
+    def missing(self) -> list[str]:
+        """The peers this node's output still waits for, by name (empty: ready)."""
+        return self.readers_missing(self.estimate_pub, "estimate", "a controller")
 
     def ready(self) -> bool:
         return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)

@@ -23,9 +23,10 @@ import numpy as np
 
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .catenary import kernels
 from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.integrator import ContactSimulation
-from .catenary.line import Line, hermite_shape
+from .catenary.line import Line
 from .catenary.pantographs import paper_pantograph
 from .parameters import PlantOptions
 from .plant import Plant, Truth
@@ -66,6 +67,8 @@ class FEPlant(Plant):
             endless=True,
         )
         self.datum = self.line.static_height(self.sim.x)
+        self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
+        self.sim.readings(self._flex, self._readings)
         self.tick = 0
         self.u_applied = 0.0
         self._init_sensor()
@@ -73,34 +76,32 @@ class FEPlant(Plant):
     @property
     def z(self) -> np.ndarray:
         """(z1, z2, z1', z2') of eq. (4) from the FE state (heights above the datum, ``fe_datum``)."""
-        s = self.sim
+        p, vp = self.sim.state.p, self.sim.state.vp
         if self.options.fe_datum == "static_wire":
             # The datum moves with the contact point along the pre-sagged static wire.
-            datum, rate = self.line.static_height(s.x), s.speed * self.line.static_slope(s.x)
+            r = self._readings
+            datum, rate = r[kernels.STATIC_HEIGHT], self.sim.speed * r[kernels.STATIC_SLOPE]
         else:
             datum, rate = self.datum, 0.0
-        return np.array([s.p[0] - datum, s.p[1] - datum, s.vp[0] - rate, s.vp[1] - rate])
+        return np.array([p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate])
 
     def stiffness_at(self, t: float | None = None) -> float:
         """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""
-        e, xi = self.line.locate(self.sim.x)
-        n = hermite_shape(xi, self.line.h[e])
-        return 1.0 / float(n @ self._flex[e] @ n)
+        return float(self._readings[kernels.STATIC_STIFFNESS])
 
     def truth(self) -> Truth:
-        s = self.sim
-        span = self.data.span
-        support = round(s.x / span) * span
+        s, r = self.sim, self._readings
+        force = s.contact_force
         return Truth(
             tick=self.tick,
             time=self.time,
-            z=tuple(float(v) for v in self.z),
-            stiffness=self.stiffness_at(),
-            contact_force=s.contact_force,
-            in_contact=s.contact_force > 0.0,
+            z=tuple(self.z.tolist()),
+            stiffness=float(r[kernels.STATIC_STIFFNESS]),
+            contact_force=force,
+            in_contact=force > 0.0,
             u_applied=self.u_applied,
-            contact_uplift=s.uplift(),
-            support_uplift=s.uplift(support),
+            contact_uplift=float(r[kernels.CONTACT_UPLIFT]),
+            support_uplift=float(r[kernels.SUPPORT_UPLIFT]),  # at the support nearest x
             contact_position=s.position,
         )
 
@@ -108,8 +109,7 @@ class FEPlant(Plant):
         """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
         if not math.isfinite(u):
             raise ValueError(f"actuator force must be finite, got {u!r}")
-        for _ in range(self.options.fe_substeps):
-            self.sim.step(u)
+        self.sim.advance(u, self.options.fe_substeps, self._flex, self._readings)
         self.tick += 1
         self.u_applied = float(u)
 

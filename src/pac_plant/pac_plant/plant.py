@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from pac_common.integrate import rk4_integrate
 from pac_model import model
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
@@ -33,7 +33,7 @@ class Truth:
 
     tick: int
     time: float
-    z: tuple[float, float, float, float]
+    z: tuple[float, ...]  # (z1, z2, z1dot, z2dot), eq. (4)
     stiffness: float
     contact_force: float
     in_contact: bool
@@ -65,7 +65,24 @@ def plant_rhs(
 
 
 @njit(cache=True)
-def plant_advance(
+def plant_advance(z: np.ndarray, *args) -> np.ndarray:
+    """z at t0 + period from z at t0, u held (ZOH): :func:`plant_advance_inplace` (its arguments
+    after z) on a copy."""
+    out = z.copy()
+    plant_advance_inplace(out, *args)
+    return out
+
+
+@njit(cache=True)
+def _rhs4(t, z0, z1, z2, z3, u, a, theta, omega, m1, m2, unilateral):
+    """:func:`plant_rhs` on four numbers (eq. (5), k(t) of eq. (7)/(8), F of eq. (6))."""
+    k = model.stiffness(t, omega, theta)
+    force = model.contact_force(k, z0, unilateral)
+    return model.pantograph_rhs4(z0, z1, z2, z3, u, force, a, m1, m2)
+
+
+@njit(cache=True)
+def plant_advance_inplace(
     z: np.ndarray,
     t0: float,
     period: float,
@@ -77,9 +94,29 @@ def plant_advance(
     m1: float,
     m2: float,
     unilateral: bool,
-) -> np.ndarray:
-    """z at t0 + period from z at t0, u held (ZOH): ``substeps`` RK4 steps of :func:`plant_rhs`."""
-    return rk4_integrate(plant_rhs, t0, z, period, substeps, (u, a, theta, omega, m1, m2, unilateral))
+) -> None:
+    """z <- z at t0 + period, u held (ZOH): ``substeps`` classical RK4 steps of :func:`plant_rhs`.
+
+    The state is four numbers, so the stages live in registers: nothing is allocated.  The
+    arithmetic is that of ``pac_common.integrate.rk4_step`` element by element (x + (h/2) k1, ...,
+    x + (h/6)(k1 + 2 (k2 + k3) + k4)).
+    """
+    h = period / substeps
+    x0, x1, x2, x3 = z[0], z[1], z[2], z[3]
+    args = (u, a, theta, omega, m1, m2, unilateral)
+    for i in range(substeps):
+        t = t0 + i * h
+        a1 = _rhs4(t, x0, x1, x2, x3, *args)
+        c = 0.5 * h
+        a2 = _rhs4(t + 0.5 * h, x0 + c * a1[0], x1 + c * a1[1], x2 + c * a1[2], x3 + c * a1[3], *args)
+        a3 = _rhs4(t + 0.5 * h, x0 + c * a2[0], x1 + c * a2[1], x2 + c * a2[2], x3 + c * a2[3], *args)
+        a4 = _rhs4(t + h, x0 + h * a3[0], x1 + h * a3[1], x2 + h * a3[2], x3 + h * a3[3], *args)
+        w = h / 6.0
+        x0 = x0 + w * (a1[0] + 2.0 * (a2[0] + a3[0]) + a4[0])
+        x1 = x1 + w * (a1[1] + 2.0 * (a2[1] + a3[1]) + a4[1])
+        x2 = x2 + w * (a1[2] + 2.0 * (a2[2] + a3[2]) + a4[2])
+        x3 = x3 + w * (a1[3] + 2.0 * (a2[3] + a3[3]) + a4[3])
+    z[0], z[1], z[2], z[3] = x0, x1, x2, x3
 
 
 @njit(cache=True)
@@ -161,6 +198,25 @@ class Plant:
             self._noise_block_index = block
         n1, n2 = self._noise_block[tick % self._NOISE_BLOCK]
         return float(n1), float(n2)
+
+    def warm_up(self) -> None:
+        """Run a tick on a copy: numba loads the compiled code now, not at the loop's first tick."""
+        twin = copy.deepcopy(self)
+        twin.measurement()
+        twin.truth()
+        twin.advance(0.0)
+
+    def noise_rows(self, k0: int, k1: int) -> np.ndarray:
+        """The noise of ticks k0..k1-1 (one row each): the numbers :meth:`measurement` adds."""
+        out = np.empty((k1 - k0, 2))
+        k = k0
+        while k < k1:
+            self._noise(k)  # makes the block of tick k the current one
+            start = k % self._NOISE_BLOCK
+            end = min(k1, k - start + self._NOISE_BLOCK)
+            out[k - k0 : end - k0] = self._noise_block[start : start + end - k]
+            k = end
+        return out
 
     def truth(self) -> Truth:
         t = self.time

@@ -94,6 +94,7 @@ class PlantNode(PacNode):
             self.parameters(PlantOptions),
             loop.sample_period,
         )
+        self.plant.warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.measurement_pub = self.create_publisher(
             self.factory.cls(messages.FRAME_MEASUREMENT), "measurement", PUBLISH_QOS
         )
@@ -126,6 +127,7 @@ class PlantNode(PacNode):
         self.late_ticks = 0  # ticks taken late, in a catch-up burst
         self.slips = 0  # times the schedule was reset because the loop fell too far behind
         self.start_timer = self.create_timer(0.01, self.try_start)
+        self.watch_start(self.missing)
         self.get_logger().info(
             f"{self.options.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
             f"({'until stopped' if loop.duration == 0 else f'{loop.ticks} ticks'}); waiting for the loop"
@@ -139,13 +141,18 @@ class PlantNode(PacNode):
         )
 
     # -- start-up: wait for the loop (and the recorder) to be matched, never a blind sleep ----------
-    def ready(self) -> bool:
+    def missing(self) -> list[str]:
+        """The peers the run still waits for, by name (empty: ready)."""
         recorder = int(self.node_options.wait_for_recorder)
-        return (
-            self.measurement_pub.get_subscription_count() >= 1 + recorder
-            and self.truth_pub.get_subscription_count() >= recorder
-            and self.command_sub.get_publisher_count() >= 1
-        )
+        out = self.readers_missing(self.measurement_pub, "measurement", "an observer")
+        if self.truth_pub.get_subscription_count() < recorder:
+            out.append("a recorder subscribed to plant_truth (wait_for_recorder)")
+        if self.command_sub.get_publisher_count() < 1:
+            out.append("a controller publishing command")
+        return out
+
+    def ready(self) -> bool:
+        return not self.missing()
 
     def try_start(self) -> None:
         if not self.ready():
@@ -188,8 +195,13 @@ class PlantNode(PacNode):
 
     def publish_run_status(self, state: int) -> None:
         k = self.plant.tick
+        model = self.parameters(PlantOptions).catenary_model
+        data = getattr(self.plant, "data", None)  # the FE line's data (55 m spans)
+        span = self.parameters(TrackParameters).span_length
+        if model == "fe" and data is not None:
+            span = data.span
         fields = messages.run_status_fields(
-            k, state, self.loop.duration, messages.tick_stamp_ns(k, self.loop.rate_hz)
+            k, state, self.loop.duration, messages.tick_stamp_ns(k, self.loop.rate_hz), model, span
         )
         self.run_status_pub.publish(self.factory.make(messages.RUN_STATUS, fields))
 

@@ -13,6 +13,8 @@ from typing import Any
 
 import yaml
 
+from pac_common.command_line import ROS_OWN_PARAMETERS
+
 
 class OverrideError(ValueError):
     """An override or a params file that cannot be read; the message is one line."""
@@ -23,8 +25,21 @@ def add_override_arguments(parser: argparse.ArgumentParser) -> None:
         "-p", "--param", action="append", default=[], metavar="NAME:=VALUE", help="parameter override"
     )
     parser.add_argument(
-        "--params-file", type=Path, help="YAML of name: value pairs (flat, or a ROS 2 parameter file)"
+        "--params-file",
+        type=Path,
+        action="append",
+        default=[],
+        help="YAML of name: value pairs (flat, or a ROS 2 parameter file such as a `ros2 param dump`); "
+        "may be repeated, later files win",
     )
+
+
+def without_ros_args(argv: list[str]) -> list[str]:
+    """``--ros-args -p a:=1 --params-file f --`` as a node takes it -> the same options here.
+
+    ``--param`` is ``-p``; the ``--ros-args`` and ``--`` markers themselves carry nothing offline.
+    """
+    return [a for a in argv if a not in ("--ros-args", "--")]
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
@@ -59,14 +74,16 @@ def load_params_file(path: Path) -> dict[str, Any]:
             out.update(value["ros__parameters"])  # /**: or /node_name: sections, in file order
         else:
             out[key] = value
+    for name in ROS_OWN_PARAMETERS:  # in every `ros2 param dump`; nothing to do offline
+        out.pop(name, None)
     return out
 
 
 def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """The params file (if any), then the ``-p`` overrides on top."""
     values: dict[str, Any] = {}
-    if args.params_file is not None:
-        values.update(load_params_file(args.params_file))
+    for path in args.params_file:
+        values.update(load_params_file(path))
     values.update(parse_overrides(args.param))
     return values
 

@@ -14,17 +14,30 @@ from collections import deque
 from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from pac_common.parameters import LoopParameters, ParameterSet, parameter
 from pac_controller.controller import Command, Controller
+from pac_controller.kernels import MODES
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.contact_force import ContactForceObserver, make_observer
-from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
+from pac_observer.observer import _DIVERGED_REASONS, AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
 from pac_plant.fe_plant import make_plant
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
+
+from .loop import (
+    DISPLACEMENT,
+    DIVERGENCE_DISPLACEMENT,
+    DIVERGENCE_FORCE,
+    FORCE,
+    TICK,
+    CompiledLoop,
+    compile_loop,
+)
 
 
 @dataclass(frozen=True)
@@ -74,12 +87,6 @@ class DivergenceError(RuntimeError):
         super().__init__(f"closed loop diverged at tick {tick}: {reason}")
 
 
-#: |z1|, |z2| beyond this [m] is not a pantograph any more: the run is stopped as diverged.
-DIVERGENCE_DISPLACEMENT = 1.0
-#: A control law asking for more than this [N] has run away (Table 1's uplift is ~100 N).
-DIVERGENCE_FORCE = 1e6
-
-
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
     dt = s.loop.sample_period
     plant = make_plant(
@@ -92,24 +99,99 @@ def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObse
 
 
 def run(s: Scenario) -> Iterator[TickRecord]:
-    """Yield one record per tick, ticks 0 .. loop.ticks - 1; raise DivergenceError on divergence."""
+    """Yield one record per tick, ticks 0 .. loop.ticks - 1; raise DivergenceError on divergence.
+
+    The compiled step (:func:`pac_rig.loop.loop_tick`) runs the ticks block by block; cores
+    without a compiled form (the FE line) are stepped by :func:`run_cores`.  Both give the same
+    records (``tests/test_batch.py``).
+    """
     plant, observer, controller = build_cores(s)
+    loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
+    if loop is None:
+        yield from run_cores(s, plant, observer, controller)
+        return
+    for block in run_blocks(s, plant, loop):
+        yield from tick_records(block)
+
+
+def run_blocks(s: Scenario, plant: Plant, loop: CompiledLoop) -> Iterator[np.ndarray]:
+    """The ticks of the run as TICK blocks of up to BLOCK ticks; raise DivergenceError on divergence."""
+    ticks = s.loop.ticks
+    for k0 in range(0, ticks, BLOCK):
+        k1 = min(ticks, k0 + BLOCK)
+        out = np.empty(k1 - k0, TICK)
+        noise = plant.noise_rows(k0, k1) if plant._noisy else _NO_NOISE
+        reached, code, value = loop.run(k0, k1, noise, out)
+        yield out[: reached - k0]
+        if code:
+            raise DivergenceError(reached, divergence_reason(code, value))
+
+
+#: Ticks per compiled call of :func:`run` (one noise block of the plant).
+BLOCK = 4096
+_NO_NOISE = np.zeros((1, 2))
+
+
+def divergence_reason(code: int, value: float) -> str:
+    """The DivergenceError reason of a code of :func:`pac_rig.loop.loop_tick`."""
+    if code == DISPLACEMENT:
+        return f"|z| exceeded {DIVERGENCE_DISPLACEMENT} m (z1={value:.3g})"
+    if code == FORCE:
+        return f"|u| demanded by the law exceeded {DIVERGENCE_FORCE:g} N ({value:.3g} N)"
+    return _DIVERGED_REASONS[code]
+
+
+_RECORD_COLUMNS = (
+    "tick", "time", "y", "actuator_force", "z", "stiffness", "contact_force", "in_contact", "u_applied",
+    "stiffness_hat", "contact_force_hat", "u", "u_unsaturated", "force_reference", "tracking_error",
+    "saturated", "mode",
+)  # fmt: skip
+
+
+def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
+    """The TickRecord of each row of a TICK block (the objects the per-tick cores return)."""
+    col = {name: block[name].tolist() for name in _RECORD_COLUMNS}  # Python numbers, as the cores give
+    z_hat, theta_hat, innovation = block["z_hat"], block["theta_hat"], block["innovation"]
+    for i, (tick, t) in enumerate(zip(col["tick"], col["time"], strict=True)):
+        y1, y2 = col["y"][i]
+        z0, z1, z2, z3 = col["z"][i]
+        e1, e2, e3 = col["tracking_error"][i]
+        yield TickRecord(
+            Measurement(tick, t, y1, y2, col["actuator_force"][i]),
+            Truth(
+                tick, t, (z0, z1, z2, z3), col["stiffness"][i], col["contact_force"][i],
+                col["in_contact"][i], col["u_applied"][i],
+            ),
+            Estimate(
+                tick, t, z_hat[i], theta_hat[i], col["stiffness_hat"][i], col["contact_force_hat"][i],
+                innovation[i],
+            ),
+            Command(
+                tick, t, col["u"][i], col["u_unsaturated"][i], col["force_reference"][i],
+                (e1, e2, e3), col["saturated"][i], MODES[col["mode"][i]],
+            ),
+        )  # fmt: skip
+
+
+def run_cores(
+    s: Scenario, plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller
+) -> Iterator[TickRecord]:
+    """The loop stepped through the core objects tick by tick, as the nodes step them (the FE line,
+    the contact-force observer, line_adaptive)."""
     delay = s.loop.command_delay_ticks
     pending: deque[float] = deque([0.0] * delay)
     for _ in range(s.loop.ticks):
         y = plant.measurement()
         truth = plant.truth()
         if not (abs(y.z1) < DIVERGENCE_DISPLACEMENT and abs(y.z2) < DIVERGENCE_DISPLACEMENT):
-            raise DivergenceError(y.tick, f"|z| exceeded {DIVERGENCE_DISPLACEMENT} m (z1={y.z1:.3g})")
+            raise DivergenceError(y.tick, divergence_reason(DISPLACEMENT, y.z1))
         try:
             est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force)
         except ObserverDivergedError as exc:
             raise DivergenceError(y.tick, exc.reason) from exc
         cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat)
         if not abs(cmd.u_unsaturated) < DIVERGENCE_FORCE:
-            raise DivergenceError(
-                y.tick, f"|u| demanded by the law exceeded {DIVERGENCE_FORCE:g} N ({cmd.u_unsaturated:.3g} N)"
-            )
+            raise DivergenceError(y.tick, divergence_reason(FORCE, cmd.u_unsaturated))
         yield TickRecord(y, truth, est, cmd)
         pending.append(cmd.u)
         plant.advance(pending.popleft())

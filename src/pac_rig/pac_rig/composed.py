@@ -13,12 +13,8 @@ from __future__ import annotations
 import sys
 
 from pac_common.node import run_nodes
-from pac_controller.controller_node import ControllerNode
-from pac_controller.relay import ControllerRelay
-from pac_observer.observer_node import ObserverNode
-from pac_observer.relay import ObserverRelay
-from pac_plant.plant_node import PlantNode
-from pac_plant.relay import PlantRelay
+
+from .nodes import LOOP_NODES, NODES
 
 
 def main(args: list[str] | None = None) -> int:
@@ -33,9 +29,7 @@ def main(args: list[str] | None = None) -> int:
             + (__doc__ or "").strip()
             + "\n\nThe nodes and their parameters:\n"
         )
-    classes = (
-        [ObserverRelay, ControllerRelay, PlantRelay] if relay else [ObserverNode, ControllerNode, PlantNode]
-    )
+    classes = [NODES[name].load(relay) for name in LOOP_NODES]
     return run_nodes("composed", classes, argv)
 
 

@@ -7,34 +7,27 @@ They are generated from the parameter declarations, so they cannot drift:
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 from pathlib import Path
 
 import yaml
 
-#: node executable -> (package, "module:PacNode subclass")
-NODE_MODULES = {
-    "plant_node": ("pac_plant", "pac_plant.plant_node:PlantNode"),
-    "observer_node": ("pac_observer", "pac_observer.observer_node:ObserverNode"),
-    "controller_node": ("pac_controller", "pac_controller.controller_node:ControllerNode"),
-    "recorder": ("pac_rig", "pac_rig.recorder:RecorderNode"),
-}
+from .nodes import NODES
 
 
 def parameter_sets(node: str) -> list:
-    """The parameter sets a node declares (its class's ``PARAMETER_SETS``)."""
-    module, _, cls = NODE_MODULES[node][1].partition(":")
-    return list(getattr(importlib.import_module(module), cls).PARAMETER_SETS)
+    """The parameter sets a node (a role of :data:`pac_rig.nodes.NODES`) declares."""
+    return NODES[node].parameter_sets()
 
 
 def defaults_yaml(node: str) -> str:
-    package = NODE_MODULES[node][0]
+    """The shipped ``config/<executable>.yaml`` of a node (a role of :data:`pac_rig.nodes.NODES`)."""
+    package, executable = NODES[node].package, NODES[node].executable
     sets = parameter_sets(node)
     lines = [
-        f"# Defaults of {package}/{node} (Table 1, 360 km/h, the shipped gains).",
+        f"# Defaults of {package}/{executable} (Table 1, 360 km/h, the shipped gains).",
         "# Generated from the parameter declarations: python -m pac_rig.configs --write",
-        f"# Use: ros2 run {package} {node} --ros-args --params-file <this file>",
+        f"# Use: ros2 run {package} {executable} --ros-args --params-file <this file>",
         "/**:",
         "  ros__parameters:",
     ]
@@ -53,15 +46,15 @@ def defaults_yaml(node: str) -> str:
 
 def config_path(node: str, src: Path) -> Path:
     """The file in a source tree (``src`` is the workspace's src/ folder)."""
-    package, _ = NODE_MODULES[node]
-    return src / package / "config" / f"{node}.yaml"
+    entry = NODES[node]
+    return src / entry.package / "config" / f"{entry.executable}.yaml"
 
 
 def installed_config_path(node: str) -> Path:
     from ament_index_python.packages import get_package_share_directory
 
-    package, _ = NODE_MODULES[node]
-    return Path(get_package_share_directory(package)) / "config" / f"{node}.yaml"
+    entry = NODES[node]
+    return Path(get_package_share_directory(entry.package)) / "config" / f"{entry.executable}.yaml"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -69,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--write", action="store_true", help="rewrite <src>/<pkg>/config/<node>.yaml")
     parser.add_argument("--src", type=Path, default=Path("src"), help="the workspace's src/ folder")
     args = parser.parse_args(argv)
-    for node in NODE_MODULES:
+    for node in NODES:
         text = defaults_yaml(node)
         if args.write:
             config_path(node, args.src).write_text(text)

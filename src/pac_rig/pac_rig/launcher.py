@@ -17,20 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from .configs import parameter_sets
+from .nodes import LOOP_NODES, NODES
 
-NODES = {
-    "recorder": ("pac_rig", "recorder"),
-    "observer": ("pac_observer", "observer_node"),
-    "controller": ("pac_controller", "controller_node"),
-    "plant": ("pac_plant", "plant_node"),
-}
-#: The floor of ``make bench``: the same nodes with cores that do no work (``relay=True``).
-RELAY_NODES = {
-    "recorder": ("pac_rig", "recorder"),
-    "observer": ("pac_observer", "observer_relay"),
-    "controller": ("pac_controller", "controller_relay"),
-    "plant": ("pac_plant", "plant_relay"),
-}
 #: SCHED_FIFO priorities the rig asks for by default: the loop above the recorder (a starved
 #: recorder catches up from the publishers' reliable history; a starved loop misses its ticks),
 #: both above every normal process. Refused (no root or CAP_SYS_NICE): one warning line per
@@ -129,7 +117,6 @@ class Rig:
         self.domain_id = domain_id
         self.log_dir = Path(log_dir) if log_dir else self.bag_path.parent / f"{self.bag_path.name}_logs"
         self.record = record
-        self.executables = RELAY_NODES if relay else NODES
         self.prefix = prefix
         if priorities is None:
             # Lock step is a simulation that runs flat out: at SCHED_FIFO it would starve the
@@ -140,15 +127,10 @@ class Rig:
 
         def common(name: str) -> dict[str, Any]:
             # "all" goes to every loop node that has the parameter (an unknown name is refused).
-            names = {spec.name for cls in parameter_sets(NODES[name][1]) for spec in cls.specs()}
+            names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
             return {k: v for k, v in shared.items() if k in names}
 
-        loop_names = {
-            s.name
-            for n in ("plant", "observer", "controller")
-            for c in parameter_sets(NODES[n][1])
-            for s in c.specs()
-        }
+        loop_names = {s.name for n in LOOP_NODES for c in parameter_sets(n) for s in c.specs()}
         unknown = sorted(set(shared) - loop_names)
         if unknown:
             raise ValueError(f"unknown parameter '{unknown[0]}' in params['all']: no loop node has it")
@@ -173,8 +155,6 @@ class Rig:
                 self.params[name].update(extra)
         self.processes: dict[str, Process] = {}
 
-    LOOP_NODES = ("observer", "controller", "plant")
-
     def composed_command(self) -> list[str]:
         """``composed`` with a params file holding one section per node (by node name)."""
         import yaml
@@ -183,7 +163,7 @@ class Rig:
             return {k: list(v) if isinstance(v, tuple) else v for k, v in self.params[name].items()}
 
         # The node name is the real node's executable name (the relays keep it).
-        sections = {NODES[name][1]: {"ros__parameters": values(name)} for name in self.LOOP_NODES}
+        sections = {NODES[name].executable: {"ros__parameters": values(name)} for name in LOOP_NODES}
         path = self.log_dir / "composed_params.yaml"
         path.write_text(yaml.safe_dump(sections))
         return [
@@ -203,8 +183,9 @@ class Rig:
         if name == "loop":
             command = self.composed_command()
         else:
-            pkg, exe = self.executables[name]
-            command = [pkg, exe, *ros_args(self.params[name])]
+            node = NODES[name]
+            exe = node.relay_executable if self.relay else node.executable
+            command = [node.package, exe, *ros_args(self.params[name])]
         with open(log_path, "wb") as log:
             popen = subprocess.Popen(
                 ["ros2", "run", *prefix, *command],
@@ -217,7 +198,7 @@ class Rig:
         return proc
 
     def start(self) -> Rig:
-        names = ["loop"] if self.composed else list(self.LOOP_NODES)
+        names = ["loop"] if self.composed else list(LOOP_NODES)
         if self.record:
             names.insert(0, "recorder")
         for name in names:

@@ -1,13 +1,18 @@
 """``ros2 run pac_rig live_view``: the rig's topics, live, in Foxglove (WebSocket protocol).
 
 Serves ``measurement``, ``plant_truth``, ``estimate`` and ``command`` through the
-foxglove-sdk WebSocket server (``foxglove.websocket.v1``), bound to 127.0.0.1 by
-default: open the Foxglove app, *Open connection* -> *Foxglove WebSocket*,
-``ws://127.0.0.1:8765``, and plot e.g. ``/plant_truth.contact_force``,
-``/command.u`` and ``/estimate.stiffness_hat``.
+foxglove-sdk WebSocket server, bound to 127.0.0.1 by default: open the Foxglove app,
+*Open connection* -> *Foxglove WebSocket*, ``ws://127.0.0.1:8765``, and plot e.g.
+``/plant_truth.contact_force``, ``/command.u`` and ``/estimate.stiffness_hat``.
+
+Which clients connect: the SDK speaks the WebSocket subprotocol ``foxglove.sdk.v1`` only
+(the v1 protocol under its new name, as foxglove_bridge 3.x does). Current Foxglove app
+releases offer it; Lichtblick 1.21 and earlier and older Foxglove Studio offer only
+``foxglove.websocket.v1`` and are refused in the handshake (HTTP 400); the SDK has no
+switch for the old name. Use a client that connects to foxglove_bridge 3.x.
 
 The channels carry the serialised CDR bytes as received, with the same ``ros2msg``
-schemas the bags carry (pac_rig.bag's type store), so nothing is deserialised here.
+schemas the bags carry (pac_bag's type store), so nothing is deserialised here.
 It stays off the loop's critical path: it subscribes a topic only while a client
 watches it, best effort and keep last ``depth`` (a slow viewer loses samples instead
 of holding back a publisher), and forwards at most ``rate_hz`` messages per topic and
@@ -22,11 +27,13 @@ from dataclasses import dataclass
 
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from pac_bag.typestore import typestore
 from pac_common import messages
 from pac_common.node import PacNode, run_node
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
-from .bag import typestore
+#: The only WebSocket subprotocol foxglove-sdk 0.30 accepts (its handshake refuses others).
+SUBPROTOCOL = "foxglove.sdk.v1"
 
 
 @dataclass(frozen=True)
@@ -93,7 +100,9 @@ class LiveViewNode(PacNode):
         self.url = f"ws://{params.host}:{self.server.port}"
         # One line a user (and the tests) can read the actual port from.
         print(
-            f"live_view: serving {', '.join(names)} on {self.url} (Foxglove: open a WebSocket connection)",
+            f"live_view: serving {', '.join(names)} on {self.url} (Foxglove: open a WebSocket connection; "
+            f"subprotocol {SUBPROTOCOL}: current Foxglove app; clients offering only foxglove.websocket.v1, "
+            "e.g. Lichtblick <= 1.21, are refused)",
             file=sys.stderr,
             flush=True,
         )

@@ -19,6 +19,9 @@ from pathlib import Path
 
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.qos import qos_dict
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import messages
 from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
 from pac_common.parameters import (
@@ -29,9 +32,6 @@ from pac_common.parameters import (
     check_new_directory,
     parameter,
 )
-
-from .bag import DEFAULT_COMPRESSION, BagWriter, qos_dict
-from .mcap_writer import COMPRESSIONS
 
 
 @dataclass(frozen=True)

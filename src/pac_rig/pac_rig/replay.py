@@ -15,10 +15,10 @@ import sys
 import time
 from pathlib import Path
 
+from pac_bag.reader import BagError, bag_files
+from pac_bag.recovery import iter_records
 from pac_common import messages
-from pac_common.node import PUBLISH_QOS
-
-from .bag import BagError, iter_records
+from pac_common.node import PUBLISH_QOS, loopback_only
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -39,8 +39,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     warnings: list[str] = []
     try:
-        if not args.bag.exists():
-            raise BagError(f"{args.bag}: no such bag")
+        bag_files(args.bag)  # not a bag: the one line every tool gives
         records = sorted(
             (r for r in iter_records(args.bag, warnings) if r[0] in args.topics), key=lambda r: r[2]
         )
@@ -56,6 +55,7 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.node import Node
 
+    loopback_only()
     rclpy.init()
     node = Node("replay")
     factory = messages.RclpyFactory()

@@ -4,22 +4,34 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter, columns_of
 from pac_common import messages
-from pac_common.parameters import ParameterError, ParameterSet
+from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
 
-from .bag import DEFAULT_COMPRESSION, BagWriter, columns_of
-from .cli import OverrideError, add_override_arguments, overrides_from_args
-from .closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run
-from .mcap_writer import COMPRESSIONS
+from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
+from .closed_loop import (
+    BLOCK,
+    DivergenceError,
+    Scenario,
+    TickRecord,
+    build_cores,
+    run_blocks,
+    run_cores,
+    tick_records,
+)
+from .loop import compile_loop
 from .progress import progress
 
 
@@ -38,7 +50,7 @@ def scenario_from_flat(values: dict[str, Any], base: Scenario | None = None) -> 
     """A scenario with ``values`` (flat parameter names) over ``base``; unknown names are errors."""
     base = base or Scenario()
     known: set[str] = set()
-    updated = {}
+    updated: dict[str, Any] = {}
     for name, pset in scenario_sets(base).items():
         names = {spec.name for spec in pset.specs()}
         known |= names
@@ -57,6 +69,16 @@ class RunResult:
     diverged: str | None  # reason, when the run stopped at divergence
     wall_seconds: float
     simulated_seconds: float
+    interrupted: bool = False  # Ctrl-C: the bag holds the ticks simulated until then
+
+
+def plant_line(scenario: Scenario) -> tuple[str, float]:
+    """(catenary_model, span length) of the line the plant simulates, as run_status announces it."""
+    if scenario.plant.catenary_model == "fe":
+        from pac_plant.catenary.data import CatenaryData
+
+        return "fe", CatenaryData().span
+    return scenario.plant.catenary_model, scenario.track.span_length
 
 
 #: Ticks collected before they are serialised and written at once (bounds the memory of long runs).
@@ -91,17 +113,25 @@ def simulate_to_bag(
     compression: str = DEFAULT_COMPRESSION,
     show_progress: bool = False,
     on_record: Callable[[TickRecord], None] | None = None,
+    stop_requested: Callable[[], bool] | None = None,
+    compiled: bool = True,
 ) -> RunResult:
     """Run ``scenario`` offline and record the pac topics; log time = simulated time.
 
     Each tick's field dictionaries are the nodes' own (pac_common.messages); they are
     collected per topic and written in blocks through the vectorised CDR path.
     ``show_progress``: a tick progress bar on stderr when it is a terminal. ``on_record``
-    sees every tick's record too (e.g. to compute measures without reading the bag)."""
+    sees every tick's record too (e.g. to compute measures without reading the bag).
+    ``stop_requested`` (asked after every tick, or every block of ticks on the compiled path):
+    stop there, and close the bag with what was simulated (``RunResult.interrupted``).
+    ``compiled=False``: the core objects tick by tick and one field dictionary per message, the
+    path before the loop was compiled (the bench compares the two; the bags are the same)."""
     rate = scenario.loop.rate_hz
     start = time.perf_counter()
     ticks = 0
     diverged = None
+    interrupted = False
+    model, span = plant_line(scenario)
     rows: dict[str, list[dict[str, Any]]] = {topic: [] for topic in messages.LOOP_TOPICS}
     stamps: list[int] = []
     with BagWriter(
@@ -113,13 +143,32 @@ def simulate_to_bag(
         def write_run_status(bag: BagWriter, tick: int, state: int) -> None:
             """The run's start and end, as the plant node announces them."""
             stamp = messages.tick_stamp_ns(tick, rate)
-            bag.write(
-                "run_status", messages.run_status_fields(tick, state, scenario.loop.duration, stamp), stamp
-            )
+            fields = messages.run_status_fields(tick, state, scenario.loop.duration, stamp, model, span)
+            bag.write("run_status", fields, stamp)
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
+        plant, observer, controller = build_cores(scenario)
+        delay = scenario.loop.command_delay_ticks
+        loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
-            records = run(scenario)
+            if loop is not None:  # compiled: whole blocks of ticks, written as columns
+                blocks: Iterable[np.ndarray] = run_blocks(scenario, plant, loop)
+                if show_progress:
+                    blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
+                for block in blocks:
+                    for topic, columns in messages.tick_columns(block, rate, delay).items():
+                        bag.write_many(topic, columns, messages.tick_stamp_ns(1, rate) * block["tick"])
+                    bag.flush()
+                    ticks += block.size
+                    if on_record is not None:
+                        for rec in tick_records(block):
+                            on_record(rec)
+                    if stop_requested is not None and stop_requested():
+                        interrupted = True
+                        break
+                records: Iterable[TickRecord] = iter(())
+            else:
+                records = run_cores(scenario, plant, observer, controller)
             if show_progress:
                 records = progress(records, scenario.loop.ticks, label or "simulate", "tick")
             for rec in records:
@@ -134,21 +183,44 @@ def simulate_to_bag(
                     bag.flush()
                     rows = {topic: [] for topic in messages.LOOP_TOPICS}
                     stamps = []
+                if stop_requested is not None and stop_requested():
+                    interrupted = True
+                    break
         except DivergenceError as exc:
             diverged = str(exc)
             bag.set_metadata("diverged", {"tick": exc.tick, "reason": exc.reason})
+        except KeyboardInterrupt:  # a caller without stop_requested: keep what was simulated
+            interrupted = True
+        if interrupted:
+            bag.set_metadata("interrupted", {"ticks": ticks})
         write_ticks(bag, rows, stamps)
         write_run_status(bag, max(ticks - 1, 0), messages.RUN_ENDED)
     wall = time.perf_counter() - start
-    return RunResult(Path(bag_path), ticks, diverged, wall, ticks / rate)
+    return RunResult(Path(bag_path), ticks, diverged, wall, ticks / rate, interrupted)
+
+
+def node_only(values: dict[str, Any]) -> list[str]:
+    """Names in ``values`` that a pac node has but a scenario does not (start-up, scheduling, ...):
+    a node's `ros2 param dump` holds them; offline they mean nothing."""
+    from pac_common.pac_node import pac_parameter_names
+
+    scenario = set(scenario_to_flat(Scenario()))
+    nodes = pac_parameter_names()
+    return sorted(n for n in values if n not in scenario and n in nodes)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="simulate", description=__doc__)
+    parser = argparse.ArgumentParser(
+        prog="simulate",
+        description=__doc__,
+        epilog="Parameters as for the nodes: -p NAME:=VALUE, --params-file FILE (a node's "
+        "`ros2 param dump` too), optionally after --ros-args. Ctrl-C stops the run and closes the "
+        "bag with what was simulated (exit 130); a diverged run exits 1.",
+    )
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
     add_override_arguments(parser)
     parser.add_argument("--list", action="store_true", help="list every parameter and exit")
-    args = parser.parse_args(argv)
+    args = parser.parse_args(without_ros_args(list(sys.argv[1:] if argv is None else argv)))
     if args.list:
         for pset in scenario_sets(Scenario()).values():
             for spec in pset.specs():
@@ -159,7 +231,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.bag is None:
         parser.error("the bag directory is required")
     try:
+        check_new_directory("bag", args.bag)
         values = overrides_from_args(args)
+        ignored = node_only(values)
+        if ignored:
+            print(f"simulate: ignoring the nodes' own parameters: {', '.join(ignored)}", file=sys.stderr)
+            values = {k: v for k, v in values.items() if k not in ignored}
         compression = values.pop("compression", DEFAULT_COMPRESSION)
         if compression not in COMPRESSIONS:
             raise ParameterError("compression", compression, " or ".join(COMPRESSIONS))
@@ -173,16 +250,46 @@ def main(argv: list[str] | None = None) -> int:
     if scenario.loop.duration <= 0.0:
         print("simulate: invalid parameter 'duration' = 0.0: allowed (0, 86400] s offline", file=sys.stderr)
         return 2
-    result = simulate_to_bag(
-        scenario, args.bag, label=args.bag.name, compression=compression, show_progress=True
-    )
-    speed = result.simulated_seconds / result.wall_seconds
+    model, span = plant_line(scenario)
+    if abs(span - scenario.track.span_length) > 1e-9 * span:
+        print(
+            f"simulate: warning: the plant runs the {model} line with {span:g} m spans but observer and "
+            f"controller assume span_length {scenario.track.span_length:g} m (set -p span_length:={span:g})",
+            file=sys.stderr,
+        )
+    # Ctrl-C asks the loop to stop after the current tick (a KeyboardInterrupt raised inside the
+    # compiled cores surfaced as a SystemError traceback); the bag is then closed as usual.
+    requested = threading.Event()
+    previous = signal.signal(signal.SIGINT, lambda *_: requested.set())
+    try:
+        result = simulate_to_bag(
+            scenario,
+            args.bag,
+            label=args.bag.name,
+            compression=compression,
+            show_progress=True,
+            stop_requested=requested.is_set,
+        )
+    except OSError as exc:  # e.g. the disk filled up or the folder vanished mid-run
+        print(f"simulate: cannot write {args.bag}: {exc.strerror or exc}", file=sys.stderr)
+        return 1
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    speed = result.simulated_seconds / max(result.wall_seconds, 1e-9)
     print(
         f"wrote {result.bag_path}: {result.ticks} ticks, {result.simulated_seconds:g} s simulated "
         f"in {result.wall_seconds:.2f} s ({speed:.1f}x real time)"
     )
+    if result.interrupted:
+        print(
+            f"simulate: interrupted (Ctrl-C) after {result.ticks} of {scenario.loop.ticks} ticks: "
+            f"the bag holds what was simulated",
+            file=sys.stderr,
+        )
+        return 130
     if result.diverged:
-        print(f"run stopped: {result.diverged}")
+        print(f"simulate: run stopped: {result.diverged}", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -29,7 +29,9 @@ MODULES = (
     "pac_controller.reference",
     "pac_controller.backstepping",
     "pac_controller.controller",
+    "pac_controller.kernels",
     "pac_plant.catenary.kernels",
+    "pac_rig.loop",
     "pac_rig.batch",
 )
 
@@ -48,7 +50,7 @@ def compiled_functions() -> dict[str, CPUDispatcher]:
 def exercise() -> None:
     """Call the cores with the argument types production code uses (nodes, simulate, replay, batch)."""
     from pac_rig.batch import batchable, run_batch
-    from pac_rig.closed_loop import run
+    from pac_rig.closed_loop import build_cores, run, run_cores
     from pac_rig.simulate import scenario_from_flat
 
     short = {"duration": 0.005}
@@ -56,6 +58,9 @@ def exercise() -> None:
         {},
         {"shape": "square", "contact_model": "unilateral", "noise_std": (1e-6, 1e-6), "quantisation": 1e-7},
         {"shape": "step", "law": "passive", "command_delay_ticks": 0},
+        {"law": "pid"},
+        {"law": "lqr"},
+        {"law": "backstepping_known"},
         {"catenary_model": "fe"},
         {"law": "line_adaptive", "observer": "contact_force"},
     ]
@@ -63,10 +68,10 @@ def exercise() -> None:
     for s in scenarios:
         for _ in run(s):
             pass
-    run_batch([s for s in scenarios if batchable(s) and s.controller.law != "passive"])
+        for _ in run_cores(s, *build_cores(s)):  # the core objects tick by tick (the nodes' calls)
+            pass
+    run_batch([s for s in scenarios if batchable(s)])
     # What the nodes do besides the loop: a gap bridged, a fallback, a reset, the plant's helpers.
-    from pac_rig.closed_loop import build_cores
-
     plant, observer, controller = build_cores(scenarios[0])
     observer.update(0, (0.0, 0.0), 0.0)
     observer.update(3, (1e-3, 2e-3), 10.0)

@@ -1,4 +1,4 @@
-"""The catenary and pantograph data of /work/shared/CATENARY_DATA.md §2 (benchmark-like, unconfirmed).
+"""The catenary and pantograph data of docs/catenary_data.md §2 (benchmark-like, unconfirmed).
 
 Plain frozen dataclasses: the values are the stated data set; only the numerical
 choices (element size, time step, penalty, damping) are meant to be varied.
@@ -21,13 +21,13 @@ class WireData:
 
     @property
     def wave_speed(self) -> float:
-        """c = sqrt(T / rho) [m/s] (CATENARY_DATA §4)."""
+        """c = sqrt(T / rho) [m/s] (docs/catenary_data.md §4)."""
         return (self.tension / self.rho) ** 0.5
 
 
 @dataclass(frozen=True)
 class CatenaryData:
-    """Simple catenary of CATENARY_DATA §2 (values as stated there)."""
+    """Simple catenary of docs/catenary_data.md §2 (values as stated there)."""
 
     span: float = 55.0
     n_spans: int = 10

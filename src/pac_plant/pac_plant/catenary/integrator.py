@@ -14,13 +14,20 @@ with the Woodbury identity at the new time level (implicit, no refactorisation):
 
 * the moving unilateral penalty contact, F = k_p delta when the penetration
   delta = z_head - w_c(x) > 0 (w_c by the element's Hermite shape functions at the
-  contact point): A + k_p g g^T with g = (-N(x) on the line, +1 on the head), one extra
-  line solve per step for A^-1 g;
+  contact point): A + k_p g g^T with g = (-N(x) on the line, +1 on the head); A^-1 g
+  from A^-1 e_i of the contact element's four DOFs (two solves per new node, cached);
 * slack droppers (elongation e_j = e0_j + w_m - w_c < 0): A - k_j g_j g_j^T and the
   static dropper force k_j e0_j removed, A^-1 g_j precomputed for every dropper.
 
 The active set (contact on/off, which droppers are slack) is iterated until it agrees
 with the solution it produces (a few passes at most; usually the first one).
+
+``step`` runs all of it compiled (``kernels.fe_step`` on the explicit arrays
+``constants``/``state``); ``step_reference`` is the same algorithm in numpy, kept as the
+reference the compiled step is tested against. The compiled step's kernels differ from the
+reference's only in how they compute the same numbers (docs/numerics.md, "FE line"): the
+right-hand side with M alone, the solve as two overlapping halves, A^-1 e_i stored on the
+20 nodes around i (the rest is below 1e-19 of its peak).
 """
 
 from __future__ import annotations
@@ -29,11 +36,19 @@ import math
 
 import numpy as np
 
-from .kernels import band_chol_solve, band_matvec2, chol_factor, newmark_rhs, newmark_update
+from . import kernels as kn
+from .kernels import (
+    MAX_ACTIVE_SET_PASSES,
+    StepConstants,
+    StepState,
+    band_chol_solve,
+    band_matvec2,
+    chol_factor,
+    newmark_rhs,
+    newmark_update,
+)
 from .line import DOFS_PER_NODE, Line
 from .pantographs import LumpedPantograph
-
-MAX_ACTIVE_SET_PASSES = 25
 
 
 class ContactSimulation:
@@ -85,31 +100,137 @@ class ContactSimulation:
         g[np.arange(nd), dr.wc] = -1.0
         for col in g:
             band_chol_solve(self._chol, col)
-        g = np.ascontiguousarray(g.T)
-        self._ydrop = g
-        self._ddrop = g[dr.wm, :] - g[dr.wc, :]
+        self._ydrop = np.ascontiguousarray(g.T)  # (n, nd): column j = A^-1 g_j
+        self._ddrop = np.ascontiguousarray(self._ydrop[dr.wm, :] - self._ydrop[dr.wc, :])
         self._kdrop = dr.stiffness.copy()
         self._e0 = dr.elongation0.copy()
         self._drop_per_span = len(line.data.dropper_positions)
-        # State.
-        self.d, self.v, self.a = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.p = np.zeros(pantograph.n)
-        self.vp, self.ap = np.zeros(pantograph.n), np.zeros(pantograph.n)
-        self.roof_rest = np.zeros(pantograph.n)
+        span = line.data.span
+        factors, starts, bounds = kn.chunk_factor(a_line)
+        self.constants = StepConstants(
+            m_pad=kn.pad_band(self._m),
+            chol=self._chol,
+            chunk_factors=factors,
+            chunk_starts=starts,
+            chunk_bounds=bounds,
+            x_nodes=np.ascontiguousarray(line.x),
+            w_static=np.ascontiguousarray(line.w_static),
+            ydrop=self._ydrop,
+            ydrop_t=g,
+            ddrop=self._ddrop,
+            kdrop=self._kdrop,
+            e0=self._e0,
+            dwc=np.ascontiguousarray(self._dwc, dtype=np.int64),
+            dwm=np.ascontiguousarray(self._dwm, dtype=np.int64),
+            fixed=np.ascontiguousarray(line.fixed, dtype=np.int64),
+            p_mass=np.ascontiguousarray(pm),
+            p_damping=np.ascontiguousarray(self._pc, dtype=float),
+            p_ainv=np.ascontiguousarray(self._ap_inv),
+            p_ground=np.ascontiguousarray(pantograph.ground_stiffness, dtype=float),
+            numbers=np.array(
+                [
+                    dt,
+                    speed,
+                    self.alpha,
+                    self.beta,
+                    self.kp,
+                    self.c0,
+                    self.c1,
+                    line.length,
+                    span,
+                    (line.n_spans // 2 + 1) * span,
+                ]
+            ),
+            indices=np.array(
+                [
+                    pantograph.head,
+                    pantograph.input,
+                    int(endless),
+                    DOFS_PER_NODE * line.nodes_per_span,
+                    self._drop_per_span,
+                ],
+                dtype=np.int64,
+            ),
+        )
+        # State: the arrays the compiled step mutates in place (the attributes below are views).
+        self.state = StepState(
+            d=np.zeros(n),
+            v=np.zeros(n),
+            a=np.zeros(n),
+            p=np.zeros(pantograph.n),
+            vp=np.zeros(pantograph.n),
+            ap=np.zeros(pantograph.n),
+            roof_rest=np.zeros(pantograph.n),
+            scalars=np.zeros(4),
+            counters=np.zeros(7, dtype=np.int64),
+            slack=np.zeros(nd, dtype=np.int64),
+            unit_patches=np.zeros((line.n_nodes, 2, min(n, 4 * (2 * kn.UNIT_REACH + 1)))),
+            unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
+            work=np.zeros((2, n)),
+            padded=np.zeros((2, n + 2 * kn.KD)),
+            chunk_work=np.zeros((factors.shape[0], factors.shape[2])),
+        )
+        # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
+        self._cf, self._ci, self._cl, views = kn.pack(tuple(self.constants), kn.CONSTANT_KINDS)
+        self.constants = StepConstants(*views)
+        self._sf, self._si, self._sl, views = kn.pack(tuple(self.state), kn.STATE_KINDS)
+        self.state = StepState(*views)
+        self._packed = (self._cf, self._ci, self._cl, self._sf, self._si, self._sl)
+        self._no_flex, self._no_readings = np.zeros((0, 4, 4)), np.zeros(0)
         self.x = float(x0)
-        self.offset = 0.0  # distance already shifted out of the window (endless)
-        self.steps = 0
-        self.in_contact = False
-        self.slack = np.zeros(0, dtype=int)
-        self.delta = 0.0
-        self.input_force = 0.0
-        self.active_set_passes_max = 0
-        self.active_set_unconverged = 0  # steps whose active set did not settle (see step)
         self._b = np.empty(n)
         self._x1, self._x2 = np.empty(n), np.empty(n)
         self._zero = np.zeros(n)
-        self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (contact element)
+        self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (reference step)
         self.start_touching()
+
+    # -- state (views of ``self.state``, the arrays the compiled step works on) ---------------
+    def _vector(name: str) -> property:  # type: ignore[misc]
+        def get(self: ContactSimulation) -> np.ndarray:
+            return getattr(self.state, name)
+
+        def put(self: ContactSimulation, value: np.ndarray) -> None:
+            getattr(self.state, name)[:] = value
+
+        return property(get, put)
+
+    def _number(index: int, counter: bool = False, kind: type = float) -> property:  # type: ignore[misc]
+        def get(self: ContactSimulation):  # noqa: ANN202
+            return kind((self.state.counters if counter else self.state.scalars)[index])
+
+        def put(self: ContactSimulation, value: float) -> None:
+            (self.state.counters if counter else self.state.scalars)[index] = value
+
+        return property(get, put)
+
+    d = _vector("d")
+    v = _vector("v")
+    a = _vector("a")
+    p = _vector("p")
+    vp = _vector("vp")
+    ap = _vector("ap")
+    roof_rest = _vector("roof_rest")
+    x = _number(kn.X)
+    offset = _number(kn.OFFSET)  # distance already shifted out of the window (endless)
+    delta = _number(kn.DELTA)
+    input_force = _number(kn.INPUT_FORCE)
+    in_contact = _number(kn.IN_CONTACT, True, bool)
+    steps = _number(kn.STEPS, True, int)
+    active_set_passes_max = _number(kn.PASSES_MAX, True, int)
+    #: steps whose active set did not settle (see step)
+    active_set_unconverged = _number(kn.UNCONVERGED, True, int)
+    del _vector, _number
+
+    @property
+    def slack(self) -> np.ndarray:
+        """The slack droppers, ascending."""
+        return self.state.slack[: self.state.counters[kn.N_SLACK]].copy()
+
+    @slack.setter
+    def slack(self, value: np.ndarray) -> None:
+        value = np.asarray(value, dtype=np.int64)
+        self.state.slack[: len(value)] = value
+        self.state.counters[kn.N_SLACK] = len(value)
 
     # -- initial states ------------------------------------------------------------------------
     def start_touching(self) -> None:
@@ -170,11 +291,6 @@ class ContactSimulation:
     def contact_force(self) -> float:
         return self.kp * self.delta if self.in_contact else 0.0
 
-    def wire_height(self, x: float | None = None) -> float:
-        """Contact-wire height at x (default: the contact point), static + dynamic [m]."""
-        x = self.x if x is None else x
-        return self.line.static_height(x) + self.line.contact_height(self.d, x)
-
     def uplift(self, x: float | None = None) -> float:
         """Contact-wire uplift from its static position at x (default: the contact point) [m]."""
         return self.line.contact_height(self.d, self.x if x is None else x)
@@ -203,7 +319,27 @@ class ContactSimulation:
 
     # -- stepping ------------------------------------------------------------------------------
     def step(self, input_force: float) -> None:
-        """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time."""
+        """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time
+        (``kernels.fe_step``, compiled: the same algorithm as ``step_reference``)."""
+        if self._advance(input_force, 1, self._no_flex, self._no_readings) != kn.STEP_OK:
+            raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
+
+    def advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> None:
+        """``steps`` x ``step`` and ``kernels.contact_readings`` into ``readings``, in one compiled call
+        (``flexibility``: ``Line.element_flexibility()``)."""
+        if self._advance(input_force, steps, flexibility, readings) != kn.STEP_OK:
+            raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
+
+    def _advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> int:
+        return kn.fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
+
+    def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
+        """``kernels.contact_readings`` of the present state into ``readings``."""
+        kn.contact_readings(self.constants, self.state, flexibility, readings)
+
+    def step_reference(self, input_force: float) -> None:
+        """``step`` in numpy (the implementation the compiled ``fe_step`` replaced): the reference
+        of the equality tests and of the benchmark's old path."""
         dt, c0, c1 = self.dt, self.c0, self.c1
         d, v, a = self.d, self.v, self.a
         x_new = self.x + self.speed * dt

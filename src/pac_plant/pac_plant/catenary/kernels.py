@@ -7,6 +7,8 @@ are one pass over the band.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numba
 import numpy as np
 
@@ -87,3 +89,647 @@ def newmark_update(d: np.ndarray, v: np.ndarray, a: np.ndarray, d_new: np.ndarra
         v[i] += h * (a[i] + a_new)
         a[i] = a_new
         d[i] = d_new[i]
+
+
+# -- the fast path's kernels: padded band product, two-chain solve ------------------------------------
+#: Rows of overlap (20 nodes) each chunk of ``chunk_solve`` carries past its own part. A^-1 decays by
+#: about 10x per node along the line (the implicit step's mass term 4/dt^2 M dominates A), so what
+#: the truncated chunk misses at its inner rows is < 1e-19 of the solution: rounding.
+CHUNK_OVERLAP = 80
+#: Sub-diagonals the fast kernels carry. The band is 7 wide (4 DOFs per node) but the wires'
+#: matrices couple (w, w') of one wire at node i only with node i+1 of the same wire, so M, K and
+#: the Cholesky factor of A (fill stays inside this profile) are exactly zero on diagonals 6 and
+#: 7: skipping them changes no result and saves 2 of 7 multiply-adds per row (``narrow_band``).
+KD = 5
+
+
+def narrow_band(ab: np.ndarray) -> np.ndarray:
+    """Rows 0..KD of ``ab`` (LAPACK lower storage); raises if a dropped diagonal is not exactly zero."""
+    if np.any(ab[KD + 1 :] != 0.0):
+        raise ValueError(f"the band has non-zero entries beyond {KD} sub-diagonals")
+    return np.ascontiguousarray(ab[: KD + 1])
+
+
+def pad_band(ab: np.ndarray) -> np.ndarray:
+    """``narrow_band(ab)`` with KD zero columns in front: row-wise products can then read
+    A[i, i-k] = ab[k, i-k] for every i without a branch (``newmark_rhs_mass``)."""
+    nb = narrow_band(ab)
+    out = np.zeros((KD + 1, nb.shape[1] + KD))
+    out[:, KD:] = nb
+    return out
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def newmark_rhs_mass(
+    mp: np.ndarray,
+    d: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    dt: float,
+    alpha: float,
+    beta: float,
+    z: np.ndarray,
+    tail: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """The Newmark right-hand side with one banded product (M only): out = M z and tail = g w
+    such that A^-1 (``newmark_rhs``) = A^-1 out + tail.
+
+    With w = 2/dt d + v and x1 = 4/dt^2 d + 4/dt v + a + alpha w, the right-hand side is
+    M x1 + beta K w; A = (1 + 2/dt beta) K + (4/dt^2 + 2/dt alpha) M gives
+    A^-1 K w = (w - (4/dt^2 + 2/dt alpha) A^-1 M w) / (1 + 2/dt beta), hence
+    z = x1 - g (4/dt^2 + 2/dt alpha) w with g = beta / (1 + 2/dt beta). Exact algebra: K (its
+    band and its flops) leaves the step. ``mp``: ``pad_band(M)``; z of length n + 2 KD, zero ends."""
+    n = d.shape[0]
+    c0, c1, c2 = 4.0 / (dt * dt), 2.0 / dt, 4.0 / dt
+    g = beta / (1.0 + c1 * beta)
+    gm = g * (c0 + c1 * alpha)
+    for i in range(n):
+        w = c1 * d[i] + v[i]
+        z[KD + i] = c0 * d[i] + c2 * v[i] + a[i] + alpha * w - gm * w
+        tail[i] = g * w
+    for i in range(n):
+        j = KD + i
+        acc = mp[0, j] * z[j]
+        for k in range(1, KD + 1):
+            acc += mp[k, j] * z[j + k] + mp[k, j - k] * z[j - k]
+        out[i] = acc
+
+
+CHUNKS = 4  # independent dependency chains in ``chunk_solve``
+
+
+def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Banded Cholesky factors of CHUNKS overlapping diagonal blocks of A for ``chunk_solve``.
+
+    Returns (factors (lc + 2 KD, KD + 1, CHUNKS): row r + KD of chunk c holds L[r, r-k] for
+    k = 1..KD and 1/L[r, r] at k = 0, zero rows around; starts (CHUNKS,): first row of each
+    chunk in A; bounds (CHUNKS + 1,): chunk c delivers rows bounds[c] .. bounds[c+1], with at
+    least ``overlap`` rows of its block on either side of them (where A goes on))."""
+    from scipy.linalg import cholesky_banded
+
+    n, kd = ab.shape[1], KD
+    bounds = np.array([round(c * n / CHUNKS) for c in range(CHUNKS + 1)], dtype=np.int64)
+    lc = min(n, int(np.max(np.diff(bounds))) + 2 * overlap)
+    starts = np.array([min(max(bounds[c] - overlap, 0), n - lc) for c in range(CHUNKS)], dtype=np.int64)
+    factors = np.zeros((lc + 2 * kd, kd + 1, CHUNKS))
+    for c in range(CHUNKS):
+        sub = ab[:, starts[c] : starts[c] + lc].copy()
+        for k in range(1, sub.shape[0]):
+            sub[k, lc - k :] = 0.0  # couplings that leave the block
+        low = narrow_band(cholesky_banded(sub, lower=True))  # low[k, j] = L[j+k, j]
+        for k in range(kd + 1):
+            factors[kd + k : kd + lc, k, c] = low[k, : lc - k]
+        factors[kd : kd + lc, 0, c] = 1.0 / factors[kd : kd + lc, 0, c]
+    return factors, starts, bounds
+
+
+@numba.njit(cache=True, fastmath={"contract"})
+def chunk_solve(
+    factors: np.ndarray,
+    starts: np.ndarray,
+    bounds: np.ndarray,
+    b: np.ndarray,
+    w: np.ndarray,
+    addend: np.ndarray,
+) -> None:
+    """Solve A x = b in place (b of shape (n,)) as CHUNKS independent banded Cholesky solves of
+    overlapping diagonal blocks of A (``chunk_factor``), interleaved so that their dependency
+    chains overlap in the CPU (one chain is latency-bound: each row waits for the previous
+    one); rows kept in registers, the newest term last (shortest chain). ``w``: scratch
+    (lc + 2 KD, CHUNKS). ``addend`` (length n, or empty: none) is added to the solution on the
+    way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
+    lc = factors.shape[0] - 2 * KD
+    f = factors
+    for c in range(CHUNKS):
+        s = starts[c]
+        for j in range(lc):
+            w[KD + j, c] = b[s + j]
+    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    r1, r2, r3, r4, r5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    t1, t2, t3, t4, t5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    for j in range(KD, KD + lc):  # forward: L y = b; p1..p5 = y[j-1]..y[j-5] of chunk 0, q.. of 1, ...
+        p0 = w[j, 0] - f[j, 5, 0] * p5 - f[j, 4, 0] * p4 - f[j, 3, 0] * p3 - f[j, 2, 0] * p2
+        q0 = w[j, 1] - f[j, 5, 1] * q5 - f[j, 4, 1] * q4 - f[j, 3, 1] * q3 - f[j, 2, 1] * q2
+        r0 = w[j, 2] - f[j, 5, 2] * r5 - f[j, 4, 2] * r4 - f[j, 3, 2] * r3 - f[j, 2, 2] * r2
+        t0 = w[j, 3] - f[j, 5, 3] * t5 - f[j, 4, 3] * t4 - f[j, 3, 3] * t3 - f[j, 2, 3] * t2
+        p0 = (p0 - f[j, 1, 0] * p1) * f[j, 0, 0]
+        q0 = (q0 - f[j, 1, 1] * q1) * f[j, 0, 1]
+        r0 = (r0 - f[j, 1, 2] * r1) * f[j, 0, 2]
+        t0 = (t0 - f[j, 1, 3] * t1) * f[j, 0, 3]
+        w[j, 0] = p0
+        w[j, 1] = q0
+        w[j, 2] = r0
+        w[j, 3] = t0
+        p5, p4, p3, p2, p1 = p4, p3, p2, p1, p0
+        q5, q4, q3, q2, q1 = q4, q3, q2, q1, q0
+        r5, r4, r3, r2, r1 = r4, r3, r2, r1, r0
+        t5, t4, t3, t2, t1 = t4, t3, t2, t1, t0
+    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    r1, r2, r3, r4, r5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    t1, t2, t3, t4, t5 = 0.0, 0.0, 0.0, 0.0, 0.0
+    for j in range(KD + lc - 1, KD - 1, -1):  # backward: L^T x = y; p1..p5 = x[j+1]..x[j+5]
+        p0 = w[j, 0] - f[j + 5, 5, 0] * p5 - f[j + 4, 4, 0] * p4 - f[j + 3, 3, 0] * p3 - f[j + 2, 2, 0] * p2
+        q0 = w[j, 1] - f[j + 5, 5, 1] * q5 - f[j + 4, 4, 1] * q4 - f[j + 3, 3, 1] * q3 - f[j + 2, 2, 1] * q2
+        r0 = w[j, 2] - f[j + 5, 5, 2] * r5 - f[j + 4, 4, 2] * r4 - f[j + 3, 3, 2] * r3 - f[j + 2, 2, 2] * r2
+        t0 = w[j, 3] - f[j + 5, 5, 3] * t5 - f[j + 4, 4, 3] * t4 - f[j + 3, 3, 3] * t3 - f[j + 2, 2, 3] * t2
+        p0 = (p0 - f[j + 1, 1, 0] * p1) * f[j, 0, 0]
+        q0 = (q0 - f[j + 1, 1, 1] * q1) * f[j, 0, 1]
+        r0 = (r0 - f[j + 1, 1, 2] * r1) * f[j, 0, 2]
+        t0 = (t0 - f[j + 1, 1, 3] * t1) * f[j, 0, 3]
+        w[j, 0] = p0
+        w[j, 1] = q0
+        w[j, 2] = r0
+        w[j, 3] = t0
+        p5, p4, p3, p2, p1 = p4, p3, p2, p1, p0
+        q5, q4, q3, q2, q1 = q4, q3, q2, q1, q0
+        r5, r4, r3, r2, r1 = r4, r3, r2, r1, r0
+        t5, t4, t3, t2, t1 = t4, t3, t2, t1, t0
+    for c in range(CHUNKS):
+        s = starts[c]
+        if addend.shape[0]:
+            for i in range(bounds[c], bounds[c + 1]):
+                b[i] = w[KD + i - s, c] + addend[i]
+        else:
+            for i in range(bounds[c], bounds[c + 1]):
+                b[i] = w[KD + i - s, c]
+
+
+# -- the whole Newmark step of line + pantograph, compiled (``integrator.ContactSimulation``) ----------
+MAX_ACTIVE_SET_PASSES = 25
+#: Nodes on each side of node i kept of A^-1 e_i (w and w' of the contact wire): beyond them the
+#: column is < 1e-19 of its peak (``CHUNK_OVERLAP``).
+UNIT_REACH = 20
+
+# Indices into StepState.scalars / StepState.counters.
+X, OFFSET, DELTA, INPUT_FORCE = 0, 1, 2, 3
+IN_CONTACT, STEPS, PASSES_MAX, UNCONVERGED, N_SLACK, YC_LO, YC_HI = 0, 1, 2, 3, 4, 5, 6
+#: ``fe_step`` return codes.
+STEP_OK, STEP_OFF_LINE = 0, 1
+
+
+class StepConstants(NamedTuple):
+    """What does not change during a run: line matrices, factor, droppers, pantograph, numbers.
+
+    ``m_pad`` = ``pad_band(M)`` (the step needs no K, see ``newmark_rhs_mass``);
+    ``ydrop[:, j]`` = ``ydrop_t[j]`` is A^-1 g_j for dropper j (both layouts: rows of the first at
+    the contact DOFs, contiguous columns of the second for the update), ``ddrop`` = G^T A^-1 G.
+    ``numbers`` = (dt, speed, alpha, beta, kp, c0, c1, length, span, shift_at);
+    ``indices`` = (head, input, endless, shift_dofs, droppers_per_span).
+    """
+
+    m_pad: np.ndarray
+    chol: np.ndarray
+    chunk_factors: np.ndarray
+    chunk_starts: np.ndarray
+    chunk_bounds: np.ndarray
+    x_nodes: np.ndarray
+    w_static: np.ndarray
+    ydrop: np.ndarray
+    ydrop_t: np.ndarray
+    ddrop: np.ndarray
+    kdrop: np.ndarray
+    e0: np.ndarray
+    dwc: np.ndarray
+    dwm: np.ndarray
+    fixed: np.ndarray
+    p_mass: np.ndarray
+    p_damping: np.ndarray
+    p_ainv: np.ndarray
+    p_ground: np.ndarray
+    numbers: np.ndarray
+    indices: np.ndarray
+
+
+class StepState(NamedTuple):
+    """The integrator's whole state, mutated in place by ``fe_step``.
+
+    ``scalars`` = (x, offset, delta, input_force); ``counters`` = (in_contact, steps,
+    active_set_passes_max, active_set_unconverged, n_slack, the range of ``work[1]`` that is
+    not zero); ``slack[:n_slack]`` the slack droppers (ascending); ``unit_patches[i, r]`` =
+    A^-1 e_(4i+r) on the rows ``unit_start(i)`` + 0..width-1 (``unit_ready[i]``: computed);
+    ``work`` (2, n), ``padded`` (2, n + 2 KD), ``chunk_work``: scratch.
+    """
+
+    d: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    p: np.ndarray
+    vp: np.ndarray
+    ap: np.ndarray
+    roof_rest: np.ndarray
+    scalars: np.ndarray
+    counters: np.ndarray
+    slack: np.ndarray
+    unit_patches: np.ndarray
+    unit_ready: np.ndarray
+    work: np.ndarray
+    padded: np.ndarray
+    chunk_work: np.ndarray
+
+
+@numba.njit(cache=True)
+def hermite_weights(x_nodes: np.ndarray, x: float) -> tuple[int, np.ndarray]:
+    """(element, Hermite weights) of position x: ``Line.locate`` + ``hermite_shape`` (x on the line)."""
+    e = np.searchsorted(x_nodes, x, side="right") - 1
+    e = min(max(e, 0), x_nodes.shape[0] - 2)
+    h = x_nodes[e + 1] - x_nodes[e]
+    xi = (x - x_nodes[e]) / h
+    x2, x3 = xi * xi, xi * xi * xi
+    n = np.empty(4)
+    n[0] = 1 - 3 * x2 + 2 * x3
+    n[1] = h * (xi - 2 * x2 + x3)
+    n[2] = 3 * x2 - 2 * x3
+    n[3] = h * (x3 - x2)
+    return e, n
+
+
+@numba.njit(cache=True)
+def unit_start(n_dof: int, width: int, node: int) -> int:
+    """First row of the stored part of A^-1 e_i for the DOFs of ``node`` (UNIT_REACH nodes back)."""
+    return min(max(4 * (node - UNIT_REACH), 0), n_dof - width)
+
+
+@numba.njit(cache=True)
+def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
+    """A^-1 e_i for w, w' of the contact wire at ``node`` (two banded solves, once per node)."""
+    if s.unit_ready[node]:
+        return
+    n, width = s.d.shape[0], s.unit_patches.shape[2]
+    lo = unit_start(n, width, node)
+    col = s.work[0]
+    for r in range(2):
+        col[:] = 0.0
+        col[4 * node + r] = 1.0
+        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0])
+        s.unit_patches[node, r, :] = col[lo : lo + width]
+    s.unit_ready[node] = 1
+
+
+@numba.njit(cache=True)
+def shift_window(c: StepConstants, s: StepState) -> None:
+    """Move the window one span forward: states shift back one span, the new span is at rest."""
+    sh, dps = c.indices[3], c.indices[4]
+    for vec in (s.d, s.v, s.a):
+        n = vec.shape[0]
+        vec[: n - sh] = vec[sh:].copy()
+        vec[n - sh :] = 0.0
+        vec[c.fixed] = 0.0
+    ns, kept = s.counters[N_SLACK], 0
+    for q in range(ns):
+        if s.slack[q] >= dps:
+            s.slack[kept] = s.slack[q] - dps
+            kept += 1
+    s.counters[N_SLACK] = kept
+    s.scalars[X] -= c.numbers[8]
+    s.scalars[OFFSET] += c.numbers[8]
+
+
+@numba.njit(cache=True)
+def _woodbury_coefficients(
+    c: StepConstants,
+    slack: np.ndarray,
+    contact: bool,
+    gc_y: float,
+    gc_yc: float,
+    gc_ydrop: np.ndarray,
+    gd_y: np.ndarray,
+    gd_yc: np.ndarray,
+    ws_x: float,
+) -> np.ndarray:
+    """r - z of q = y + Y (r - z), z = cap^-1 U^T (y + Y r), cap = S^-1 + U^T A^-1 U."""
+    kp = c.numbers[4]
+    ns = slack.shape[0]
+    m = ns + (1 if contact else 0)
+    cap = np.zeros((m, m))
+    uy = np.zeros(m)
+    r = np.zeros(m)
+    sinv = np.empty(m)
+    for i in range(ns):
+        si = slack[i]
+        for j in range(ns):
+            cap[i, j] = c.ddrop[si, slack[j]]
+        cap[i, i] -= 1.0 / c.kdrop[si]
+        uy[i] = gd_y[si]
+        r[i] = c.kdrop[si] * c.e0[si]
+        sinv[i] = -1.0 / c.kdrop[si]
+    if contact:
+        cap[ns, ns] = gc_yc + 1.0 / kp
+        for j in range(ns):
+            cap[ns, j] = gc_ydrop[slack[j]]
+            cap[j, ns] = gd_yc[slack[j]]
+        uy[ns] = gc_y
+        r[ns] = kp * ws_x
+        sinv[ns] = 1.0 / kp
+    rhs = uy.copy()
+    for i in range(m):
+        acc = 0.0
+        for j in range(m):
+            cij = cap[i, j] - sinv[i] if i == j else cap[i, j]
+            acc += cij * r[j]
+        rhs[i] += acc
+    return r - np.linalg.solve(cap, rhs)
+
+
+@numba.njit(cache=True)
+def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
+    """One Newmark step of line + pantograph with ``input_force`` [N] at the new time (see
+    ``integrator``): the window shift, right-hand side, banded solve, contact columns, active
+    set with the Woodbury capacitance solve, update. Returns STEP_OK or STEP_OFF_LINE (the
+    pantograph would leave the line; nothing but a due window shift has happened then)."""
+    dt, speed, alpha, beta, kp, c0, c1 = (
+        c.numbers[0],
+        c.numbers[1],
+        c.numbers[2],
+        c.numbers[3],
+        c.numbers[4],
+        c.numbers[5],
+        c.numbers[6],
+    )
+    length, shift_at = c.numbers[7], c.numbers[9]
+    head, inp, endless = c.indices[0], c.indices[1], c.indices[2]
+    x_new = s.scalars[X] + speed * dt
+    if endless != 0 and x_new > shift_at:
+        shift_window(c, s)
+        x_new = s.scalars[X] + speed * dt
+    if x_new > length:
+        return STEP_OFF_LINE
+    d, v, a = s.d, s.v, s.a
+    n = d.shape[0]
+    y_l, yc_l = s.work[0], s.work[1]
+    e, nsh = hermite_weights(c.x_nodes, x_new)
+    dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
+    _unit_patches(c, s, e)  # (before the solve: they use y_l as scratch)
+    _unit_patches(c, s, e + 1)
+    z, tail = s.padded[0], s.padded[1, :n]
+    newmark_rhs_mass(c.m_pad, d, v, a, dt, alpha, beta, z, tail, y_l)
+    chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work, tail)
+    # Contact column A^-1 g_c (line part) from the stored patches; zero outside [lo, hi).
+    yc_l[s.counters[YC_LO] : s.counters[YC_HI]] = 0.0
+    width = s.unit_patches.shape[2]
+    for i in range(4):
+        node = e + i // 2
+        lo = unit_start(n, width, node)
+        col = s.unit_patches[node, i % 2]
+        for k in range(width):
+            yc_l[lo + k] -= col[k] * nsh[i]
+    yc_lo, yc_hi = unit_start(n, width, e), unit_start(n, width, e + 1) + width
+    s.counters[YC_LO], s.counters[YC_HI] = yc_lo, yc_hi
+    # Pantograph.
+    npn = s.p.shape[0]
+    bp = np.empty(npn)
+    u1 = c0 * s.p + (4.0 / dt) * s.vp + s.ap
+    u2 = c1 * s.p + s.vp
+    for i in range(npn):
+        fi = c.p_ground[i] * s.roof_rest[i]
+        if i == inp:
+            fi += input_force
+        acc1 = 0.0
+        acc2 = 0.0
+        for j in range(npn):
+            acc1 += c.p_mass[i, j] * u1[j]
+            acc2 += c.p_damping[i, j] * u2[j]
+        bp[i] = fi + acc1 + acc2
+    y_p = np.zeros(npn)
+    for i in range(npn):
+        for j in range(npn):
+            y_p[i] += c.p_ainv[i, j] * bp[j]
+    yc_p = c.p_ainv[:, head].copy()
+    ws_x = 0.0
+    gc_y = y_p[head]
+    gc_yc = yc_p[head]
+    for i in range(4):
+        ws_x += nsh[i] * c.w_static[dofs[i]]
+        gc_y -= nsh[i] * y_l[dofs[i]]
+        gc_yc -= nsh[i] * yc_l[dofs[i]]
+    nd = c.e0.shape[0]
+    gc_ydrop = np.empty(nd)
+    gd_y = np.empty(nd)
+    gd_yc = np.empty(nd)
+    for j in range(nd):
+        acc = 0.0
+        for i in range(4):
+            acc += nsh[i] * c.ydrop[dofs[i], j]
+        gc_ydrop[j] = -acc
+        gd_y[j] = y_l[c.dwm[j]] - y_l[c.dwc[j]]
+        gd_yc[j] = yc_l[c.dwm[j]] - yc_l[c.dwc[j]]
+    contact = s.counters[IN_CONTACT] != 0
+    slack = s.slack[: s.counters[N_SLACK]].copy()
+    passes = 0
+    coef = np.zeros(1)
+    delta = 0.0
+    e_drop = np.empty(nd)
+    while passes < MAX_ACTIVE_SET_PASSES:
+        passes += 1
+        ns = slack.shape[0]
+        m = ns + (1 if contact else 0)
+        if ns == 0:  # the usual case, in scalars
+            coef = np.zeros(m)
+            if contact:
+                r_c = kp * ws_x
+                coef[0] = r_c - (gc_y + gc_yc * r_c) / (gc_yc + 1.0 / kp)
+        else:
+            coef = _woodbury_coefficients(c, slack, contact, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
+        delta = gc_y - ws_x
+        for j in range(nd):
+            e_drop[j] = c.e0[j] + gd_y[j]
+        if ns:
+            acc = 0.0
+            for q in range(ns):
+                acc += gc_ydrop[slack[q]] * coef[q]
+            delta += acc
+            for j in range(nd):
+                acc = 0.0
+                for q in range(ns):
+                    acc += c.ddrop[j, slack[q]] * coef[q]
+                e_drop[j] += acc
+        if contact:
+            delta += gc_yc * coef[ns]
+            for j in range(nd):
+                e_drop[j] += gd_yc[j] * coef[ns]
+        new_contact = delta > 0.0
+        new_slack = np.flatnonzero(e_drop < 0.0)
+        consistent = new_contact == contact and new_slack.shape[0] == ns and np.all(new_slack == slack)
+        if consistent or passes == MAX_ACTIVE_SET_PASSES:
+            if not consistent:  # keep the set the solution was computed for; count it
+                s.counters[UNCONVERGED] += 1
+            break
+        contact, slack = new_contact, new_slack
+    s.counters[PASSES_MAX] = max(s.counters[PASSES_MAX], passes)
+    ns = slack.shape[0]
+    d_new = y_l  # scratch, consumed by newmark_update below
+    p_new = y_p.copy()
+    for q in range(ns):
+        cq = coef[q]
+        yq = c.ydrop_t[slack[q]]
+        for k in range(d_new.shape[0]):
+            d_new[k] += yq[k] * cq
+    if contact:
+        cc = coef[ns]
+        for k in range(yc_lo, yc_hi):
+            d_new[k] += yc_l[k] * cc
+        for i in range(npn):
+            p_new[i] += yc_p[i] * cc
+    newmark_update(d, v, a, d_new, dt)
+    for i in range(npn):
+        ap_new = c0 * (p_new[i] - s.p[i]) - (4.0 / dt) * s.vp[i] - s.ap[i]
+        s.vp[i] = s.vp[i] + 0.5 * dt * (s.ap[i] + ap_new)
+        s.ap[i] = ap_new
+        s.p[i] = p_new[i]
+    s.scalars[X] = x_new
+    s.counters[IN_CONTACT] = 1 if contact else 0
+    s.slack[:ns] = slack
+    s.counters[N_SLACK] = ns
+    s.scalars[DELTA] = delta if contact else min(delta, 0.0)
+    s.scalars[INPUT_FORCE] = input_force
+    s.counters[STEPS] += 1
+    return STEP_OK
+
+
+# Indices into the ``contact_readings`` output.
+CONTACT_UPLIFT, SUPPORT_UPLIFT, STATIC_STIFFNESS, STATIC_HEIGHT, STATIC_SLOPE = 0, 1, 2, 3, 4
+
+
+@numba.njit(cache=True)
+def contact_readings(c: StepConstants, s: StepState, flexibility: np.ndarray, out: np.ndarray) -> None:
+    """What the plant reports at the contact point x (``Line``'s formulas, compiled): the wire's
+    uplift there and at the nearest support [m], the static point stiffness 1 / (N^T F_e N)
+    from the element's 4x4 flexibility block [N/m], the static wire height [m] and slope."""
+    x, span = s.scalars[X], c.numbers[8]
+    e, n = hermite_weights(c.x_nodes, x)
+    dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
+    up, ws, nfn = 0.0, 0.0, 0.0
+    for i in range(4):
+        up += n[i] * s.d[dofs[i]]
+        ws += n[i] * c.w_static[dofs[i]]
+        acc = 0.0
+        for j in range(4):
+            acc += flexibility[e, i, j] * n[j]
+        nfn += n[i] * acc
+    h = c.x_nodes[e + 1] - c.x_nodes[e]
+    xi = (x - c.x_nodes[e]) / h
+    x2 = xi * xi
+    dn = (6 * (x2 - xi) / h, 1 - 4 * xi + 3 * x2, 6 * (xi - x2) / h, 3 * x2 - 2 * xi)
+    slope = 0.0
+    for i in range(4):
+        slope += dn[i] * c.w_static[dofs[i]]
+    es, ns = hermite_weights(c.x_nodes, np.rint(x / span) * span)
+    sup = 0.0
+    for i in range(4):
+        sup += ns[i] * s.d[4 * es + (i % 2) + 4 * (i // 2)]
+    out[CONTACT_UPLIFT] = up
+    out[SUPPORT_UPLIFT] = sup
+    out[STATIC_STIFFNESS] = 1.0 / nfn
+    out[STATIC_HEIGHT] = ws
+    out[STATIC_SLOPE] = slope
+
+
+@numba.njit(cache=True)
+def fe_advance(
+    c: StepConstants,
+    s: StepState,
+    input_force: float,
+    steps: int,
+    flexibility: np.ndarray,
+    readings: np.ndarray,
+) -> int:
+    """``steps`` x ``fe_step`` with the force held, then ``contact_readings`` (skipped if
+    ``readings`` is empty): one plant tick."""
+    for _ in range(steps):
+        status = fe_step(c, s, input_force)
+        if status != STEP_OK:
+            return status
+    if readings.shape[0]:
+        contact_readings(c, s, flexibility, readings)
+    return STEP_OK
+
+
+# -- packed arguments: a call from Python pays ~0.1 us per array argument (numba types each one) --
+#: Kind of each field of StepConstants / StepState: f = float64, i = int64, then the dimension.
+CONSTANT_KINDS = (
+    "f2", "f2", "f3", "i1", "i1", "f1", "f1", "f2", "f2", "f2", "f1",
+    "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1",
+)  # fmt: skip
+STATE_KINDS = ("f1", "f1", "f1", "f1", "f1", "f1", "f1", "f1", "i1", "i1", "f3", "i1", "f2", "f2", "f2")
+_ALIGN = 8  # elements: every packed array starts on a 64-byte boundary
+
+
+def pack(
+    arrays: tuple[np.ndarray, ...], kinds: tuple[str, ...]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[np.ndarray]]:
+    """(float buffer, int buffer, layout, views): ``arrays`` copied into two flat buffers; the views
+    (same shapes, into the buffers) replace them, so Python and compiled code share the memory.
+    layout[k] = (offset, shape0, shape1, shape2) of field k in its buffer."""
+    if len(arrays) != len(kinds):
+        raise ValueError(f"{len(arrays)} arrays for {len(kinds)} kinds")
+    sizes = {"f": 0, "i": 0}
+    layout = np.zeros((len(arrays), 4), dtype=np.int64)
+    for k, (arr, kind) in enumerate(zip(arrays, kinds, strict=True)):
+        if arr.ndim != int(kind[1]) or arr.dtype != (np.float64 if kind[0] == "f" else np.int64):
+            raise ValueError(f"field {k}: {arr.dtype} {arr.ndim}-d, expected kind {kind}")
+        layout[k, 0] = sizes[kind[0]]
+        layout[k, 1 : 1 + arr.ndim] = arr.shape
+        sizes[kind[0]] += -(-arr.size // _ALIGN) * _ALIGN
+    buffers = {"f": np.zeros(sizes["f"]), "i": np.zeros(sizes["i"], dtype=np.int64)}
+    views = []
+    for k, (arr, kind) in enumerate(zip(arrays, kinds, strict=True)):
+        view = buffers[kind[0]][layout[k, 0] : layout[k, 0] + arr.size].reshape(arr.shape)
+        view[...] = arr
+        views.append(view)
+    return buffers["f"], buffers["i"], layout, views
+
+
+@numba.njit(cache=True, inline="always")
+def _v1(buf: np.ndarray, lay: np.ndarray, k: int) -> np.ndarray:
+    return buf[lay[k, 0] : lay[k, 0] + lay[k, 1]]
+
+
+@numba.njit(cache=True, inline="always")
+def _v2(buf: np.ndarray, lay: np.ndarray, k: int) -> np.ndarray:
+    return buf[lay[k, 0] : lay[k, 0] + lay[k, 1] * lay[k, 2]].reshape((lay[k, 1], lay[k, 2]))
+
+
+@numba.njit(cache=True, inline="always")
+def _v3(buf: np.ndarray, lay: np.ndarray, k: int) -> np.ndarray:
+    n = lay[k, 1] * lay[k, 2] * lay[k, 3]
+    return buf[lay[k, 0] : lay[k, 0] + n].reshape((lay[k, 1], lay[k, 2], lay[k, 3]))
+
+
+@numba.njit(cache=True)
+def unpack(
+    cf: np.ndarray, ci: np.ndarray, cl: np.ndarray, sf: np.ndarray, si: np.ndarray, sl: np.ndarray
+) -> tuple[StepConstants, StepState]:
+    """The StepConstants and StepState that ``pack`` stored (field order and kinds as declared)."""
+    c = StepConstants(
+        _v2(cf, cl, 0), _v2(cf, cl, 1), _v3(cf, cl, 2), _v1(ci, cl, 3), _v1(ci, cl, 4), _v1(cf, cl, 5),
+        _v1(cf, cl, 6), _v2(cf, cl, 7), _v2(cf, cl, 8), _v2(cf, cl, 9), _v1(cf, cl, 10), _v1(cf, cl, 11),
+        _v1(ci, cl, 12), _v1(ci, cl, 13), _v1(ci, cl, 14), _v2(cf, cl, 15), _v2(cf, cl, 16),
+        _v2(cf, cl, 17), _v1(cf, cl, 18), _v1(cf, cl, 19), _v1(ci, cl, 20),
+    )  # fmt: skip
+    s = StepState(
+        _v1(sf, sl, 0), _v1(sf, sl, 1), _v1(sf, sl, 2), _v1(sf, sl, 3), _v1(sf, sl, 4), _v1(sf, sl, 5),
+        _v1(sf, sl, 6), _v1(sf, sl, 7), _v1(si, sl, 8), _v1(si, sl, 9), _v3(sf, sl, 10), _v1(si, sl, 11),
+        _v2(sf, sl, 12), _v2(sf, sl, 13), _v2(sf, sl, 14),
+    )  # fmt: skip
+    return c, s
+
+
+@numba.njit(cache=True)
+def fe_advance_packed(
+    cf: np.ndarray,
+    ci: np.ndarray,
+    cl: np.ndarray,
+    sf: np.ndarray,
+    si: np.ndarray,
+    sl: np.ndarray,
+    input_force: float,
+    steps: int,
+    flexibility: np.ndarray,
+    readings: np.ndarray,
+) -> int:
+    """``fe_advance`` on ``pack``ed constants (cf, ci, cl) and state (sf, si, sl): what Python calls
+    (10 arguments to type instead of 38)."""
+    c, s = unpack(cf, ci, cl, sf, si, sl)
+    return fe_advance(c, s, input_force, steps, flexibility, readings)

@@ -73,7 +73,7 @@ def three_mass_pantograph(
     stiffnesses: tuple[float, float, float] = (160.0, 15500.0, 7000.0),
     dampings: tuple[float, float, float] = (100.0, 0.0, 0.0),
 ) -> LumpedPantograph:
-    """Benchmark-like 3-mass pantograph of CATENARY_DATA §2, DOFs (frame, upper frame, head).
+    """Benchmark-like 3-mass pantograph of docs/catenary_data.md §2, DOFs (frame, upper frame, head).
 
     Our reading of the unconfirmed arrangement, in the order the data lists them
     (roof -> frame -> upper frame -> head): masses 6.0 (frame), 9.0 (upper frame),

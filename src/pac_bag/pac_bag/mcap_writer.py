@@ -19,7 +19,7 @@ import struct
 import zlib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 import numpy as np
 
@@ -120,7 +120,7 @@ class McapWriter:
     # -- messages -------------------------------------------------------------------------
 
     def _new_chunk(self) -> None:
-        self._parts: list[bytes | np.ndarray] = []
+        self._parts: list[Any] = []  # bytes, memoryviews, uint8 arrays: any buffer bytes.join takes
         self._size = 0
         # per part: channel ids, log times, offsets of the records in the chunk
         self._index: list[tuple[np.ndarray | int, np.ndarray | int, np.ndarray | int]] = []
@@ -185,7 +185,8 @@ class McapWriter:
             return
         data = b"".join(self._parts)
         compressed = self._compress(data)
-        start, end = int(self._chunk_start), int(self._chunk_end)
+        assert self._chunk_start is not None and self._chunk_end is not None  # set with the first message
+        start, end = self._chunk_start, self._chunk_end
         body = struct.pack("<QQQI", start, end, len(data), zlib.crc32(data))
         body += _string(self.compression) + struct.pack("<Q", len(compressed))
         chunk_offset = self._file.tell()
@@ -277,7 +278,7 @@ class McapWriter:
 def message_records(channel_id: int, log_times: np.ndarray, data: np.ndarray) -> np.ndarray:
     """Complete MCAP message records for ``n`` equal-size messages: uint8 array (n, 31 + size).
 
-    ``data``: uint8 array (n, size), e.g. from :func:`pac_rig.cdr.serialize_many`."""
+    ``data``: uint8 array (n, size), e.g. from :func:`pac_bag.cdr.serialize_many`."""
     n, size = data.shape
     dtype = np.dtype(MESSAGE_HEADER.descr + [("data", "u1", (size,))])
     out = np.empty(n, dtype=dtype)

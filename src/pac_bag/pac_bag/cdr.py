@@ -72,10 +72,6 @@ class CdrLayout:
             out[path] = columns[path]
         return out
 
-    def unpack(self, records: np.ndarray) -> dict[str, np.ndarray]:
-        """Flat columns of packed messages (a structured array of this dtype)."""
-        return {path: records[path] for path in self.fields}
-
 
 def layout(typestore: Any, typename: str, strings: Mapping[str, int] | None = None) -> CdrLayout:
     """The CDR layout of ``typename``; ``strings`` gives each string field's byte length (default 0).

@@ -1,0 +1,8 @@
+"""Bag I/O of pac runs, used by the rig (recorder, simulate, replay) and the analysis alike.
+
+Modules, one job each: ``typestore`` (ROS 2 Jazzy + pac_interfaces types from the .msg files),
+``names`` (topic names in bags), ``qos`` (QoS profiles as rosbag2 records them), ``cdr`` (whole
+runs of messages as CDR with numpy), ``mcap_writer`` (chunked, indexed MCAP), ``writer``
+(``BagWriter``: rosbag2 v9 directories), ``reader`` (``read_bag`` into columns), ``recovery``
+(the messages of a bag a crash left behind).
+"""

@@ -1,0 +1,336 @@
+"""PacNode: the base of every pac node (parameters, start-up) and the run's start/end protocol.
+
+A subclass lists its ``PARAMETER_SETS``; the base declares them as typed ROS parameters
+(:mod:`pac_common.ros_parameters`), refuses unknown names given on the command line or in
+its own params-file section, validates run-time changes with the start-up rules (a refused
+change leaves the node as it was, and pac's one line is the reason) and applies
+``NodeOptions`` (real-time priority). The run-end protocol: the plant announces the start and
+end of its run on ``run_status``; a follower answers up to the last tick, then idles or stops.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, ClassVar, TypeVar
+
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from . import messages
+from .command_line import ROS_OWN_PARAMETERS, process_arguments
+from .parameters import (
+    NodeOptions,
+    ParameterSet,
+    RunEndOptions,
+    SchedulingOptions,
+    UnknownParameterError,
+)
+from .qos import RUN_STATUS_QOS
+from .ros_parameters import (
+    declare_parameter_sets,
+    given_parameter_names,
+    parameter_names,
+    ros_value,
+    validate_changes,
+)
+from .scheduling import set_realtime_priority
+
+S = TypeVar("S", bound=ParameterSet)
+
+
+def pac_parameter_names() -> set[str]:
+    """Every parameter name of every installed pac node (the generated share/pac_*/config files).
+
+    Used to tell a typo in a shared ``/**`` section (no pac node has it: refused) from a key
+    meant for another node (ignored, as ROS does). Empty when the index cannot be read.
+    """
+    import glob
+    import os
+
+    import yaml
+
+    try:
+        from ament_index_python.packages import get_packages_with_prefixes
+    except ImportError:
+        return set()
+    names: set[str] = set()
+    for package, prefix in get_packages_with_prefixes().items():
+        if not package.startswith("pac_"):
+            continue
+        for path in glob.glob(os.path.join(prefix, "share", package, "config", "*.yaml")):
+            try:
+                with open(path, encoding="utf-8") as handle:
+                    data = yaml.safe_load(handle) or {}
+            except (OSError, yaml.YAMLError):
+                continue
+            for section in data.values() if isinstance(data, dict) else ():
+                if isinstance(section, dict) and isinstance(section.get("ros__parameters"), dict):
+                    names |= set(section["ros__parameters"])
+    return names
+
+
+class PacNode(Node):
+    """Base of every pac node: the contract :func:`~pac_common.process.run_nodes` relies on.
+
+    Contract: ``finished`` ends the spin loop, ``close()`` makes the node's results final (bag
+    closed, counters printed), ``exit_status`` is the process status.
+    """
+
+    PARAMETER_SETS: ClassVar[Sequence[type[ParameterSet]]] = ()
+    #: Why a parameter declared without ``runtime=True`` is refused at run time.
+    FROZEN_REASON: ClassVar[str] = "fixed for a run: restart the node to change it"
+
+    def __init__(self, name: str) -> None:
+        # Undeclared names reach our checks, which refuse them by name (rclpy's own refusal
+        # reads "Invalid access to undeclared parameter(s): []" in these wheels).
+        super().__init__(name, allow_undeclared_parameters=True)
+        self.finished = False
+        self.exit_status = 0
+        sets = declare_parameter_sets(self, self.PARAMETER_SETS)
+        self._sets: dict[type[ParameterSet], ParameterSet] = dict(zip(self.PARAMETER_SETS, sets, strict=True))
+        self._known = set(parameter_names(self.PARAMETER_SETS)) | ROS_OWN_PARAMETERS
+        self._runtime = {s.name for cls in self.PARAMETER_SETS for s in cls.specs() if s.runtime}
+        self._check_given_names()
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.factory = messages.RclpyFactory()
+        options = self._sets.get(NodeOptions)
+        self.node_options: NodeOptions | None = options  # type: ignore[assignment]
+        scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
+        if scheduling:
+            set_realtime_priority(self, scheduling[0].realtime_priority)
+
+    def _check_given_names(self) -> None:
+        """ROS's params-file rules, with pac's typo check.
+
+        A node takes ``-p`` values, its own section and the shared ``/**``. An unknown name from
+        ``-p`` or its own section is a typo (refused). From ``/**`` it is refused only when no pac
+        node has it; otherwise it is meant for another node and ignored. A params file that gives
+        this node nothing is said in one warning line.
+        """
+        arguments = process_arguments()
+        me = self.get_fully_qualified_name()
+        own_keys = set(arguments.parameters)
+        shared_keys: set[str] = set()
+        empty = []
+        for params_file in arguments.params_files:
+            shared, own = params_file.for_node(me)
+            own_keys |= own.keys()
+            shared_keys |= shared.keys()
+            if not (shared.keys() | own.keys()) & self._known:
+                empty.append(params_file)
+        unknown = [n for n in given_parameter_names(self) if n not in self._known]
+        everyone: set[str] | None = None
+        for name in unknown:
+            if name not in own_keys and name in shared_keys:
+                everyone = pac_parameter_names() if everyone is None else everyone
+                if name in everyone or not everyone:
+                    continue  # another node's key in a shared section: ROS ignores it too
+            raise UnknownParameterError(name, self._parameter_overrides[name].value, self.get_name())
+        for params_file in empty:
+            sections = ", ".join(f"'{s}'" for s in params_file.sections) or "none"
+            self.get_logger().warning(
+                f"params file {params_file.path} gives {me} nothing (its sections: {sections}; "
+                f"a node takes '/**:' and its own, '{self.get_name()}:')"
+            )
+
+    def _unknown_hint(self) -> str:
+        return f"a parameter of {self.get_name()} (`ros2 run <pkg> {self.get_name()} --help` lists them)"
+
+    def parameters(self, cls: type[S]) -> S:
+        """The current, validated values of one of the node's parameter sets."""
+        return self._sets[cls]  # type: ignore[return-value]
+
+    def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
+        """Hook: run-time changes, validated, about to take effect (``changed``: the new sets)."""
+
+    # -- run-time changes: pac's checks first, then rclpy's descriptors ------------------------------
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """pac's refusal (unknown, fixed for a run, out of range) before rclpy's own wording.
+
+        The parameter services call this. An integer for a double parameter is converted
+        (`ros2 param set controller_node c1 30` keeps c1 a double).
+        """
+        checked, refusal = self._pac_check(parameter_list)
+        return refusal or super().set_parameters_atomically(checked)
+
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        return [self.set_parameters_atomically([p]) for p in parameter_list]
+
+    def _pac_check(self, params: list[Parameter]) -> tuple[list[Parameter], SetParametersResult | None]:
+        for p in params:
+            if p.name not in self._known:
+                return params, SetParametersResult(
+                    successful=False, reason=f"{p.name}: no such parameter; allowed {self._unknown_hint()}"
+                )
+        frozen = [p.name for p in params if p.name not in self._runtime and p.name not in ROS_OWN_PARAMETERS]
+        if frozen:
+            return params, SetParametersResult(
+                successful=False, reason=f"{', '.join(frozen)}: {self.FROZEN_REASON}"
+            )
+        live = [cls for cls in self.PARAMETER_SETS if cls.has_runtime()]
+        current = [self._sets[cls] for cls in live]
+        _, error = validate_changes(current, params)
+        if error:
+            return params, SetParametersResult(successful=False, reason=error)
+        specs = {s.name: s for cls in live for s in cls.specs()}
+        return [
+            Parameter(p.name, value=ros_value(specs[p.name], p.value)) if p.name in specs else p
+            for p in params
+        ], None
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Apply a change that passed :meth:`_pac_check` and rclpy's descriptors."""
+        _, refusal = self._pac_check(params)
+        if refusal is not None:
+            return refusal
+        live = [cls for cls in self.PARAMETER_SETS if cls.has_runtime()]
+        current = [self._sets[cls] for cls in live]
+        updated, error = validate_changes(current, params)
+        if error:
+            return SetParametersResult(successful=False, reason=error)
+        changed = {cls: new for cls, old, new in zip(live, current, updated, strict=True) if new != old}
+        if changed:
+            self.apply_parameters(changed)
+            self._sets.update(changed)
+        return SetParametersResult(successful=True)
+
+    # -- start-up: say what the node waits for, give up after start_timeout -------------------------
+    #: Seconds between two "still waiting for ..." lines.
+    WAIT_REPORT_PERIOD = 5.0
+
+    def readers_missing(self, publisher: Any, topic: str, peer: str) -> list[str]:
+        """What ``publisher`` still waits for: its ``peer`` reader and, with wait_for_recorder, a
+        recorder; one line naming them (empty: both there)."""
+        recorder = int(self.node_options is not None and self.node_options.wait_for_recorder)
+        readers = publisher.get_subscription_count()
+        if readers >= 1 + recorder:
+            return []
+        who = f"{peer} and a recorder (wait_for_recorder)" if recorder else peer
+        return [f"{who} subscribed to {topic} ({readers} of {1 + recorder})"]
+
+    def watch_start(self, missing: Callable[[], list[str]]) -> None:
+        """Until ``missing()`` is empty: say what is missing every WAIT_REPORT_PERIOD s, and after
+        ``start_timeout`` s (NodeOptions; 0: never) stop with exit status 1 and one error line.
+
+        ``missing()`` names each absent peer, e.g. "a recorder subscribed to measurement".
+        """
+        started = time.monotonic()
+        state = {"reported": started}
+
+        def check() -> None:
+            absent = missing()
+            if not absent:
+                self.destroy_timer(timer)
+                return
+            now = time.monotonic()
+            limit = self.node_options.start_timeout if self.node_options is not None else 0.0
+            waited = now - started
+            if limit > 0 and waited >= limit:
+                self.get_logger().error(
+                    f"gave up after {waited:.0f} s waiting for {'; '.join(absent)} "
+                    f"(start_timeout {limit:g} s; is it running, in ROS_DOMAIN_ID "
+                    f"{os.environ.get('ROS_DOMAIN_ID', '0')}?)"
+                )
+                self.exit_status, self.finished = 1, True
+                self.destroy_timer(timer)
+            elif now - state["reported"] >= self.WAIT_REPORT_PERIOD:
+                state["reported"] = now
+                self.get_logger().info(f"waiting {waited:.0f} s for {'; '.join(absent)}")
+
+        timer = self.create_timer(0.25, check)
+
+    # -- the plant's run: start and end ------------------------------------------------------------
+    #: After the end was announced, how long a follower waits for the last tick before it stops
+    #: (a lost last sample must not keep a stop_after_run node alive).
+    RUN_END_GRACE = 2.0
+
+    def follow_run(self) -> None:
+        """Subscribe ``run_status``: :attr:`run_last_tick` is the ended run's last tick, else None."""
+        self.run_last_tick: int | None = None
+        self._run_ended_wall = 0.0
+        self._last_handled_tick = -1
+        self.create_subscription(
+            self.factory.cls(messages.RUN_STATUS), "run_status", self._on_run_status, RUN_STATUS_QOS
+        )
+        if self._sets.get(RunEndOptions) is not None and self.parameters(RunEndOptions).stop_after_run:
+            self.create_timer(0.1, self._check_run_end_grace)
+
+    @property
+    def run_ended(self) -> bool:
+        return self.run_last_tick is not None
+
+    def _on_run_status(self, msg: Any) -> None:
+        self._check_line(msg)
+        if msg.state == messages.RUN_ENDED:
+            self.run_last_tick, self._run_ended_wall = int(msg.tick), time.monotonic()
+            self.get_logger().info(f"the plant's run ended at tick {msg.tick}: idle until a new run")
+            self.on_run_end()
+            self.handled_tick(self._last_handled_tick)  # the last tick may have come first
+        elif self.run_last_tick is not None:
+            self.run_new()
+
+    def _check_line(self, msg: Any) -> None:
+        """Warn (once per line) when the plant's span length is not the one this node assumes."""
+        span = float(getattr(msg, "span_length", 0.0))
+        mine = [p.span_length for p in self._sets.values() if hasattr(p, "span_length")]
+        line = (str(getattr(msg, "catenary_model", "")), span)
+        if span <= 0.0 or not mine or line == getattr(self, "_line_checked", None):
+            return
+        self._line_checked = line
+        if abs(mine[0] - span) > 1e-9 * span:
+            self.get_logger().warning(
+                f"the plant runs the {line[0]} line with {span:g} m spans but this node assumes "
+                f"span_length {mine[0]:g} m: its model of k(t) is off (set -p span_length:={span:g})"
+            )
+
+    def run_new(self) -> None:
+        """A new run started (a RUNNING status, or ticks back at 0): leave the idle state."""
+        self.run_last_tick = None
+        self._last_handled_tick = -1
+
+    def on_run_end(self) -> None:
+        """Hook: the plant announced the end of its run (``run_last_tick`` is set)."""
+
+    def handled_tick(self, tick: int) -> None:
+        """Subclasses call this after handling ``tick``: the end of a run may stop the node."""
+        self._last_handled_tick = max(self._last_handled_tick, tick)
+        if self.run_last_tick is not None and tick >= self.run_last_tick:
+            self._stop_after_run()
+
+    def _stop_after_run(self) -> None:
+        if self.parameters(RunEndOptions).stop_after_run and not self.finished:
+            self.get_logger().info("run over and its last tick handled: stopping (stop_after_run)")
+            self.finished = True
+
+    def _check_run_end_grace(self) -> None:
+        if self.run_ended and time.monotonic() - self._run_ended_wall > self.RUN_END_GRACE:
+            if not self.finished:
+                self.get_logger().warning(
+                    f"tick {self.run_last_tick} never reached this node within {self.RUN_END_GRACE:g} s "
+                    "of the run's end: stopping anyway"
+                )
+            self._stop_after_run()
+
+    def wait_for_acknowledgements(self, timeout: float = 2.0) -> None:
+        """Before exit: wait (bounded) until reliable readers (the recorder) have every sample.
+
+        Without it the last ticks of a run were lost when the recorder was slower than the
+        plant's exit (seen under load).
+        """
+        deadline = time.monotonic() + timeout
+        for pub in list(self.publishers):
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                break
+            try:
+                pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
+            except Exception:  # noqa: BLE001 - a context already shut down: nothing to wait for
+                return
+
+    def close(self) -> None:
+        """Make the node's results final; the base waits for acknowledgements of what it sent."""
+        self.wait_for_acknowledgements()

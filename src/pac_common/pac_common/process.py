@@ -1,0 +1,104 @@
+"""The life of a node process: check the command line, start rclpy, spin, stop cleanly.
+
+A bad command line, params file, parameter value or ``ROS_DOMAIN_ID`` is one line on stderr
+and exit status 2; SIGINT / SIGTERM are a clean shutdown with exit status 0.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+import time
+from collections.abc import Sequence
+
+from .command_line import UsageError, check_domain_id, check_ros_arguments, set_process_arguments
+from .discovery import loopback_only
+from .executor import make_executor
+from .node_help import node_help, print_help
+from .parameters import ParameterError
+
+
+def run_node(program: str, node_class: type, args: list[str] | None = None) -> int:
+    """Initialise rclpy, build the node, spin until shutdown; the exit status of the program.
+
+    ``--help`` prints the usage and parameters (exit 0). ``EventsExecutor.spin()`` busy-loops
+    in these rclpy wheels; a ``spin_once`` loop does not.
+    """
+    return run_nodes(program, [node_class], args)
+
+
+def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None = None) -> int:
+    """:func:`run_node` for several nodes in one process and one executor (a component container).
+
+    The process runs until every node is ``finished`` (or a signal); each node is then closed
+    in order; the status is the first non-zero one.  Parameters reach each node by name
+    (``--params-file`` with one section per node): a global ``-p`` would reach all of them,
+    and each refuses the names it does not declare.
+    """
+    argv = list(sys.argv if args is None else args)[1:]
+    outside = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv
+    if "--help" in outside or "-h" in outside:
+        print_help("\n\n".join(node_help(program, cls) for cls in node_classes))
+        return 0
+    try:
+        check_domain_id()
+        set_process_arguments(check_ros_arguments(argv))
+    except UsageError as exc:
+        print(f"{program}: {exc}", file=sys.stderr)
+        return 2
+    loopback_only()
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+
+    try:
+        rclpy.init(args=args)
+    except _rclpy.RCLError as exc:  # anything check_ros_arguments did not foresee
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"{program}: cannot start: {first}", file=sys.stderr)
+        return 2
+    nodes: list = []
+    executor = None
+    status = 0
+    try:
+        try:
+            for cls in node_classes:
+                nodes.append(cls())
+        except ParameterError as exc:
+            print(f"{program}: {exc}", file=sys.stderr)
+            status = 2
+            return 2
+        executor = make_executor()
+        for node in nodes:
+            executor.add_node(node)
+        while rclpy.ok() and not all(node.finished for node in nodes):
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception as exc:  # noqa: BLE001 - report, then exit non-zero with a clean shutdown
+        # SIGINT/SIGTERM shut the context down asynchronously: an error raised by a callback (or by
+        # the executor) in that instant is part of a clean stop. Give the shutdown a moment to show.
+        deadline = time.monotonic() + 0.5
+        while rclpy.ok() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        if rclpy.ok():
+            print(f"{program}: fatal: {exc!r}", file=sys.stderr)
+            status = 1
+    finally:
+        if nodes and status != 2:
+            for node in nodes:
+                node.close()  # the node's own results (bag, counters) are final from here on
+                status = status or node.exit_status
+            # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
+            # stops; everything that matters is done, so a stuck teardown ends the process.
+            final = status
+            guard = threading.Timer(5.0, lambda: os._exit(final))
+            guard.daemon = True
+            guard.start()
+            if executor is not None:
+                executor.shutdown(timeout_sec=1.0)
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status

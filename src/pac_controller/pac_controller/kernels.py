@@ -1,0 +1,310 @@
+"""The controller compiled: every law's arithmetic and the law-agnostic safety chain, on named records.
+
+One record type holds what a controller is given (:data:`CONTROLLER_PARAMS`: the law's code and
+design, the actuator limits, the reference) and one what it remembers
+(:data:`CONTROLLER_STATE`: the last command and its tick, the law's integrator and pending
+commands).  Both are numpy structured scalars, so the compiled closed loop
+(``pac_rig.loop``) steps a controller without allocating, and the Python law classes
+(:class:`KernelLaw` and its subclasses, which the controller node runs) call the very same
+functions: one formula, two fronts.
+
+Adding a compiled law (docs/design.md, "Adding a law"): give it a code in :data:`LAW_CODES`,
+its numbers as fields of :data:`CONTROLLER_PARAMS` (filled by its class's ``pack``), its
+memory as fields of :data:`CONTROLLER_STATE`, and one branch in each of :func:`law_restart`,
+:func:`law_output` and :func:`law_commit`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from pac_common import messages
+from pac_common.smallmat import fma
+from pac_model import model
+
+from .controller import limit_command
+from .reference import reference_at4
+
+#: Law name -> the code the compiled functions dispatch on.
+LAW_CODES = {"adaptive_backstepping": 0, "backstepping_known": 1, "pid": 2, "lqr": 3, "passive": 4}
+_ADAPTIVE, _KNOWN, _PID, _LQR, _PASSIVE = 0, 1, 2, 3, 4
+#: Command.mode by code (``MODES[code]``): what ``controller_step`` returns as its mode.
+MODES = tuple(messages.MODES)  # the message's codes
+assert MODES == ("active", "passive", "fallback")
+_ACTIVE, _MODE_PASSIVE, _FALLBACK = 0, 1, 2
+#: Most pending commands the lqr law keeps (design_delay_ticks is at most 10).
+MAX_PENDING = 16
+
+CONTROLLER_PARAMS = np.dtype(
+    [
+        ("law", "i8"),  # LAW_CODES
+        ("dt", "f8"),  # sample period [s]
+        # safety chain (pac_controller.controller.Controller)
+        ("slew_rate_max", "f8"),
+        ("u_min", "f8"),
+        ("u_max", "f8"),
+        ("fallback_force", "f8"),
+        # F_r (reference.reference_args)
+        ("shape", "i8"),
+        ("force_amplitude", "f8"),
+        ("force_initial", "f8"),
+        ("step_time", "f8"),
+        ("period", "f8"),
+        ("filter_bandwidth", "f8"),
+        # backstepping, eqs. (23)-(43)
+        ("omega", "f8"),
+        ("m1", "f8"),
+        ("b1", "f8"),
+        ("k1", "f8"),
+        ("m2", "f8"),
+        ("b2", "f8"),
+        ("c1", "f8"),
+        ("c2", "f8"),
+        ("c3", "f8"),
+        ("stiffness_hat_min", "f8"),
+        ("theta", "f8", 3),  # backstepping_known: the catenary's true theta
+        # pid (pid.PidGains)
+        ("kp", "f8"),
+        ("ki", "f8"),
+        ("kd", "f8"),
+        ("tf", "f8"),
+        ("tt", "f8"),
+        # lqr (lqr.LqrGains): K = (state 4, pending delay, integral 1)
+        ("gain", "f8", 4 + MAX_PENDING + 1),
+        ("delay", "i8"),
+        ("design_stiffness", "f8"),
+        ("tracking_time", "f8"),
+    ]
+)
+
+CONTROLLER_STATE = np.dtype(
+    [
+        # safety chain
+        ("has_last", "b1"),  # a command was given (the slew limit applies from it)
+        ("last_u", "f8"),
+        ("last_tick", "i8"),
+        ("has_law_tick", "b1"),  # False: the law restarts before its next output
+        ("law_tick", "i8"),
+        # the law's memory (pid, lqr)
+        ("started", "b1"),
+        ("has_bumpless", "b1"),
+        ("bumpless_from", "f8"),
+        ("integral", "f8"),
+        ("rate", "f8"),  # pid: Ki e + (u_applied - u) / Tt; lqr: q' of the last tick
+        ("derivative", "f8"),
+        ("last_error", "f8"),
+        ("law_last_tick", "i8"),
+        ("pending_error", "f8"),  # output -> commit
+        ("pending_integral", "f8"),
+        ("pending_derivative", "f8"),
+        ("pending_u", "f8"),
+        ("commands", "f8", MAX_PENDING),  # lqr: commands sent, not yet applied (a ring)
+        ("head", "i8"),  # the oldest of them
+    ]
+)
+
+
+@njit(cache=True)
+def new_state(states) -> None:
+    """A controller that has commanded nothing yet (``Controller.__init__``)."""
+    s = states[0]
+    s.has_last, s.last_u, s.last_tick, s.has_law_tick, s.law_tick = False, 0.0, -1, False, 0
+
+
+@njit(cache=True, error_model="numpy")
+def _contact_force_estimate(t: float, omega: float, z_hat, theta_hat) -> float:
+    """F_hat = k_hat z_hat_1, k_hat = v(t)^T theta_hat (eqs. (6), (8)): controller.contact_force_estimate."""
+    return model.contact_force(model.stiffness(t, omega, theta_hat), z_hat[0], False)
+
+
+@njit(cache=True, error_model="numpy")
+def law_restart(p, s, has_u: bool, u_applied: float) -> None:
+    """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
+    s.has_bumpless, s.bumpless_from = has_u, u_applied
+    s.started = False
+    s.integral, s.rate, s.derivative, s.last_error, s.law_last_tick = 0.0, 0.0, 0.0, 0.0, 0
+    if p.law == _LQR:
+        s.head = 0
+        for j in range(p.delay):
+            s.commands[j] = u_applied if has_u else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def law_output(p, s, tick: int, t: float, f_r, z_hat, theta_hat) -> tuple[float, float, float, float]:
+    """The unlimited force u_law for ``tick`` and three law-specific errors; remembers them for commit."""
+    law = p.law
+    if law == _ADAPTIVE or law == _KNOWN:  # eq. (43); the oracle is told the true theta
+        if law == _ADAPTIVE:
+            th0, th1, th2 = theta_hat[0], theta_hat[1], theta_hat[2]
+        else:
+            th0, th1, th2 = p.theta[0], p.theta[1], p.theta[2]
+        return backstepping.backstepping_law4(
+            t, f_r, z_hat, th0, th1, th2, p.omega, p.m1, p.b1, p.k1, p.m2, p.b2,
+            p.c1, p.c2, p.c3, p.stiffness_hat_min,
+        )  # fmt: skip
+    if law == _PID:  # pac_controller.pid (module docstring)
+        e = f_r[0] - _contact_force_estimate(t, p.omega, z_hat, theta_hat)
+        if s.started:
+            h = (tick - s.law_last_tick) * p.dt
+            integral = s.integral + h * s.rate
+            derivative = (p.tf * s.derivative + p.kd * (e - s.last_error)) / (p.tf + h)
+        else:
+            integral, derivative = 0.0, 0.0
+        u = f_r[0] + p.kp * e + derivative
+        if not s.started and s.has_bumpless:
+            integral = s.bumpless_from - u  # continue from the actuator's force
+        u += integral
+        s.pending_error, s.pending_integral, s.pending_derivative, s.pending_u = e, integral, derivative, u
+        return u, e, integral, derivative
+    if law == _LQR:  # pac_controller.lqr (module docstring)
+        u_ss = f_r[0]
+        z1_ss = u_ss / p.design_stiffness  # model.static_equilibrium at the design stiffness
+        x_ss = (z1_ss, z1_ss + u_ss / p.k1, 0.0, 0.0)
+        feedback = 0.0  # K_x (z_hat - x_ss), summed as numpy's dot sums it (smallmat.fma)
+        for i in range(4):
+            feedback = fma(p.gain[i], z_hat[i] - x_ss[i], feedback)
+        if p.delay:
+            pending = 0.0
+            for j in range(p.delay):
+                pending = fma(p.gain[4 + j], s.commands[(s.head + j) % p.delay] - u_ss, pending)
+            feedback += pending
+        k_q = p.gain[4 + p.delay]
+        if s.started:
+            integral = s.integral + (tick - s.law_last_tick) * p.dt * s.rate
+        elif s.has_bumpless:
+            integral = -(s.bumpless_from - u_ss + feedback) / k_q  # u = the actuator's force
+        else:
+            integral = 0.0
+        u = u_ss - feedback - k_q * integral
+        error = _contact_force_estimate(t, p.omega, z_hat, theta_hat) - u_ss
+        s.pending_error, s.pending_integral, s.pending_u = error, integral, u
+        return u, -error, integral, 0.0
+    return f_r[0], 0.0, 0.0, 0.0  # passive: u = F_r
+
+
+@njit(cache=True, error_model="numpy")
+def law_commit(p, s, tick: int, u_applied: float) -> None:
+    """The limited force actually commanded for ``tick``: update the law's state."""
+    law = p.law
+    if law == _PID:
+        s.integral, s.derivative, s.last_error = s.pending_integral, s.pending_derivative, s.pending_error
+        s.law_last_tick = tick
+        s.rate = p.ki * s.pending_error + (u_applied - s.pending_u) / p.tt  # back-calculation
+        s.started = True
+    elif law == _LQR:
+        k_q = p.gain[4 + p.delay]
+        s.rate = s.pending_error + (s.pending_u - u_applied) / (k_q * p.tracking_time)
+        s.integral, s.law_last_tick, s.started = s.pending_integral, tick, True
+        if p.delay:
+            s.commands[s.head] = u_applied  # replaces the oldest
+            s.head = (s.head + 1) % p.delay
+
+
+@njit(cache=True, error_model="numpy")
+def _limited(p, s, tick: int, u: float) -> float:
+    """Slew-rate limit from the last command, then saturation; updates the actuator state."""
+    applied = limit_command(
+        u, s.last_u if s.has_last else 0.0, s.has_last, tick - s.last_tick,
+        p.slew_rate_max, p.dt, p.u_min, p.u_max,
+    )  # fmt: skip
+    s.has_last, s.last_u, s.last_tick = True, applied, tick
+    return applied
+
+
+@njit(cache=True, error_model="numpy")
+def controller_fallback(p, s, tick: int) -> tuple[float, float, float, float, float, float, int]:
+    """The safe command (``Controller.fallback``): fallback_force within the slew limit."""
+    t = tick * p.dt
+    f_r = reference_at4(
+        t, p.shape, p.force_amplitude, p.force_initial, p.step_time, p.period, p.filter_bandwidth
+    )
+    s.has_law_tick = False  # the law did not command this: it restarts from here
+    u = _limited(p, s, tick, p.fallback_force)
+    return u, p.fallback_force, f_r[0], 0.0, 0.0, 0.0, _FALLBACK
+
+
+@njit(cache=True, error_model="numpy")
+def controller_step(
+    p, s, tick: int, z_hat, theta_hat
+) -> tuple[float, float, float, float, float, float, int]:
+    """``Controller.compute`` compiled: (u, u_unsaturated, F_r, e1, e2, e3, mode code)."""
+    t = tick * p.dt
+    f_r = reference_at4(
+        t, p.shape, p.force_amplitude, p.force_initial, p.step_time, p.period, p.filter_bandwidth
+    )
+    if p.law != _PASSIVE:  # a law that uses the estimate never sees a non-finite one
+        finite = True
+        for i in range(4):
+            finite = finite and math.isfinite(z_hat[i])
+        for i in range(3):
+            finite = finite and math.isfinite(theta_hat[i])
+        if not finite:
+            return controller_fallback(p, s, tick)
+    if not s.has_law_tick or tick <= s.law_tick:
+        law_restart(p, s, s.has_last, s.last_u)
+    u_law, e1, e2, e3 = law_output(p, s, tick, t, f_r, z_hat, theta_hat)
+    if not math.isfinite(u_law):
+        return controller_fallback(p, s, tick)
+    u = _limited(p, s, tick, u_law)
+    law_commit(p, s, tick, u)
+    s.has_law_tick, s.law_tick = True, tick
+    return u, u_law, f_r[0], e1, e2, e3, _MODE_PASSIVE if p.law == _PASSIVE else _ACTIVE
+
+
+# Entry points for Python callers (the law classes): records travel as 1-element arrays.
+@njit(cache=True, error_model="numpy")
+def _restart_one(params, states, has_u, u_applied) -> None:
+    law_restart(params[0], states[0], has_u, u_applied)
+
+
+@njit(cache=True, error_model="numpy")
+def _output_one(params, states, tick, t, f0, f1, f2, f3, z_hat, theta_hat):
+    return law_output(params[0], states[0], tick, t, (f0, f1, f2, f3), z_hat, theta_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def _commit_one(params, states, tick, u_applied) -> None:
+    law_commit(params[0], states[0], tick, u_applied)
+
+
+class KernelLaw:
+    """A law whose arithmetic is :func:`law_output` / :func:`law_commit` (the ``Law`` protocol).
+
+    A subclass fills ``self.params[0]`` (its fields of :data:`CONTROLLER_PARAMS`) and sets
+    ``params['law']``; the compiled loop copies those fields, so the node's law and the
+    offline loop's are the same numbers through the same code.
+    """
+
+    mode = "active"
+    uses_estimate = True
+
+    def __init__(self, name: str, sample_period: float) -> None:
+        self.params = np.zeros(1, CONTROLLER_PARAMS)
+        self.params[0]["law"] = LAW_CODES[name]
+        self.params[0]["dt"] = sample_period
+        self.state = np.zeros(1, CONTROLLER_STATE)
+        self.restart(None)
+
+    def restart(self, u_applied: float | None) -> None:
+        _restart_one(
+            self.params, self.state, u_applied is not None, 0.0 if u_applied is None else float(u_applied)
+        )
+
+    def output(
+        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+    ) -> tuple[float, tuple[float, float, float]]:
+        u, e1, e2, e3 = _output_one(
+            self.params, self.state, int(tick), float(t), float(f_r[0]), float(f_r[1]), float(f_r[2]),
+            float(f_r[3]), np.asarray(z_hat, dtype=np.float64), np.asarray(theta_hat, dtype=np.float64),
+        )  # fmt: skip
+        return u, (e1, e2, e3)
+
+    def commit(self, tick: int, u_applied: float) -> None:
+        _commit_one(self.params, self.state, int(tick), float(u_applied))
+
+
+# Last: backstepping.py subclasses KernelLaw (the compiled functions look it up when they compile).
+from . import backstepping  # noqa: E402 - eqs. (23)-(43); that module imports this one

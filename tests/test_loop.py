@@ -1,0 +1,60 @@
+"""The compiled loop's other fronts: simulate's bag from whole blocks, the bench's one results file."""
+
+import json
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+
+from pac_experiments import bench_report
+from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+pytestmark = pytest.mark.offline
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def messages_of(bag: Path) -> list[tuple[str, int, bytes]]:
+    """(topic, log time, CDR bytes) of every message, read with the independent mcap reader."""
+    (path,) = bag.glob("*.mcap")
+    with path.open("rb") as f:
+        return [
+            (c.topic, m.log_time, bytes(m.data))
+            for _, c, m in make_reader(f).iter_messages(log_time_order=True)
+        ]
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        {"duration": 0.5, "noise_std": (1e-5, 1e-5), "command_delay_ticks": 2, "law": "pid"},
+        {"duration": 5.0, "shape": "square", "period": 1.0},  # more than one block of ticks
+        {"duration": 1.0, "c1": 400.0, "c2": 400.0, "u_min": -1e7, "u_max": 1e7, "slew_rate_max": 1e12},
+    ],
+    ids=["noisy-pid", "blocks", "diverges"],
+)
+def test_compiled_bag_equals_the_per_record_bag(tmp_path, values):
+    """Every message of every topic, byte for byte: columns from TICK blocks == one dict per message."""
+    s = scenario_from_flat(values)
+    fast = simulate_to_bag(s, tmp_path / "fast")
+    slow = simulate_to_bag(s, tmp_path / "slow", compiled=False)
+    assert (fast.ticks, fast.diverged) == (slow.ticks, slow.diverged)
+    got, want = messages_of(tmp_path / "fast"), messages_of(tmp_path / "slow")
+    assert len(got) == len(want) == 4 * fast.ticks + 2
+    assert got == want
+
+
+def test_readme_performance_block_is_the_bench_file():
+    """README.md's generated block says exactly what reports/bench/latest.json says."""
+    results = json.loads((ROOT / "reports/bench/latest.json").read_text())
+    assert bench_report.readme_section(results) in (ROOT / "README.md").read_text()
+    for goal in bench_report.GOALS:
+        assert goal.key in results["figures"], goal.key
+
+
+def test_goal_marks():
+    g = bench_report.GOALS[0]
+    assert g.met(g.goal) is True and g.met(g.goal * 0.99) is False and g.met(None) is None
+    assert g.met(float("nan")) is None
+    low = next(goal for goal in bench_report.GOALS if not goal.at_least)
+    assert low.met(low.goal) is True and low.met(low.goal + 1.0) is False

@@ -1,0 +1,69 @@
+"""README's result table is the committed report's numbers: every figure of the "Results" table
+equals reports/reproduce/metrics.json (written by `make reproduce`) to the digits printed."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from pac_common import markdown
+
+pytestmark = pytest.mark.unit
+
+ROOT = Path(__file__).resolve().parents[1]
+#: README row label -> the metrics.json keys its cells show ("a / b": two keys).
+ROWS = {
+    "Fm, mean contact force [N]": ("contact_force_mean",),
+    "σ [N]": ("contact_force_std",),
+    "Fm − 3σ / Fm + 3σ [N]": ("statistical_min", "statistical_max"),
+    "actual min / max [N]": ("contact_force_min", "contact_force_max"),
+    "contact lost [%]": ("contact_loss_percent",),
+    "tracking RMS F − F_r [N]": ("tracking_rms",),
+    "k̂ relative RMS error [%]": ("stiffness_rel_rms_percent",),
+    "max \\|u\\| [N]": ("u_max_abs",),
+}
+NUMBER = re.compile(r"^[−-]?\d+(\.\d+)?$")
+
+
+def results_table() -> list[list[str]]:
+    text = (ROOT / "README.md").read_text().split("\n## Results", 1)[1]
+    lines = [line for line in text.split("\n\n")[2].splitlines() if line.startswith("|")]
+    return [markdown.split_row(line) for line in lines if not set(line) <= set("|-: ")]
+
+
+def printed(cell: str) -> float | None:
+    """The number a cell prints (bold and sign variants read), None for text cells."""
+    text = cell.replace("*", "").strip()
+    return float(text.replace("−", "-")) if NUMBER.match(text) else None
+
+
+def test_readme_results_table_is_the_committed_report():
+    data = json.loads((ROOT / "reports" / "reproduce" / "metrics.json").read_text())
+    header, *rows = results_table()
+    runs = header[1:]
+    assert set(runs) <= set(data), runs
+    assert {row[0] for row in rows} == set(ROWS)
+    checked = 0
+    for row in rows:
+        keys = ROWS[row[0]]
+        for run, cell in zip(runs, row[1:], strict=True):
+            parts = cell.split(" / ")
+            if len(parts) != len(keys):
+                assert printed(cell) is None, (row[0], run, cell)  # a remark, not a figure
+                continue
+            for key, part in zip(keys, parts, strict=True):
+                value = printed(part)
+                if value is None:
+                    continue
+                decimals = len(part.replace("*", "").strip().partition(".")[2])
+                assert abs(data[run][key] - value) <= 0.5 * 10**-decimals + 1e-9, (
+                    row[0],
+                    run,
+                    part,
+                    data[run][key],
+                )
+                checked += 1
+    assert checked >= 20  # the table was read (24 figures when this was written)
