@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pytest
 
+from pac_common.contact_statistics import contact_statistics, lowpass
 from pac_controller.line_adaptive import LineAdaptiveLaw
 from pac_controller.parameters import LawParameters
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_observer.contact_force import ContactForceObserver, kalman_design
 from pac_observer.parameters import ObserverParameters
-from pac_common.contact_statistics import contact_statistics, lowpass
 
 pytestmark = pytest.mark.offline
 
