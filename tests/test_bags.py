@@ -1,4 +1,4 @@
-"""Issue #10/#9/#8 (bags): vectorised CDR byte for byte, bulk == message-by-message bags, the
+"""Bags: vectorised CDR byte for byte, bulk == message-by-message bags, the
 ros2 bag layout (names, QoS, compression) read by three readers, old bags, damaged bags."""
 
 import json

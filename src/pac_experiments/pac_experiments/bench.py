@@ -154,7 +154,8 @@ def bag_writing(workdir: Path, seconds: float = 10.0) -> list[tuple[str, float, 
 
     The run's ticks are collected first (the simulator's own field dictionaries), then written
     through the bulk path (columns -> CDR -> chunks) with each compression, and message by
-    message with the rosbags serialiser (the path before #10) for comparison; best of 3."""
+    message with the rosbags serialiser (the offline simulator's path before the bulk one) for
+    comparison; best of 3."""
     from pac_bag.mcap_writer import COMPRESSIONS
     from pac_bag.writer import BagWriter
     from pac_rig.simulate import scenario_from_flat, tick_fields, write_ticks

@@ -1,4 +1,4 @@
-"""``make catenary``: the FE catenary's checks, reference runs and the control experiment (issue #11).
+"""``make catenary``: the FE catenary's checks, reference runs and the control experiment.
 
 Writes ``reports/catenary/`` (metrics.md, metrics.json, PNG figures):
 

@@ -333,7 +333,7 @@ class StepState(NamedTuple):
 @numba.njit(cache=True)
 def hermite_weights(x_nodes: np.ndarray, x: float) -> tuple[int, np.ndarray]:
     """(element, Hermite weights) of position x: ``Line.locate`` + ``hermite_shape`` (x on the line)."""
-    e = np.searchsorted(x_nodes, x, side="right") - 1
+    e = int(np.searchsorted(x_nodes, x, side="right")) - 1
     e = min(max(e, 0), x_nodes.shape[0] - 2)
     h = x_nodes[e + 1] - x_nodes[e]
     xi = (x - x_nodes[e]) / h
