@@ -78,6 +78,7 @@ def test_contact_force_observer_follows_the_lumped_lines_force():
     assert math.sqrt(np.mean((f_hat - f) ** 2)) < 0.05 * np.std(f)
 
 
+@pytest.mark.timeout(900)  # an FE run: minutes on a loaded machine
 def test_contact_force_estimate_error_on_the_fe_line():
     """The estimate against the FE plant's penalty force (PlantTruth.contact_force): < 10 % of sigma_F.
 
@@ -93,6 +94,7 @@ def test_contact_force_estimate_error_on_the_fe_line():
     assert math.sqrt(np.mean((f_hat - f) ** 2)) < 0.10 * sigma
 
 
+@pytest.mark.timeout(1800)  # two 12-span FE runs
 def test_line_adaptive_lowers_sigma_against_passive_on_the_fe_line():
     """300 km/h, 12 spans: over spans 9..11 sigma at least 20 % below the passive run's (same window)."""
     spans = 12
