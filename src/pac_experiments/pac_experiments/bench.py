@@ -314,13 +314,13 @@ def count_allocations() -> None:
     """
     from numba.core.runtime import rtsys
 
-    from pac_controller.parameters import LAW_NAMES
+    from pac_controller.parameters import COMPILED_LAW_NAMES
     from pac_rig.closed_loop import build_cores
     from pac_rig.loop import TICK, compile_loop
     from pac_rig.simulate import scenario_from_flat
 
     counts = {}
-    for law in LAW_NAMES:
+    for law in COMPILED_LAW_NAMES:
         values = {"law": law, "duration": 10.0, "noise_std": (1e-6, 1e-6), "command_delay_ticks": 2}
         s = scenario_from_flat(values)
         plant, observer, controller = build_cores(s)
@@ -403,13 +403,13 @@ BATCH_CPU = [math.nan]
 
 def batch_rates(threads: int) -> tuple[float, float]:
     """(compiled batch, today's tick by tick) scenario-s per wall-s: the five laws at four speeds, 10 s."""
-    from pac_controller.parameters import LAW_NAMES
+    from pac_controller.parameters import COMPILED_LAW_NAMES
     from pac_rig.closed_loop import build_cores, run_cores
     from pac_rig.simulate import scenario_from_flat
 
     scenarios = [
         scenario_from_flat({"law": law, "speed_kmh": v, "duration": 10.0})
-        for law in LAW_NAMES
+        for law in COMPILED_LAW_NAMES
         for v in (200.0, 260.0, 320.0, 380.0)
     ]
     run_batch(scenarios[:1])  # loads the compiled code
@@ -419,7 +419,7 @@ def batch_rates(threads: int) -> tuple[float, float]:
     compiled = result.simulated_seconds / result.wall_seconds
     start = time.perf_counter()
     simulated = 0.0
-    for law in LAW_NAMES:
+    for law in COMPILED_LAW_NAMES:
         s = scenario_from_flat({"law": law, "duration": 1.0})
         for _ in run_cores(s, *build_cores(s)):
             pass
