@@ -2,8 +2,9 @@
 
 Every test that touches DDS gets its own ROS domain and cleans up its processes.  Every test
 has a kind (pytest.ini): ``unit``, ``offline`` or ``live``, set per module with
-``pytestmark = pytest.mark.<kind>`` (or on a test); a test that uses the ``domain_id`` fixture
-(every DDS test does) is ``live`` whatever its module says.  ``make test-fast`` runs
+``pytestmark = pytest.mark.<kind>`` (or on a test); a test that uses a fixture that starts ROS
+processes (``domain_id``, ``rigs``, test_cli's ``live``: LIVE_FIXTURES) is ``live`` whatever its
+module says.  ``make test-fast`` runs
 ``unit or offline`` without ``live``; ``make test`` runs them all.
 """
 
@@ -17,6 +18,17 @@ import numpy as np
 import pytest
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # also for anything imported below
+
+
+def node_stats(log: str, node: str) -> dict:
+    """A node's end-of-run counters: its ``pac-stats {json}`` line in ``log`` (the process's output).
+
+    Tests read the counters from this line, never from the nodes' prose (which may be reworded)."""
+    from pac_common.diagnostics import parse_stats
+
+    stats = parse_stats(log)
+    assert node in stats, f"no pac-stats line of {node} in:\n{log[-2000:]}"
+    return stats[node]
 
 
 @pytest.fixture
@@ -48,6 +60,8 @@ def rigs(domain_id, tmp_path):
 
 # -- test kinds --------------------------------------------------------------------------------
 KINDS = ("unit", "offline", "live")
+#: Fixtures that start ROS processes over DDS: a test that uses one is live.
+LIVE_FIXTURES = ("domain_id", "rigs", "live")
 
 
 @pytest.hookimpl(tryfirst=True)  # before -m selects on the markers
@@ -55,7 +69,7 @@ def pytest_collection_modifyitems(config, items):
     unmarked = []
     for item in items:
         kinds = {m.name for m in item.iter_markers() if m.name in KINDS}
-        if "domain_id" in getattr(item, "fixturenames", ()) and "live" not in kinds:
+        if set(LIVE_FIXTURES) & set(getattr(item, "fixturenames", ())) and "live" not in kinds:
             item.add_marker(pytest.mark.live)
             kinds.add("live")
         if not kinds:

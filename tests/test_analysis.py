@@ -1,4 +1,4 @@
-"""Issue #4: report, info, replay, re-estimate, and bad bags — on bags the tests generate."""
+"""The analysis tools: report, info, replay, re-estimate, and bad bags — on bags the tests generate."""
 
 import json
 import shutil

@@ -19,7 +19,7 @@ import yaml
 
 from pac_analysis.metrics import compute_metrics
 from pac_bag.reader import read_bag
-from pac_controller.parameters import LAW_NAMES
+from pac_controller.parameters import COMPILED_LAW_NAMES
 from pac_experiments import campaign_dask, campaign_results, campaign_run, campaign_spec
 from pac_rig import closed_loop
 from pac_rig.closed_loop import build_cores
@@ -164,7 +164,7 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     spec = campaign_spec.Spec(
         "t",
         (
-            {"law": list(LAW_NAMES), "plant_mass_scale": [0.85, 1.0]},
+            {"law": list(COMPILED_LAW_NAMES), "plant_mass_scale": [0.85, 1.0]},
             {"noise_std": [[1e-5, 1e-5]], "command_delay_ticks": [0, 3]},
             {"law": ["pid", "lqr"], "speed_kmh": [300.0]},
             {"catenary_model": ["fe"]},  # not batchable: the FE line goes tick by tick
@@ -175,8 +175,7 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     )
     points = campaign_spec.expand(spec)
     batched = campaign_run.run_batched(points)
-    # all but the FE point, the divergence and line_adaptive (no compiled form: tick by tick)
-    assert len(batched) == len(points) - 2 - 2
+    assert len(batched) == len(points) - 2  # all but the FE point and the divergence
     chunk = campaign_run.run_chunk(points)
     with monkeypatch.context() as m:
         m.setattr(closed_loop, "compile_loop", lambda *args: None)  # closed_loop.run: core objects

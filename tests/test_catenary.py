@@ -1,4 +1,4 @@
-"""FE catenary (issue #11): statics, wave speed, stiffness profile, energy, slack droppers,
+"""FE catenary: statics, wave speed, stiffness profile, energy, slack droppers,
 Woodbury against a direct solve, mesh/step convergence of the contact-force statistics."""
 
 import math

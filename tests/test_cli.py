@@ -1,4 +1,4 @@
-"""Issue #9: the ros2 stand-in's daily verbs against a live rig (called by path, not via PATH).
+"""The ros2 stand-in's daily verbs against a live rig (called by path, not via PATH).
 
 The rig (plant in real time at 200 Hz, observer, controller) runs in its own ROS domain for the
 module; every process it starts is stopped at teardown, pass or fail.
@@ -43,7 +43,8 @@ def ros2(env, *args, timeout=60):
 
 @pytest.fixture(scope="module")
 def live(tmp_path_factory):
-    """(env, rig): a rig running until stopped, in a domain reserved for this module."""
+    """(env, rig): a rig running until stopped, in a domain reserved for this module (its users
+    are live tests: conftest.LIVE_FIXTURES)."""
     import domain_coordinator
 
     tmp = tmp_path_factory.mktemp("cli")

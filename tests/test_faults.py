@@ -1,4 +1,4 @@
-"""Issue #5: the rig under faults — crashes, bad data, bad parameters, full disks, neighbours.
+"""The rig under faults — crashes, bad data, bad parameters, full disks, neighbours.
 
 Live nodes in this test's own ROS domain. Timing numbers printed here (fallback delay,
 recovery time) are measurements; the assertions are the safety properties and loose bounds.
@@ -13,12 +13,13 @@ import time
 import numpy as np
 import pytest
 import rclpy
+from conftest import node_stats
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
 from pac_analysis.recover import recover
 from pac_bag.reader import read_bag
-from pac_common import messages
+from pac_common import diagnostics, messages
 from pac_common.node import PUBLISH_QOS
 from pac_common.parameters import ParameterError, RateParameters
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
@@ -227,8 +228,8 @@ def test_non_finite_data_never_reaches_the_actuator(rigs, domain_id):
     assert_commands_safe(bag)
     assert np.sum(bag.topics["measurement"]["tick"] >= 10**9) > 0  # the bag shows the injection
     observer_log, controller_log = rig.processes["observer"].log(), rig.processes["controller"].log()
-    refused = int(observer_log.split(" refused;")[0].split(";")[-1])
-    nonfinite = int(controller_log.split(" non-finite or implausible estimates refused")[0].split(";")[-1])
+    refused = node_stats(observer_log, "observer_node")["refused"]
+    nonfinite = node_stats(controller_log, "controller_node")["refused"]
     print(f"\ninjected 200 + 200: observer refused {refused}, controller refused {nonfinite}")
     # The injection really reached both nodes (keep-last-1 subscriptions overwrite some of a burst
     # that arrives between two wake-ups, so not all 200 are seen); the safety property is above.
@@ -377,6 +378,11 @@ def test_full_disk_gives_a_clear_error_and_keeps_what_was_written(rigs, tmp_path
         assert recorder.wait(60.0) == 1, recorder.log()[-2000:]
         errors = [line for line in recorder.log().splitlines() if "recording stopped" in line]
         assert len(errors) == 1 and "No space left on device" in errors[0]
+        # Its counters and its last /diagnostics status say so too (ERROR: recording stopped).
+        stats = node_stats(recorder.log(), "recorder")
+        assert stats["failed"] and stats["failure"] == "No space left on device"
+        status = diagnostics.recorder_status("recorder", stats, None)
+        assert status.level == diagnostics.ERROR and "No space left on device" in status.message
         assert all(p.poll() is None for n, p in rig.processes.items() if n != "recorder")  # the loop goes on
         rig.stop()
         counts, _ = recover(rig.bag_path, tmp_path / "recovered")

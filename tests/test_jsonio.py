@@ -1,4 +1,4 @@
-"""Every JSON pac writes parses with a strict parser (issue #8): non-finite numbers become null."""
+"""Every JSON pac writes parses with a strict parser: non-finite numbers become null."""
 
 import json
 import math

@@ -1,4 +1,4 @@
-"""The control laws side by side (issue #12): designs, offline closed loops, limits, anti-windup, the node.
+"""The control laws side by side: designs, offline closed loops, limits, anti-windup, the node.
 
 Every closed loop here is pac_rig.closed_loop (nominal lumped plant, the adaptive
 observer, one tick of command delay) unless a test says otherwise.

@@ -1,4 +1,4 @@
-"""Issue #9: the live view serves the rig's topics to a Foxglove WebSocket client (Foxglove's v1 protocol)."""
+"""The live view serves the rig's topics to a Foxglove WebSocket client (Foxglove's v1 protocol)."""
 
 import json
 import re
@@ -98,7 +98,7 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
         connect(url, subprotocols=["foxglove.websocket.v1"], open_timeout=10, proxy=None)
     assert refused.value.response.status_code == 400
 
-    received: dict[str, list] = {t: [] for t in TOPICS}
+    received: dict[str, list] = {t: [] for t in (*TOPICS, "diagnostics")}
     # foxglove-sdk 0.30 speaks the v1 protocol under its new name foxglove.sdk.v1 (identical to
     # foxglove.websocket.v1, which it refuses); current Foxglove clients offer both, as here.
     with connect(url, subprotocols=SUBPROTOCOLS, open_timeout=10, proxy=None) as ws:
@@ -107,13 +107,15 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
         assert info["op"] == "serverInfo" and info["name"] == "pac live_view"
         channels = {}
         deadline = time.monotonic() + 10
-        while len(channels) < len(TOPICS) and time.monotonic() < deadline:
+        while len(channels) < len(TOPICS) + 1 and time.monotonic() < deadline:
             frame = json.loads(ws.recv(timeout=10))
             if frame["op"] == "advertise":
                 for ch in frame["channels"]:
                     channels[ch["id"]] = ch
         by_topic = {ch["topic"]: ch for ch in channels.values()}
-        assert sorted(by_topic) == sorted(f"/{t}" for t in TOPICS)
+        # ... and every node's health, for Foxglove's diagnostics panels
+        assert sorted(by_topic) == sorted([*(f"/{t}" for t in TOPICS), "/diagnostics"])
+        assert by_topic.pop("/diagnostics")["schemaName"] == "diagnostic_msgs/msg/DiagnosticArray"
         for topic, ch in by_topic.items():
             assert ch["encoding"] == "cdr" and ch["schemaEncoding"] == "ros2msg"
             assert ch["schemaName"] == bag.topics[topic[1:]].typename
@@ -148,7 +150,7 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
             if isinstance(frame, bytes) and frame[0] == MESSAGE_DATA:
                 sub_id, log_time = struct.unpack_from("<IQ", frame, 1)
                 topic = subscriptions[sub_id]["topic"][1:]
-                msg = typestore().deserialize_cdr(frame[13:], bag.topics[topic].typename)
+                msg = typestore().deserialize_cdr(frame[13:], subscriptions[sub_id]["schemaName"])
                 received[topic].append((log_time, msg))
         assert replay.returncode == 0, replay.stderr.read()
 
@@ -156,6 +158,8 @@ def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_
     while subscribed_topics(env):
         assert time.monotonic() < deadline
 
+    # The live view's own status came through, not decimated (one a second from every node).
+    assert any(s.name == "live_view: node" for _, m in received["diagnostics"] for s in m.status)
     replay_seconds = 2.0
     for topic in TOPICS:
         got = received[topic]

@@ -1,4 +1,4 @@
-"""A ROS 2 user's habits on the nodes (issue #9): one-line refusals, --help, and runs that end."""
+"""A ROS 2 user's habits on the nodes: one-line refusals, --help, and runs that end."""
 
 import signal
 import subprocess

@@ -1,4 +1,4 @@
-"""End-to-end offline closed loop (issue #2 targets), bags read back by two independent readers."""
+"""End-to-end offline closed loop (the paper's targets), bags read back by two independent readers."""
 
 import math
 

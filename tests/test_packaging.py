@@ -24,6 +24,8 @@ ROSDEP_KEYS = {
     "tqdm": "python3-tqdm",
     "rclpy": "rclpy",
     "rcl_interfaces": "rcl_interfaces",
+    "diagnostic_msgs": "diagnostic_msgs",
+    "lifecycle_msgs": "lifecycle_msgs",
     "ament_index_python": "ament_index_python",
     "domain_coordinator": "domain_coordinator",
 }
@@ -35,6 +37,7 @@ PYPI_ONLY = {
     "zstandard": "zstandard",
     "lz4": "lz4",
     "numba": "numba",
+    "llvmlite": "llvmlite",
     "distributed": "distributed",
     "foxglove": "foxglove-sdk",
 }

@@ -1,6 +1,5 @@
-"""The rig as real processes over DDS (issue #3): lock step = offline, real time, bad input, stops."""
+"""The rig as real processes over DDS: lock step = offline, real time, bad input, stops."""
 
-import re
 import signal
 import subprocess
 import time
@@ -8,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PHYSICS, assert_starts_and_stops_cleanly, first_per_tick
+from conftest import PHYSICS, assert_starts_and_stops_cleanly, first_per_tick, node_stats
 from mcap.reader import make_reader
 
 from pac_analysis.metrics import compute_metrics
@@ -34,15 +33,9 @@ def test_lockstep_run_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
         np.testing.assert_array_equal(ticks, np.arange(2000), err_msg=topic)
         for column in columns:
             np.testing.assert_array_equal(live[topic][column][idx], offline[topic][column], err_msg=column)
-    # re-estimation from the live bag's measurements is exact (issue #4)
+    # re-estimation from the live bag's measurements is exact
     result = re_estimate(rig.bag_path, {})
     assert result["compared"] == 2000 and all(f["identical"] for f in result["fields"].values())
-
-
-def published_count(log: str, pattern: str) -> int:
-    match = re.search(pattern, log)
-    assert match, log[-1000:]
-    return int(match.group(1))
 
 
 def test_realtime_loop_tracks_and_records_everything(rigs):
@@ -60,18 +53,17 @@ def test_realtime_loop_tracks_and_records_everything(rigs):
     for topic in ("measurement", "plant_truth"):
         ticks, _ = first_per_tick(bag.topics[topic])
         np.testing.assert_array_equal(ticks, np.arange(6000), err_msg=topic)
-    processed = published_count(rig.processes["observer"].log(), r"processed (\d+) measurements")
-    controller_log = rig.processes["controller"].log()
-    sent = published_count(controller_log, r"sent (\d+) commands")
+    processed = node_stats(rig.processes["observer"].log(), "observer_node")["processed"]
+    sent = node_stats(rig.processes["controller"].log(), "controller_node")["sent"]
     assert np.unique(bag.topics["estimate"]["tick"]).size == processed
-    # The run has an end (issue #9): the plant announced it, the controller answered the last tick
+    # The run has an end: the plant announced it, the controller answered the last tick
     # and went idle (no watchdog fallback after it), every node stopped by itself.
     commands = bag.topics["command"]["tick"]
     assert commands.max() == 5999
     assert np.unique(commands).size == sent
     assert np.all(bag.topics["command"]["mode"] == 0)
     assert processed > 3000 and sent > 3000  # a loop, not a trickle
-    # re-estimation over the ticks the live observer processed reproduces it exactly (issue #4)
+    # re-estimation over the ticks the live observer processed reproduces it exactly
     result = re_estimate(rig.bag_path, {})
     assert result["compared"] == processed and all(f["identical"] for f in result["fields"].values())
 
@@ -176,7 +168,8 @@ def test_ros2_shim(domain_id):
     assert "pac_rig recorder" in out.stdout and "pac_rig live_view" in out.stdout
     bad = subprocess.run([ROS2_SHIM, "daemon", "stop"], capture_output=True, text=True, env=env)
     assert bad.returncode == 2 and bad.stderr.strip().splitlines() == [
-        "ros2: unknown verb 'daemon': this minimal ros2 provides run, pkg, topic, node, param, interface, bag"
+        "ros2: unknown verb 'daemon': this minimal ros2 provides "
+        "run, pkg, topic, node, param, interface, bag, lifecycle"
     ]
 
 

@@ -1,4 +1,4 @@
-"""`make setup` leaves a warm numba cache: no process compiles the cores at start (issue #10 item 2)."""
+"""`make setup` leaves a warm numba cache: no process compiles the cores at start."""
 
 import os
 import subprocess

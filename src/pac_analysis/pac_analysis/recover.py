@@ -25,7 +25,7 @@ def recover(path: Path, out: Path) -> tuple[dict[str, int], list[str]]:
     records = list(iter_records(path, warnings))
     if not records:
         raise BagError(f"{path}: no readable message" + (f" ({'; '.join(warnings)})" if warnings else ""))
-    topics = {t: ty for t, ty, _, _ in records if t in messages.TOPICS}
+    topics = {t: ty for t, ty, _, _ in records if t in messages.WATCHED_TOPICS}
     for topic in sorted({t for t, _, _, _ in records} - set(topics)):
         warnings.append(f"topic '{topic}': not a pac topic, not recovered")
     with BagWriter(

@@ -86,6 +86,17 @@ def declared_counts(path: Path) -> dict[str, int]:
     return counts
 
 
+def _column(values: list[Any]) -> np.ndarray:
+    """One field of every message.  rosbags gives numeric arrays as numpy arrays and sequences of
+    messages or strings (``/diagnostics``' ``status``) as lists: those stay one list per message,
+    in an object array (numpy cannot stack lists of varying length)."""
+    if values and isinstance(values[0], list):
+        out = np.empty(len(values), dtype=object)
+        out[:] = values
+        return out
+    return np.array(values)
+
+
 #: The first bytes of every MCAP file (the MCAP specification's magic).
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 
@@ -163,6 +174,6 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
         data = TopicData(typenames[topic], np.array([t for t, _ in items], dtype=np.int64))
         flat = [dict(_flatten(m)) for _, m in items]
         for key in flat[0]:
-            data.columns[key] = np.array([f[key] for f in flat])
+            data.columns[key] = _column([f[key] for f in flat])
         result[topic] = data
     return BagData(path, result, read_custom_metadata(path) if path.is_dir() else {}, warnings)

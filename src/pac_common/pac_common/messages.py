@@ -32,6 +32,14 @@ LOOP_TOPICS: dict[str, str] = {
 }
 #: Every pac topic: the loop's, and the plant's run start and end.
 TOPICS: dict[str, str] = {**LOOP_TOPICS, "run_status": RUN_STATUS}
+#: ROS's health topic, where every pac node publishes its status (pac_common.diagnostics):
+#: absolute, one for the whole system whatever a node's namespace, as ROS tools expect.
+DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
+DIAGNOSTICS_TOPIC = "/diagnostics"
+#: What the recorder records (``-a``) and the live view serves, by the name it has in a bag:
+#: the pac topics and ``diagnostics``; :data:`GRAPH_NAMES` gives each one's name on the graph.
+WATCHED_TOPICS: dict[str, str] = {**TOPICS, "diagnostics": DIAGNOSTIC_ARRAY}
+GRAPH_NAMES: dict[str, str] = {**{t: t for t in TOPICS}, "diagnostics": DIAGNOSTICS_TOPIC}
 
 # The .msg files' constants (tests/test_messages.py checks each against its .msg file, and every
 # field dictionary below against the message's fields).

@@ -20,8 +20,10 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from . import messages
+from . import diagnostics, messages
 from .command_line import ROS_OWN_PARAMETERS, process_arguments
+from .health import NodeHealth
+from .lifecycle import LifecycleOptions, ManagedNode
 from .parameters import (
     NodeOptions,
     ParameterSet,
@@ -73,21 +75,28 @@ def pac_parameter_names() -> set[str]:
     return names
 
 
-class PacNode(Node):
+class PacNode(ManagedNode, Node):
     """Base of every pac node: the contract :func:`~pac_common.process.run_nodes` relies on.
 
     Contract: ``finished`` ends the spin loop, ``close()`` makes the node's results final (bag
     closed, counters printed), ``exit_status`` is the process status.
+
+    A subclass builds itself in ``configure()`` (:mod:`pac_common.lifecycle`): at once, or, with
+    ``lifecycle:=true`` (``LifecycleOptions`` in its sets), when a lifecycle manager says so; its
+    loop callbacks check ``active``. Every node reports ``health_counters()`` on ``/diagnostics``
+    with the rule its ``HEALTH`` names (:mod:`pac_common.diagnostics`).
     """
 
     PARAMETER_SETS: ClassVar[Sequence[type[ParameterSet]]] = ()
     #: Why a parameter declared without ``runtime=True`` is refused at run time.
     FROZEN_REASON: ClassVar[str] = "fixed for a run: restart the node to change it"
+    #: The node's rule from counters to its ``/diagnostics`` status (``pac_common.diagnostics.RULES``).
+    HEALTH: ClassVar[str] = "node"
 
     def __init__(self, name: str) -> None:
         # Undeclared names reach our checks, which refuse them by name (rclpy's own refusal
         # reads "Invalid access to undeclared parameter(s): []" in these wheels).
-        super().__init__(name, allow_undeclared_parameters=True)
+        Node.__init__(self, name, allow_undeclared_parameters=True)
         self.finished = False
         self.exit_status = 0
         sets = declare_parameter_sets(self, self.PARAMETER_SETS)
@@ -102,6 +111,24 @@ class PacNode(Node):
         scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
         if scheduling:
             set_realtime_priority(self, scheduling[0].realtime_priority)
+        self.health = NodeHealth(self, self._health_counters, diagnostics.RULES[self.HEALTH])
+        lifecycle = self._sets.get(LifecycleOptions)
+        self.start_lifecycle(bool(lifecycle is not None and lifecycle.lifecycle))  # type: ignore[attr-defined]
+
+    def _health_counters(self) -> dict[str, Any]:
+        if not self.configured:
+            return {"state": self.lifecycle_state}
+        counters = self.health_counters()
+        if self.managed:
+            counters["lifecycle_state"] = self.lifecycle_state
+            if not self.active:
+                counters["state"] = self.lifecycle_state
+        return counters
+
+    def health_counters(self) -> dict[str, Any]:
+        """Hook: the node's counters and state, read (never computed) from what the loop keeps;
+        its ``/diagnostics`` key-values every second and its ``pac-stats`` line at the end."""
+        return {}
 
     def _check_given_names(self) -> None:
         """ROS's params-file rules, with pac's typo check.
@@ -194,7 +221,8 @@ class PacNode(Node):
             return SetParametersResult(successful=False, reason=error)
         changed = {cls: new for cls, old, new in zip(live, current, updated, strict=True) if new != old}
         if changed:
-            self.apply_parameters(changed)
+            if self.configured:
+                self.apply_parameters(changed)
             self._sets.update(changed)
         return SetParametersResult(successful=True)
 
@@ -218,17 +246,19 @@ class PacNode(Node):
 
         ``missing()`` names each absent peer, e.g. "a recorder subscribed to measurement".
         """
-        started = time.monotonic()
-        state = {"reported": started}
+        state = {"reported": time.monotonic(), "started": time.monotonic()}
 
         def check() -> None:
+            now = time.monotonic()
+            if not self.active:  # a managed node waits for its activation, not for its peers
+                state["started"] = state["reported"] = now
+                return
             absent = missing()
             if not absent:
                 self.destroy_timer(timer)
                 return
-            now = time.monotonic()
             limit = self.node_options.start_timeout if self.node_options is not None else 0.0
-            waited = now - started
+            waited = now - state["started"]
             if limit > 0 and waited >= limit:
                 self.get_logger().error(
                     f"gave up after {waited:.0f} s waiting for {'; '.join(absent)} "
@@ -292,6 +322,12 @@ class PacNode(Node):
         self.run_last_tick = None
         self._last_handled_tick = -1
 
+    def loop_state(self, last_tick: int) -> str:
+        """``waiting`` (no tick handled yet), ``running`` or ``ended``: the state a status reports."""
+        if self.run_ended:
+            return "ended"
+        return "waiting" if last_tick < 0 else "running"
+
     def on_run_end(self) -> None:
         """Hook: the plant announced the end of its run (``run_last_tick`` is set)."""
 
@@ -332,5 +368,7 @@ class PacNode(Node):
                 return
 
     def close(self) -> None:
-        """Make the node's results final; the base waits for acknowledgements of what it sent."""
+        """Make the node's results final; the base reports the last status and waits for
+        acknowledgements of what it sent."""
+        self.health.final_report()
         self.wait_for_acknowledgements()

@@ -88,7 +88,11 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
     finally:
         if nodes and status != 2:
             for node in nodes:
-                node.close()  # the node's own results (bag, counters) are final from here on
+                if node.configured:
+                    node.close()  # the node's own results (bag, counters) are final from here on
+                else:  # a managed node never configured (or cleaned up): only its last status
+                    node.health.final_report()
+                node.health.print_stats()
                 status = status or node.exit_status
             # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
             # stops; everything that matters is done, so a stuck teardown ends the process.

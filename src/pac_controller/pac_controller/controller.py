@@ -152,7 +152,7 @@ class Controller:
         """Commands on a copy (the law, then the fallback): numba loads the compiled code now, not at
         the loop's first tick."""
         twin = copy.deepcopy(self)
-        twin.compute(0, np.zeros(4), np.array([4000.0, 0.0, 0.0]))
+        twin.compute(0, np.zeros(4), np.array([4000.0, 0.0, 0.0]), 100.0)  # F_hat for laws that read it
         twin.compute(1, np.full(4, np.nan), np.array([4000.0, 0.0, 0.0]))
 
     def fallback(self, tick: int) -> Command:

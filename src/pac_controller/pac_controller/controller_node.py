@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pac_common import messages
+from pac_common import diagnostics, messages
+from pac_common.lifecycle import LifecycleOptions
 from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
@@ -79,14 +80,18 @@ class ControllerNode(PacNode):
         NodeOptions,
         RunEndOptions,
         EstimateLimits,
+        LifecycleOptions,
     ]
     FROZEN_REASON = "fixed for a run (model, speed, rate, control law): restart the node to change it"
     #: The core's factory; ``controller_relay`` swaps in one that does no work (the floor of
     #: ``make bench``).
     CORE: Callable[..., Controller] = staticmethod(make_controller)
+    HEALTH = "controller"
 
     def __init__(self) -> None:
         super().__init__("controller_node")
+
+    def configure(self) -> None:
         params = self.parameters(ControllerParameters)
         if params.mode == "passive":
             self.get_logger().warning("parameter 'mode' is deprecated: use law:=passive")
@@ -126,6 +131,7 @@ class ControllerNode(PacNode):
         self.fallback_commands = 0
         self.fallback_episodes = 0
         self.nonfinite = 0
+        self.timing = diagnostics.LoopTiming()  # estimate arrivals and handling times
         period = self.loop.sample_period * max(1, self.core.params.watchdog_ticks // 4)
         self.create_timer(period, self.on_watchdog)
 
@@ -149,7 +155,9 @@ class ControllerNode(PacNode):
         return self.readers_missing(self.command_pub, "command", "a plant")
 
     def ready(self) -> bool:
-        return self.command_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
+        return self.active and self.command_pub.get_subscription_count() >= 1 + int(
+            self.node_options.wait_for_recorder
+        )
 
     def publish(self, cmd, estimate_age_ticks: int) -> None:
         stamp = messages.tick_stamp_ns(cmd.tick, self.loop.rate_hz)
@@ -174,6 +182,7 @@ class ControllerNode(PacNode):
         )
 
     def on_estimate(self, msg) -> None:
+        start_ns = time.monotonic_ns()
         tick = int(msg.tick)
         z_hat, theta_hat = np.asarray(msg.z_hat, dtype=float), np.asarray(msg.theta_hat, dtype=float)
         if not self.plausible(tick, z_hat, theta_hat):
@@ -211,10 +220,16 @@ class ControllerNode(PacNode):
         self.sent += 1
         self.last_answer = cmd
         self.publish(cmd, 0)
+        self.timing.record(start_ns, (time.monotonic_ns() - start_ns) * 1e-9)
         self.handled_tick(tick)
 
     def on_watchdog(self) -> None:
-        if self.last_estimate_wall is None or self.core.params.watchdog_ticks == 0 or self.run_ended:
+        if (
+            not self.active
+            or self.last_estimate_wall is None
+            or self.core.params.watchdog_ticks == 0
+            or self.run_ended
+        ):
             return  # the loop has not started yet, the watchdog is off, or the run is over
         age = int((time.monotonic() - self.last_estimate_wall) / self.loop.sample_period)
         if age < self.core.params.watchdog_ticks:
@@ -230,6 +245,26 @@ class ControllerNode(PacNode):
         tick = max(self.last_estimate_tick + age, self.core.last_tick + 1)
         self.fallback_commands += 1
         self.publish(self.core.fallback(tick), age)
+
+    def health_counters(self) -> dict:
+        last = self.timing.last_ns
+        wall = self.last_estimate_wall
+        age = int((time.monotonic() - wall) / self.loop.sample_period) if wall is not None else 0
+        return {
+            "state": self.loop_state(self.last_estimate_tick),
+            "last_tick": self.last_estimate_tick,
+            "law": self.core.name,
+            "sent": self.sent,
+            "skipped": self.skipped,
+            "fallback_active": self.in_fallback,
+            "estimate_age_ticks": age,
+            "fallback_force": self.core.params.fallback_force,
+            "fallback_commands": self.fallback_commands,
+            "fallback_episodes": self.fallback_episodes,
+            "refused": self.nonfinite,
+            "input_age_s": (time.monotonic_ns() - last) * 1e-9 if last is not None else None,
+            **self.timing.summary(),
+        }
 
     def close(self) -> None:
         super().close()

@@ -38,7 +38,7 @@ from numba import njit
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
-from .observer import Estimate, ObserverDivergedError
+from .observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from .parameters import ObserverParameters
 
 #: State size: (z1, z2, z1', z2', F).
@@ -136,6 +136,10 @@ class ContactForceObserver:
     def z_hat(self) -> np.ndarray:
         return self.x[:4].copy()
 
+    #: Updates on a copy (first sample, a tick, a gap), as the adaptive observer's: the compiled
+    #: step loaded before the loop, not at its first tick.
+    warm_up = AdaptiveObserver.warm_up
+
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
         """Process y_k of ``tick`` and the force applied over (t_{k-1}, t_k]; a gap is predicted through."""
         y_now = np.array(y, dtype=float)
@@ -175,7 +179,5 @@ def make_observer(
     pantograph: PantographParameters, track: TrackParameters, params: ObserverParameters, sample_period: float
 ):
     """The observer ``params.observer`` names: the paper's (eq. (17)) or the contact-force filter."""
-    from .observer import AdaptiveObserver
-
     cls = ContactForceObserver if params.observer == "contact_force" else AdaptiveObserver
     return cls(pantograph, track, params, sample_period)

@@ -31,6 +31,7 @@ Per sample period [t_{k-1}, t_k] the observer
 from __future__ import annotations
 
 import copy
+import functools
 import math
 from dataclasses import dataclass
 
@@ -392,6 +393,22 @@ class Estimate:
     innovation: np.ndarray  # y - C z_hat before the update [m]
 
 
+@functools.lru_cache(maxsize=64)  # pure, and scipy's expm dominates building an observer (campaigns)
+def _s_z_maps(
+    pantograph: PantographParameters, rho_z: float, sigma_diag: tuple[float, ...], dt: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(E, S_z limit, Q_h): the exact half-step map of
+    S_z' = -(A + rho/2 I)^T S_z - S_z (A + rho/2 I) + C^T Sigma C (docs/numerics.md, observer step 1)."""
+    a, c, sigma = model.state_matrix(pantograph), model.OUTPUT_MATRIX, np.diag(sigma_diag)
+    shifted = a + 0.5 * rho_z * np.eye(4)
+    half_map = scipy.linalg.expm(-shifted * (0.5 * dt))
+    limit = scipy.linalg.solve_continuous_lyapunov(shifted.T, c.T @ sigma @ c)
+    half_input = limit - half_map.T @ limit @ half_map
+    for shared in (half_map, limit, half_input):  # cached and shared by every observer built alike
+        shared.setflags(write=False)
+    return half_map, limit, half_input
+
+
 class AdaptiveObserver:
     """Eq. (17) with explicit state; call :meth:`update` once per tick, in tick order."""
 
@@ -414,11 +431,9 @@ class AdaptiveObserver:
         self._a = a
         self._c_t_sigma = c.T @ sigma  # C^T Sigma (4x2)
         self._sigma = sigma
-        # Exact half-step map of S_z' = -(A + rho/2 I)^T S_z - S_z (A + rho/2 I) + C^T Sigma C.
-        shifted = a + 0.5 * params.rho_z * np.eye(4)
-        self._sz_half_map = scipy.linalg.expm(-shifted * (0.5 * dt))
-        self._sz_limit = scipy.linalg.solve_continuous_lyapunov(shifted.T, c.T @ sigma @ c)
-        self._sz_half_input = self._sz_limit - self._sz_half_map.T @ self._sz_limit @ self._sz_half_map
+        self._sz_half_map, self._sz_limit, self._sz_half_input = _s_z_maps(
+            pantograph, float(params.rho_z), tuple(params.sigma), dt
+        )
         self._theta_forgetting = math.exp(-params.rho_theta * dt)
         # A constant input (1 - forgetting) * floor * I keeps S_theta >= floor * I once the
         # initial S_theta has been forgotten, so a long run without excitation (z1 = 0, no

@@ -15,10 +15,12 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pac_common import messages
+from pac_common import diagnostics, messages
+from pac_common.lifecycle import LifecycleOptions
 from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import PantographParameters, TrackParameters
@@ -67,14 +69,18 @@ class ObserverNode(PacNode):
         NodeOptions,
         RunEndOptions,
         MeasurementLimits,
+        LifecycleOptions,
     ]
     FROZEN_REASON = "the observer's model and tuning are fixed for a run: restart the node"
     #: The core's factory (``observer`` selects it); ``observer_relay`` swaps in one that does no
     #: work (the floor of ``make bench``).
     CORE: Callable[..., AdaptiveObserver | ContactForceObserver] = staticmethod(make_observer)
+    HEALTH = "observer"
 
     def __init__(self) -> None:
         super().__init__("observer_node")
+
+    def configure(self) -> None:
         self.limits = self.parameters(MeasurementLimits)
         self.loop = self.parameters(RateParameters)
         self.core = self.CORE(
@@ -100,6 +106,7 @@ class ObserverNode(PacNode):
         self.waited = 0
         self.processed = 0
         self.bridged = 0  # samples never received (or refused), bridged by the core
+        self.timing = diagnostics.LoopTiming()  # measurement arrivals and handling times
 
     def apply_parameters(self, changed: dict) -> None:
         self.limits = changed.get(MeasurementLimits, self.limits)
@@ -109,7 +116,9 @@ class ObserverNode(PacNode):
         return self.readers_missing(self.estimate_pub, "estimate", "a controller")
 
     def ready(self) -> bool:
-        return self.estimate_pub.get_subscription_count() >= 1 + int(self.node_options.wait_for_recorder)
+        return self.active and self.estimate_pub.get_subscription_count() >= 1 + int(
+            self.node_options.wait_for_recorder
+        )
 
     def acceptable(self, z1: float, z2: float, force: float) -> bool:
         finite = math.isfinite(z1) and math.isfinite(z2) and math.isfinite(force)
@@ -121,6 +130,7 @@ class ObserverNode(PacNode):
         )
 
     def on_measurement(self, msg) -> None:
+        start_ns = time.monotonic_ns()
         tick = int(msg.tick)
         z1, z2, force = float(msg.z1), float(msg.z2), float(msg.actuator_force)
         jump = self.last_seen_tick >= 0 and tick > self.last_seen_tick + self.limits.max_tick_jump
@@ -167,6 +177,7 @@ class ObserverNode(PacNode):
         self.rejected_since_estimate = False
         self.last_estimate = (est, status, self.rejected, self.reinitialisations)
         self.publish(*self.last_estimate)
+        self.timing.record(start_ns, (time.monotonic_ns() - start_ns) * 1e-9)
         self.handled_tick(tick)
 
     def publish(self, est, status: int, rejected: int, reinitialisations: int) -> None:
@@ -176,6 +187,20 @@ class ObserverNode(PacNode):
             est, stamp, status=status, rejected=rejected, reinitialisations=reinitialisations
         )
         self.estimate_pub.publish(self.factory.make(messages.OBSERVER_ESTIMATE, fields))
+
+    def health_counters(self) -> dict:
+        last = self.timing.last_ns
+        return {
+            "state": self.loop_state(self.last_seen_tick),
+            "last_tick": self.last_seen_tick,
+            "processed": self.processed,
+            "bridged": self.bridged,
+            "waited": self.waited,
+            "refused": self.rejected,
+            "reinitialisations": self.reinitialisations,
+            "input_age_s": (time.monotonic_ns() - last) * 1e-9 if last is not None else None,
+            **self.timing.summary(),
+        }
 
     def close(self) -> None:
         super().close()

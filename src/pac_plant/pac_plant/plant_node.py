@@ -25,7 +25,8 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from pac_common import messages
+from pac_common import diagnostics, messages
+from pac_common.lifecycle import LifecycleOptions
 from pac_common.node import LOOP_QOS, PUBLISH_QOS, RUN_STATUS_QOS, PacNode, run_node
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
@@ -76,15 +77,19 @@ class PlantNode(PacNode):
         LoopParameters,
         NodeOptions,
         PlantNodeOptions,
+        LifecycleOptions,
     ]
     FROZEN_REASON = "the plant's model and timing are fixed for a run: restart the node to change it"
     #: The core; ``plant_relay`` swaps in one that does no work (the floor of ``make bench``).
     #: The plant's factory (lumped k(t) or the FE line, by catenary_model); ``plant_relay`` swaps in
     #: one that does no work (the floor of ``make bench``).
     CORE: Callable[..., Plant] = staticmethod(make_plant)
+    HEALTH = "plant"
 
     def __init__(self) -> None:
         super().__init__("plant_node")
+
+    def configure(self) -> None:
         loop = self.loop = self.parameters(LoopParameters)
         self.options = self.parameters(PlantNodeOptions)
         self.plant = self.CORE(  # catenary_model: lumped | fe
@@ -126,12 +131,18 @@ class PlantNode(PacNode):
         self.start_wall, self.start_tick = 0.0, 0
         self.late_ticks = 0  # ticks taken late, in a catch-up burst
         self.slips = 0  # times the schedule was reset because the loop fell too far behind
+        self.timing = diagnostics.LoopTiming()  # tick wall times and applied round trips
         self.start_timer = self.create_timer(0.01, self.try_start)
         self.watch_start(self.missing)
         self.get_logger().info(
             f"{self.options.timing_mode} at {loop.rate_hz:g} Hz, {loop.duration:g} s "
             f"({'until stopped' if loop.duration == 0 else f'{loop.ticks} ticks'}); waiting for the loop"
         )
+
+    def on_active_changed(self) -> None:
+        if self.active and self.tick_timer is not None:
+            # Re-activated mid-run: the schedule restarts now (no burst of the paused ticks).
+            self.start_wall, self.start_tick = time.monotonic(), self.plant.tick
 
     def apply_parameters(self, changed: dict) -> None:
         self.options = changed.get(PlantNodeOptions, self.options)
@@ -155,7 +166,7 @@ class PlantNode(PacNode):
         return not self.missing()
 
     def try_start(self) -> None:
-        if not self.ready():
+        if not self.active or not self.ready():
             return
         self.destroy_timer(self.start_timer)
         # Tick 0 is re-sent until its command comes back: that proves the whole loop (and, with
@@ -178,6 +189,8 @@ class PlantNode(PacNode):
             )
         )
         self.last_sent = time.monotonic()
+        round_trip = self.latency.pop(self.applied_tick, math.nan)
+        self.timing.record(now, round_trip)
         self.truth_pub.publish(
             self.factory.make(
                 messages.PLANT_TRUTH,
@@ -187,7 +200,7 @@ class PlantNode(PacNode):
                     applied_command_tick=self.applied_tick,
                     command_source=self.applied_source,
                     command_timeouts=self.timeouts,
-                    round_trip_latency=self.latency.pop(self.applied_tick, math.nan),
+                    round_trip_latency=round_trip,
                     wall_stamp_ns=now,
                 ),
             )
@@ -240,6 +253,8 @@ class PlantNode(PacNode):
             self.publish_run_status(messages.RUN_ENDED)
 
     def on_command(self, msg) -> None:
+        if not self.active:
+            return  # a managed plant, deactivated: the loop is paused
         tick, u = int(msg.tick), float(msg.u)
         if tick in self.sent_wall and tick not in self.latency:
             self.latency[tick] = (time.time_ns() - self.sent_wall[tick]) * 1e-9
@@ -279,6 +294,8 @@ class PlantNode(PacNode):
     def on_realtime_tick(self) -> None:
         """Take every tick that is due by the wall clock (a late wake-up catches up, as the
         physical plant would not have waited), at most MAX_CATCH_UP per wake-up."""
+        if not self.active:
+            return
         now = time.monotonic()
         due = self.start_wall + (self.plant.tick - self.start_tick) * self.loop.sample_period
         taken = 0
@@ -320,7 +337,7 @@ class PlantNode(PacNode):
         self.advance(command_tick, u, source)
 
     def on_resend_check(self) -> None:
-        if self.tick_timer is not None:
+        if self.tick_timer is not None or not self.active:
             return
         if not self.finished and time.monotonic() - self.last_sent > self.options.resend_timeout:
             self.resend_measurement()
@@ -336,6 +353,26 @@ class PlantNode(PacNode):
             )
         )
         self.last_sent = time.monotonic()
+
+    def health_counters(self) -> dict:
+        if not self.sent_wall:
+            state = "waiting"
+        else:
+            state = "ended" if self.run_announced_end else "running"
+        return {
+            "state": state,
+            "waiting_for": "command subscribers and publishers"
+            + (" and the recorder" if self.node_options.wait_for_recorder else ""),
+            "last_tick": self.plant.tick,
+            "timing_mode": self.options.timing_mode,
+            "resends": self.resends,
+            "late_ticks": self.late_ticks,
+            "schedule_slips": self.slips,
+            "command_timeouts": self.timeouts,
+            "command_timed_out": self.timed_out,
+            "command_age_ticks": self.plant.tick - self.latest_received_at if self.latest is not None else -1,
+            **self.timing.summary(),
+        }
 
     def close(self) -> None:
         if self.sent_wall:  # the run had started: a stop (SIGINT, SIGTERM) ends it too

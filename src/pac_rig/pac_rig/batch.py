@@ -20,8 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pac_controller.kernels import LAW_CODES
+
 from .closed_loop import Scenario, build_cores, divergence_reason
-from .loop import TICK, CompiledLoop, compile_loop, loop_tick
+from .loop import MAX_DELAY, TICK, CompiledLoop, compile_loop, loop_tick
 
 #: Per-tick traces, rows of ``BatchResult.traces[name]`` (NaN after a divergence): fields of loop.TICK.
 TRACES = ("contact_force", "force_reference", "u", "stiffness", "stiffness_hat", "z1")
@@ -92,8 +94,15 @@ def pack(scenarios: Sequence[Scenario]) -> tuple:
 
 
 def batchable(s: Scenario) -> bool:
-    """What the compiled loop runs: every law with a kernel, on the lumped line (not yet the FE line)."""
-    return compile_loop(*build_cores(s), s.loop.command_delay_ticks) is not None
+    """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
+    parameters without building the cores: the lumped line, the adaptive observer, a law with a
+    kernel, the delay it holds."""
+    return (
+        s.plant.catenary_model == "lumped"
+        and s.observer.observer == "adaptive"
+        and s.controller.effective_law in LAW_CODES
+        and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
+    )
 
 
 def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:

@@ -174,9 +174,10 @@ def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
 
 
 def run_cores(
-    s: Scenario, plant: Plant, observer: AdaptiveObserver, controller: Controller
+    s: Scenario, plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller
 ) -> Iterator[TickRecord]:
-    """The loop stepped through the core objects tick by tick, as the nodes step them (the FE line)."""
+    """The loop stepped through the core objects tick by tick, as the nodes step them (the FE line,
+    the contact-force observer, line_adaptive)."""
     delay = s.loop.command_delay_ticks
     pending: deque[float] = deque([0.0] * delay)
     for _ in range(s.loop.ticks):

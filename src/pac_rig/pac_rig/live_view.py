@@ -1,7 +1,7 @@
 """``ros2 run pac_rig live_view``: the rig's topics, live, in Foxglove (WebSocket protocol).
 
-Serves ``measurement``, ``plant_truth``, ``estimate`` and ``command`` through the
-foxglove-sdk WebSocket server, bound to 127.0.0.1 by default: open the Foxglove app,
+Serves ``measurement``, ``plant_truth``, ``estimate``, ``command`` and ``/diagnostics``
+through the foxglove-sdk WebSocket server, bound to 127.0.0.1 by default: open the Foxglove app,
 *Open connection* -> *Foxglove WebSocket*, ``ws://127.0.0.1:8765``, and plot e.g.
 ``/plant_truth.contact_force``, ``/command.u`` and ``/estimate.stiffness_hat``.
 
@@ -52,7 +52,8 @@ class LiveViewParameters(ParameterSet):
         10, "samples each subscription keeps (keep last N, best effort)", low=1, high=10000
     )
     topics: str = parameter(
-        "measurement,plant_truth,estimate,command", "comma-separated topics to serve (of these four)"
+        "measurement,plant_truth,estimate,command,diagnostics",
+        "comma-separated topics to serve (of " + ", ".join(messages.WATCHED_TOPICS) + ")",
     )
 
 
@@ -70,9 +71,9 @@ class LiveViewNode(PacNode):
         super().__init__("live_view")
         params = self.parameters(LiveViewParameters)
         names = [t.strip() for t in params.topics.split(",") if t.strip()]
-        if not names or any(t not in messages.TOPICS for t in names):
+        if not names or any(t not in messages.WATCHED_TOPICS for t in names):
             raise ParameterError(
-                "topics", params.topics, "a comma-separated subset of " + ",".join(messages.TOPICS)
+                "topics", params.topics, "a comma-separated subset of " + ",".join(messages.WATCHED_TOPICS)
             )
         import foxglove
 
@@ -90,7 +91,7 @@ class LiveViewNode(PacNode):
         self.forwarded = dict.fromkeys(names, 0)
         self.channels = {}
         for topic in names:
-            typename = messages.TOPICS[topic]
+            typename = messages.WATCHED_TOPICS[topic]
             schema = foxglove.Schema(name=typename, encoding="ros2msg", data=ros2msg_schema(typename))
             self.channels[topic] = foxglove.Channel(
                 f"/{topic}", schema=schema, message_encoding="cdr", context=self.fox_context
@@ -116,15 +117,16 @@ class LiveViewNode(PacNode):
         for topic, channel in self.channels.items():
             watched = channel.has_sinks()
             if watched and topic not in self.subscriptions_by_topic:
-                cls = self.factory.cls(messages.TOPICS[topic])
+                cls = self.factory.cls(messages.WATCHED_TOPICS[topic])
                 self.subscriptions_by_topic[topic] = self.create_subscription(
-                    cls, topic, self._forwarder(topic, channel), self.qos, raw=True
+                    cls, messages.GRAPH_NAMES[topic], self._forwarder(topic, channel), self.qos, raw=True
                 )
             elif not watched and topic in self.subscriptions_by_topic:
                 self.destroy_subscription(self.subscriptions_by_topic.pop(topic))
 
     def _forwarder(self, topic: str, channel):
-        period = self.period_ns
+        # Every node's status matters and they come about once a second: never decimated.
+        period = 0 if topic == "diagnostics" else self.period_ns
         due = [0]
 
         def callback(data: bytes) -> None:
@@ -138,6 +140,13 @@ class LiveViewNode(PacNode):
             self.forwarded[topic] += 1
 
         return callback
+
+    def health_counters(self) -> dict:
+        return {
+            "state": "running",
+            "url": self.url,
+            **{f"forwarded_{t}": n for t, n in self.forwarded.items()},
+        }
 
     def close(self) -> None:
         super().close()

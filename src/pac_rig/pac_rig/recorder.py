@@ -1,4 +1,7 @@
-"""``ros2 run pac_rig recorder``: record the four pac topics to a rosbag2 directory (MCAP).
+"""``ros2 run pac_rig recorder``: record the pac topics to a rosbag2 directory (MCAP).
+
+By default (``ros2 bag record -a``) every pac topic and ``/diagnostics`` (every node's
+health, ``diagnostic_msgs/DiagnosticArray``) are recorded.
 
 Subscriptions take the serialised (CDR) messages as they arrive and put them on
 a queue with the receive time; a writer thread does all file I/O, so nothing
@@ -9,6 +12,8 @@ time of reception (the header stamps carry the simulated time).  SIGINT/SIGTERM,
 
 from __future__ import annotations
 
+import math
+import shutil
 import sys
 import threading
 import time
@@ -23,6 +28,7 @@ from pac_bag.mcap_writer import COMPRESSIONS
 from pac_bag.qos import qos_dict
 from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import messages
+from pac_common.lifecycle import LifecycleOptions
 from pac_common.node import RECORD_QOS, RECORD_QOS_COMPATIBLE, PacNode, run_node
 from pac_common.parameters import (
     ParameterError,
@@ -33,12 +39,14 @@ from pac_common.parameters import (
     parameter,
 )
 
+RECORDABLE, GRAPH_NAMES = messages.WATCHED_TOPICS, messages.GRAPH_NAMES
+
 
 @dataclass(frozen=True)
 class RecorderParameters(ParameterSet):
     bag_path: str = parameter("", "output bag directory (must not exist); empty: bags/run_<date>_<time>")
     topics: str = parameter(
-        ",".join(messages.TOPICS), "comma-separated topics to record (of " + ", ".join(messages.TOPICS) + ")"
+        ",".join(RECORDABLE), "comma-separated topics to record (of " + ", ".join(RECORDABLE) + ")"
     )
     stop_after_tick: int = parameter(
         -1,
@@ -55,23 +63,33 @@ class RecorderParameters(ParameterSet):
         low=0.0,
         high=3600.0,
     )
+    min_free_disk_mb: float = parameter(
+        50.0,
+        "/diagnostics reports ERROR while the bag's file system has less free space than this",
+        "MB",
+        low=0.0,
+        runtime=True,
+    )
 
 
 class RecorderNode(PacNode):
-    PARAMETER_SETS = [RecorderParameters, RunEndOptions, SchedulingOptions]
+    PARAMETER_SETS = [RecorderParameters, RunEndOptions, SchedulingOptions, LifecycleOptions]
     FROZEN_REASON = "fixed for a recording: start another recorder"
+    HEALTH = "recorder"
 
     def __init__(self) -> None:
         super().__init__("recorder")
+
+    def configure(self) -> None:
         params = self.parameters(RecorderParameters)
         path = Path(params.bag_path or f"bags/run_{datetime.now():%Y%m%d_%H%M%S}")
         check_new_directory("bag_path", path)
         names = [t.strip() for t in params.topics.split(",") if t.strip()]
-        if not names or any(t not in messages.TOPICS for t in names):
+        if not names or any(t not in RECORDABLE for t in names):
             raise ParameterError(
-                "topics", params.topics, "a comma-separated subset of " + ",".join(messages.TOPICS)
+                "topics", params.topics, "a comma-separated subset of " + ",".join(RECORDABLE)
             )
-        topics = {t: messages.TOPICS[t] for t in names}
+        topics = {t: RECORDABLE[t] for t in names}
         self.params: RecorderParameters = params
         # Topics enter the bag when their publishers are seen, with the QoS they offer (ros2 bag).
         try:
@@ -88,7 +106,9 @@ class RecorderNode(PacNode):
         self.pending: deque = deque()
         self.stopping = threading.Event()
         self.failed = False
-        self.last_tick = dict.fromkeys(topics, -1)
+        self.failure = ""
+        # The recorded tick of each loop topic (run end, stop_after_tick); /diagnostics has none.
+        self.last_tick = {t: -1 for t in topics if t in messages.TOPICS}
         self.last_message_wall = None
         self.factory = messages.RclpyFactory()
         self.unsubscribed = dict(topics)
@@ -107,8 +127,10 @@ class RecorderNode(PacNode):
         """Subscribe each topic once it has publishers, with the QoS they offer (as ros2 bag does):
         reliable and transient-local when all of them offer it (pac's own nodes: nothing sent
         before the match completes is lost), else best effort, so that any publisher is recorded."""
+        if not self.active:
+            return  # a managed recorder subscribes once activated: the loop waits for it
         for topic, typename in list(self.unsubscribed.items()):
-            offered = self.get_publishers_info_by_topic(topic)
+            offered = self.get_publishers_info_by_topic(GRAPH_NAMES[topic])
             if not offered:
                 continue
             durable = all(
@@ -120,7 +142,9 @@ class RecorderNode(PacNode):
             # The writer thread owns the file: the topic enters the bag through the queue, ahead
             # of any of its messages.
             self.pending.append((topic, None, (typename, [qos_dict(info.qos_profile) for info in offered])))
-            self.create_subscription(self.factory.cls(typename), topic, self._callback(topic), qos, raw=True)
+            self.create_subscription(
+                self.factory.cls(typename), GRAPH_NAMES[topic], self._callback(topic), qos, raw=True
+            )
             del self.unsubscribed[topic]
             self.get_logger().info(
                 f"recording '{topic}' ({len(offered)} publisher(s), "
@@ -133,7 +157,8 @@ class RecorderNode(PacNode):
         append = self.pending.append
 
         def callback(data: bytes) -> None:
-            append((topic, data, time.time_ns()))
+            if self.active:  # a deactivated (managed) recorder drops what arrives
+                append((topic, data, time.time_ns()))
 
         return callback
 
@@ -152,6 +177,7 @@ class RecorderNode(PacNode):
             action()
             return True
         except OSError as exc:
+            self.failure = str(exc.strerror or exc)
             self.failed = True
             self.exit_status = 1
             self.finished = True
@@ -176,19 +202,24 @@ class RecorderNode(PacNode):
             if not self._guard(lambda t=topic, d=data, st=stamp: self.bag.write_raw(t, d, st)):
                 return
             wrote = True
-            self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
+            if topic in self.last_tick:
+                self.last_tick[topic] = max(self.last_tick[topic], messages.cdr_tick(data))
         if wrote:
             self.last_message_wall = time.monotonic()
             stop_tick = self.params.stop_after_tick
-            if stop_tick >= 0 and min(self.last_tick.values()) >= stop_tick:
+            if stop_tick >= 0 and self.recorded_tick() >= stop_tick:
                 self.finished = True
             self._check_run_recorded()
 
     def _check_run_recorded(self) -> None:
         """stop_after_run: the ended run's last tick is in the bag on every recorded loop topic."""
         last = self.run_last_tick
-        if last is not None and min(self.last_tick.values()) >= last:
+        if last is not None and self.recorded_tick() >= last:
             self.handled_tick(last)
+
+    def recorded_tick(self) -> float:
+        """The last tick recorded on every loop topic (infinite when none is recorded)."""
+        return min(self.last_tick.values(), default=math.inf)
 
     def on_run_end(self) -> None:
         self._check_run_recorded()
@@ -198,6 +229,40 @@ class RecorderNode(PacNode):
         if last is not None and time.monotonic() - last > self.params.idle_timeout:
             self.get_logger().info(f"no message for {self.params.idle_timeout:g} s: closing")
             self.finished = True
+
+    def apply_parameters(self, changed: dict) -> None:
+        self.params = changed.get(RecorderParameters, self.params)
+
+    def health_counters(self) -> dict:
+        try:
+            bag_bytes = sum(f.stat().st_size for f in self.path.iterdir())
+            free_mb = shutil.disk_usage(self.path).free / 1e6
+        except OSError:
+            bag_bytes, free_mb = -1, math.nan
+        try:
+            counts = self.bag.counts
+        except RuntimeError:  # the writer thread added a topic just now: next report
+            counts = {}
+        if self.failed:
+            state = "failed"
+        else:
+            state = "ended" if self.run_ended else "recording"
+        return {
+            "state": state,
+            "bag_path": str(self.path),
+            "messages": sum(counts.values()),
+            **{f"messages_{topic}": n for topic, n in counts.items()},
+            "bag_bytes": bag_bytes,
+            "free_disk_mb": round(free_mb, 3),
+            "min_free_disk_mb": self.params.min_free_disk_mb,
+            "queued": len(self.pending),
+            "failed": self.failed,
+            "failure": self.failure,
+        }
+
+    def unconfigure(self) -> None:
+        """Lifecycle cleanup: the bag is closed and complete, as at the end of a run."""
+        self.close()
 
     def close(self) -> None:
         """Drain the queue, write the summary and metadata: the bag is complete and indexed."""

@@ -49,7 +49,7 @@ def compiled_functions() -> dict[str, CPUDispatcher]:
 
 def exercise() -> None:
     """Call the cores with the argument types production code uses (nodes, simulate, replay, batch)."""
-    from pac_rig.batch import run_batch
+    from pac_rig.batch import batchable, run_batch
     from pac_rig.closed_loop import build_cores, run, run_cores
     from pac_rig.simulate import scenario_from_flat
 
@@ -70,7 +70,7 @@ def exercise() -> None:
             pass
         for _ in run_cores(s, *build_cores(s)):  # the core objects tick by tick (the nodes' calls)
             pass
-    run_batch([s for s in scenarios if s.plant.catenary_model == "lumped"])
+    run_batch([s for s in scenarios if batchable(s)])
     # What the nodes do besides the loop: a gap bridged, a fallback, a reset, the plant's helpers.
     plant, observer, controller = build_cores(scenarios[0])
     observer.update(0, (0.0, 0.0), 0.0)

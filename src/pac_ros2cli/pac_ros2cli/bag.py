@@ -47,7 +47,7 @@ def record_command(args: list[str]) -> list[str]:
     """``bag record`` arguments -> the `ros2 run pac_rig recorder` command line."""
     p = parser("bag record")
     p.add_argument("topics", nargs="*", help="topics to record")
-    p.add_argument("-a", "--all", action="store_true", help="every pac topic")
+    p.add_argument("-a", "--all", action="store_true", help="every pac topic and /diagnostics")
     p.add_argument("-o", "--output", help="bag directory (must not exist; default bags/run_<date>_<time>)")
     p.add_argument("-s", "--storage", default="mcap", choices=["mcap"])
     # Everything after --ros-args is the recorder's (argparse would take `x:=y` for a topic).

@@ -93,6 +93,8 @@ def plain(value: Any) -> Any:
         return value.tolist()
     if isinstance(value, list | tuple):
         return [plain(v) for v in value]
+    if isinstance(value, bytes) and len(value) == 1:  # a `byte` field (DiagnosticStatus.level)
+        return value[0]
     if isinstance(value, bytes | bytearray):
         return list(value)
     return value

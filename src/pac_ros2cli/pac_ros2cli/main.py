@@ -11,7 +11,7 @@ import signal
 import sys
 from collections.abc import Callable
 
-from . import bag, interface, node, param, pkg, run, topic
+from . import bag, interface, lifecycle, node, param, pkg, run, topic
 from .common import CliError
 
 Command = Callable[[list[str]], int]
@@ -41,6 +41,12 @@ COMMANDS: dict[str, dict[str, Command]] = {
         "show": interface.interface_show,
     },
     "bag": {"info": bag.bag_info, "play": bag.bag_play, "record": bag.bag_record},
+    "lifecycle": {
+        "nodes": lifecycle.lifecycle_nodes,
+        "get": lifecycle.lifecycle_get,
+        "list": lifecycle.lifecycle_list,
+        "set": lifecycle.lifecycle_set,
+    },
 }
 #: Sub-verbs that stream until Ctrl-C: that is how they end (exit 0), as in ros2cli.
 STREAMING = {("topic", "echo"), ("topic", "hz")}
@@ -54,6 +60,7 @@ USAGE = (
     "                  | describe <node> <name>...\n"
     "       ros2 interface list | package <pkg> | show <pkg/msg/Name>\n"
     "       ros2 bag info <bag> | play <bag> [replay options] | record [-o <bag>] [-a | topics...]\n"
+    "       ros2 lifecycle nodes | get [<node>] | list <node> | set <node> <transition>\n"
     "(minimal ros2 from scripts/bin: ros2cli is not installed here; <verb> -h for each verb's options)"
 )
 

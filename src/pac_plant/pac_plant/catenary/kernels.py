@@ -333,7 +333,7 @@ class StepState(NamedTuple):
 @numba.njit(cache=True)
 def hermite_weights(x_nodes: np.ndarray, x: float) -> tuple[int, np.ndarray]:
     """(element, Hermite weights) of position x: ``Line.locate`` + ``hermite_shape`` (x on the line)."""
-    e = np.searchsorted(x_nodes, x, side="right") - 1
+    e = int(np.searchsorted(x_nodes, x, side="right")) - 1
     e = min(max(e, 0), x_nodes.shape[0] - 2)
     h = x_nodes[e + 1] - x_nodes[e]
     xi = (x - x_nodes[e]) / h
@@ -366,6 +366,13 @@ def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
         chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0])
         s.unit_patches[node, r, :] = col[lo : lo + width]
     s.unit_ready[node] = 1
+
+
+@numba.njit(cache=True)
+def prepare_unit_patches(c: StepConstants, s: StepState, node_from: int, node_to: int) -> None:
+    """The contact columns of nodes node_from .. node_to (inclusive) now, not at their first use."""
+    for node in range(max(node_from, 0), min(node_to, s.unit_ready.shape[0] - 1) + 1):
+        _unit_patches(c, s, node)
 
 
 @numba.njit(cache=True)
