@@ -75,8 +75,11 @@ def assert_bytes_equal_rosbags(store, typename: str, n: int = 40, strings: dict[
 @pytest.mark.parametrize("typename", sorted(messages.TOPICS.values()))
 @pytest.mark.parametrize("frame_id", ["", "a", "ab", "abc", "abcdefg"])
 def test_vectorised_cdr_is_byte_for_byte_rosbags(typename, frame_id):
-    """Every pac message, with frame_ids of every length mod 8 that shifts what follows."""
-    assert_bytes_equal_rosbags(typestore(), typename, strings={"header.frame_id": frame_id})
+    """Every pac message, with frame_ids of every length mod 8 that shifts what follows (and its
+    other string fields, e.g. RunStatus.catenary_model, one length less)."""
+    store = typestore()
+    strings = dict.fromkeys(cdr.string_fields(store, typename), frame_id[:-1])
+    assert_bytes_equal_rosbags(store, typename, strings={**strings, "header.frame_id": frame_id})
 
 
 def test_layout_follows_any_msg_definition_with_odd_alignments():
@@ -122,10 +125,11 @@ def test_bulk_bag_equals_the_same_run_written_message_by_message(tmp_path, monke
     scenario = scenario_from_flat({"duration": 1.3, "command_delay_ticks": 2})
     simulate_to_bag(scenario, tmp_path / "bulk", label="x")
     rate, duration = scenario.loop.rate_hz, scenario.loop.duration
+    line = simulate.plant_line(scenario)  # the plant's line, as run_status names it
 
     def run_status(bag, tick, state):
         stamp = messages.tick_stamp_ns(tick, rate)
-        bag.write("run_status", messages.run_status_fields(tick, state, duration, stamp), stamp)
+        bag.write("run_status", messages.run_status_fields(tick, state, duration, stamp, *line), stamp)
 
     with BagWriter(tmp_path / "single", {"source": "offline", "label": "x"}) as bag:
         run_status(bag, 0, messages.RUN_RUNNING)

@@ -18,7 +18,7 @@ import yaml
 
 from pac_analysis.metrics import compute_metrics
 from pac_bag.reader import read_bag
-from pac_controller.parameters import LAW_NAMES
+from pac_controller.parameters import COMPILED_LAW_NAMES
 from pac_experiments import campaign
 from pac_rig import closed_loop
 from pac_rig.closed_loop import build_cores
@@ -159,7 +159,7 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     spec = campaign.Spec(
         "t",
         (
-            {"law": list(LAW_NAMES), "plant_mass_scale": [0.85, 1.0]},
+            {"law": list(COMPILED_LAW_NAMES), "plant_mass_scale": [0.85, 1.0]},
             {"noise_std": [[1e-5, 1e-5]], "command_delay_ticks": [0, 3]},
             {"law": ["pid", "lqr"], "speed_kmh": [300.0]},
             {"catenary_model": ["fe"]},  # not batchable: the FE line goes tick by tick

@@ -168,7 +168,8 @@ def test_ros2_shim(domain_id):
     assert "pac_rig recorder" in out.stdout and "pac_rig live_view" in out.stdout
     bad = subprocess.run([ROS2_SHIM, "daemon", "stop"], capture_output=True, text=True, env=env)
     assert bad.returncode == 2 and bad.stderr.strip().splitlines() == [
-        "ros2: unknown verb 'daemon': this minimal ros2 provides run, pkg, topic, node, param, interface, bag"
+        "ros2: unknown verb 'daemon': this minimal ros2 provides "
+        "run, pkg, topic, node, param, interface, bag, lifecycle"
     ]
 
 

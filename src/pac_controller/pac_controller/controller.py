@@ -67,6 +67,10 @@ class Law(Protocol):
         """The limited force actually commanded for ``tick``: update the law's state."""
 
 
+#: A law with ``uses_contact_force = True`` gets the estimate's F_hat as a sixth argument of
+#: ``output`` (a non-finite one forces the fallback); the others are called with five.
+
+
 def contact_force_estimate(t: float, omega: float, z_hat: np.ndarray, theta_hat: np.ndarray) -> float:
     """F_hat = k_hat z_hat_1, k_hat = v(t)^T theta_hat (eqs. (6), (8))."""
     return model.contact_force(model.stiffness(t, omega, theta_hat), float(z_hat[0]), unilateral=False)
@@ -119,16 +123,24 @@ class Controller:
         self.last_tick = -1
         self.law_tick: int | None = None
 
-    def compute(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> Command:
-        """The command for ``tick`` from the estimate of that tick."""
+    def compute(
+        self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray, contact_force_hat: float = math.nan
+    ) -> Command:
+        """The command for ``tick`` from the estimate of that tick (F_hat: its contact_force_hat)."""
         t = tick * self.sample_period
         f_r = self.reference.at(t)
         z_hat, theta_hat = np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float)
         if self.law.uses_estimate and not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
             return self.fallback(tick)
+        uses_force = getattr(self.law, "uses_contact_force", False)
+        if uses_force and not math.isfinite(contact_force_hat):
+            return self.fallback(tick)
         if self.law_tick is None or tick <= self.law_tick:
             self.law.restart(self.last_u)
-        u_law, errors = self.law.output(tick, t, f_r, z_hat, theta_hat)
+        if uses_force:
+            u_law, errors = self.law.output(tick, t, f_r, z_hat, theta_hat, float(contact_force_hat))
+        else:
+            u_law, errors = self.law.output(tick, t, f_r, z_hat, theta_hat)
         if not math.isfinite(u_law):
             return self.fallback(tick)
         cmd = self._limited(tick, t, u_law, f_r[0], errors, self.law.mode)
@@ -140,7 +152,7 @@ class Controller:
         """Commands on a copy (the law, then the fallback): numba loads the compiled code now, not at
         the loop's first tick."""
         twin = copy.deepcopy(self)
-        twin.compute(0, np.zeros(4), np.array([4000.0, 0.0, 0.0]))
+        twin.compute(0, np.zeros(4), np.array([4000.0, 0.0, 0.0]), 100.0)  # F_hat for laws that read it
         twin.compute(1, np.full(4, np.nan), np.array([4000.0, 0.0, 0.0]))
 
     def fallback(self, tick: int) -> Command:

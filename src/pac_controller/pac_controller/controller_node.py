@@ -1,7 +1,7 @@
 """``ros2 run pac_controller controller_node``: the force controller on the ROS graph.
 
 ``-p law:=<name>`` selects the control law (adaptive_backstepping, the default, eq. (43);
-backstepping_known; pid; lqr; passive: pac_controller.laws, docs/laws.md); the law is
+backstepping_known; pid; lqr; passive; line_adaptive: pac_controller.laws, docs/laws.md); the law is
 fixed for a run.  ``mode:=passive`` is deprecated (law:=passive), still honoured with a warning.
 
 Subscribes ``estimate`` (ObserverEstimate), publishes ``command`` (ActuatorCommand)
@@ -213,7 +213,7 @@ class ControllerNode(PacNode):
         # Tick 0 is the plant's start-up handshake (re-sent until answered, the real-time loop
         # starts after it): the watchdog arms with the loop itself, from tick 1.
         self.last_estimate_wall = time.monotonic() if tick > 0 else None
-        cmd = self.core.compute(tick, z_hat, theta_hat)
+        cmd = self.core.compute(tick, z_hat, theta_hat, float(msg.contact_force_hat))
         if self.in_fallback:
             self.in_fallback = False
             self.get_logger().info(f"tick {tick}: fresh estimates again: back to {cmd.mode} control")

@@ -7,6 +7,7 @@
 | pid | pid.PidLaw (gains from pid.design_pid) | F_hat = k_hat z_hat_1 |
 | lqr | lqr.LqrLaw (gains from lqr.design_lqr) | z_hat, F_hat |
 | passive | passive.PassiveLaw | nothing (u = F_r) |
+| line_adaptive | line_adaptive.LineAdaptiveLaw | F_hat of the estimate (observer:=contact_force) |
 
 Every law runs inside the same :class:`pac_controller.controller.Controller`
 (reference, fallback, slew limit, saturation).  Equations: each module's docstring
@@ -21,6 +22,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
+from .line_adaptive import LineAdaptiveLaw
 from .lqr import LqrLaw, design_lqr
 from .parameters import LAW_NAMES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
@@ -50,12 +52,17 @@ def _passive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
     return PassiveLaw()
 
 
+def _line_adaptive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return LineAdaptiveLaw(track, laws, dt)
+
+
 LAWS: dict[str, Callable[..., Law]] = {
     "adaptive_backstepping": _adaptive,
     "backstepping_known": _known,
     "pid": _pid,
     "lqr": _lqr,
     "passive": _passive,
+    "line_adaptive": _line_adaptive,
 }
 assert tuple(LAWS) == LAW_NAMES, "the registry and the parameter's choices must agree"
 

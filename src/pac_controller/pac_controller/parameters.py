@@ -42,7 +42,10 @@ class ReferenceParameters(ParameterSet):
 
 
 #: The control laws ``law`` selects (pac_controller.laws.LAWS maps them to their cores).
-LAW_NAMES = ("adaptive_backstepping", "backstepping_known", "pid", "lqr", "passive")
+LAW_NAMES = ("adaptive_backstepping", "backstepping_known", "pid", "lqr", "passive", "line_adaptive")
+#: The laws with a compiled kernel (pac_controller.kernels): the compiled loop and the batch run
+#: these; line_adaptive (span-periodic learning, docs/laws.md) runs tick by tick through its core.
+COMPILED_LAW_NAMES = tuple(name for name in LAW_NAMES if name != "line_adaptive")
 
 
 @dataclass(frozen=True)
@@ -53,7 +56,8 @@ class ControllerParameters(ParameterSet):
         "adaptive_backstepping",
         "control law: 'adaptive_backstepping' (eq. (43) on z_hat, theta_hat), 'backstepping_known' "
         "(eq. (43) given the true theta: an oracle, needs k0, alpha, beta), 'pid' (PID on F_hat), "
-        "'lqr' (LQ servo at design_stiffness), 'passive' (u = F_r). Fixed for a run (docs/laws.md)",
+        "'lqr' (LQ servo at design_stiffness), 'passive' (u = F_r), 'line_adaptive' (span-periodic "
+        "learning on F_hat for a distributed line, with a do-no-harm guard). Fixed for a run (docs/laws.md)",
         choices=LAW_NAMES,
     )
     mode: str = parameter(
@@ -130,7 +134,7 @@ class ControllerParameters(ParameterSet):
 
 @dataclass(frozen=True)
 class LawParameters(ParameterSet):
-    """Design of the fixed-gain laws (pid, lqr): the model they are designed on and their specs.
+    """Design of the fixed-gain laws (pid, lqr) and of line_adaptive's learning and guard.
 
     The gains are computed from these in code (pac_controller.pid.design_pid,
     pac_controller.lqr.design_lqr; method and numbers in docs/laws.md), never set by hand.
@@ -195,4 +199,84 @@ class LawParameters(ParameterSet):
         low=0.0,
         low_open=True,
         high=1e5,
+    )
+    line_max_frequency: float = parameter(
+        20.0,
+        "line_adaptive: learns the harmonics of speed / span_length up to this frequency (20: what "
+        "the EN 50318 statistics keep)",
+        "Hz",
+        low=0.0,
+        low_open=True,
+        high=200.0,
+    )
+    line_learning_gain: float = parameter(
+        0.6,
+        "line_adaptive: gamma, fraction of a harmonic's error removed per span",
+        "",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+    )
+    line_step_max: float = parameter(
+        50.0,
+        "line_adaptive: largest change of one harmonic's amplitude per span",
+        "N",
+        low=0.0,
+        low_open=True,
+        high=1000.0,
+    )
+    line_probe_step: float = parameter(
+        10.0,
+        "line_adaptive: largest step of a harmonic whose response has not been identified yet",
+        "N",
+        low=0.0,
+        low_open=True,
+        high=1000.0,
+    )
+    line_forgetting: float = parameter(
+        0.7,
+        "line_adaptive: forgetting factor per span of the identified response of each harmonic",
+        "",
+        low=0.0,
+        low_open=True,
+        high=1.0,
+    )
+    line_prior_weight: float = parameter(
+        25.0,
+        "line_adaptive: weight of the prior response dF/du = 1, as a squared step",
+        "N^2",
+        low=0.0,
+        low_open=True,
+        high=1e6,
+    )
+    line_response_min: float = parameter(
+        0.05,
+        "line_adaptive: floor on the modulus of the identified response (bounds the step)",
+        "",
+        low=0.0,
+        low_open=True,
+        high=10.0,
+    )
+    line_runin_spans: int = parameter(
+        3,
+        "line_adaptive: spans run passive at the start (spans 1.. give the guard's passive sigma)",
+        "spans",
+        low=2,
+        high=100,
+    )
+    line_guard_ratio: float = parameter(
+        1.0,
+        "line_adaptive: fall back to passive when a span's sigma of F_hat exceeds this times the "
+        "passive spans' sigma",
+        "",
+        low=0.1,
+        high=10.0,
+    )
+    line_guard_spans: int = parameter(
+        8,
+        "line_adaptive: learning spans before the guard judges the RMS sigma of the last 3 spans "
+        "(one span above twice the limit trips at once)",
+        "spans",
+        low=3,
+        high=100,
     )

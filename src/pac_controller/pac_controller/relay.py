@@ -8,6 +8,7 @@ reads pac's loop timing against (rclpy + Fast DDS, no control law).
 from __future__ import annotations
 
 import functools
+import math
 import sys
 
 import numpy as np
@@ -22,7 +23,9 @@ from .laws import make_controller
 class RelayController(Controller):
     """A :class:`Controller` whose ``compute`` does no work (no law, no limits)."""
 
-    def compute(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> Command:
+    def compute(
+        self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray, contact_force_hat: float = math.nan
+    ) -> Command:
         self.last_tick = tick
         return Command(tick, tick * self.sample_period, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0), False, "active")
 

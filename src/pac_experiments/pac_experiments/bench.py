@@ -19,6 +19,7 @@ import math
 import os
 import platform
 import re
+import resource
 import shutil
 import statistics
 import subprocess
@@ -313,13 +314,13 @@ def count_allocations() -> None:
     """
     from numba.core.runtime import rtsys
 
-    from pac_controller.parameters import LAW_NAMES
+    from pac_controller.parameters import COMPILED_LAW_NAMES
     from pac_rig.closed_loop import build_cores
     from pac_rig.loop import TICK, compile_loop
     from pac_rig.simulate import scenario_from_flat
 
     counts = {}
-    for law in LAW_NAMES:
+    for law in COMPILED_LAW_NAMES:
         values = {"law": law, "duration": 10.0, "noise_std": (1e-6, 1e-6), "command_delay_ticks": 2}
         s = scenario_from_flat(values)
         plant, observer, controller = build_cores(s)
@@ -358,11 +359,18 @@ def allocations_per_tick(counts: dict[str, dict[str, list[int]]]) -> float:
     return max((c["9980 ticks"][0] - c["10 ticks"][0]) / 9970 for c in counts.values())
 
 
+#: CPU seconds of the last :func:`whole_process` (the command and its children): the machine is shared.
+LAST_PROCESS_CPU = [math.nan]
+
+
 def whole_process(cmd: list[str], timeout: float = 900.0) -> tuple[float, str]:
     """Wall seconds of a whole command (start-up included) and its stdout."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL)
     wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    LAST_PROCESS_CPU[0] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)}: exit {done.returncode}: {done.stderr.strip()[-500:]}")
     return wall, done.stdout
@@ -389,23 +397,29 @@ def simulate_today(workdir: Path, seconds: float = 10.0) -> float:
     return seconds / wall
 
 
+#: Scenario-seconds per CPU-second (all threads) of the last :func:`batch_rates`, set-up included.
+BATCH_CPU = [math.nan]
+
+
 def batch_rates(threads: int) -> tuple[float, float]:
     """(compiled batch, today's tick by tick) scenario-s per wall-s: the five laws at four speeds, 10 s."""
-    from pac_controller.parameters import LAW_NAMES
+    from pac_controller.parameters import COMPILED_LAW_NAMES
     from pac_rig.closed_loop import build_cores, run_cores
     from pac_rig.simulate import scenario_from_flat
 
     scenarios = [
         scenario_from_flat({"law": law, "speed_kmh": v, "duration": 10.0})
-        for law in LAW_NAMES
+        for law in COMPILED_LAW_NAMES
         for v in (200.0, 260.0, 320.0, 380.0)
     ]
     run_batch(scenarios[:1])  # loads the compiled code
+    cpu = time.process_time()
     result = run_batch(scenarios, threads=threads)
+    BATCH_CPU[0] = result.simulated_seconds / (time.process_time() - cpu)
     compiled = result.simulated_seconds / result.wall_seconds
     start = time.perf_counter()
     simulated = 0.0
-    for law in LAW_NAMES:
+    for law in COMPILED_LAW_NAMES:
         s = scenario_from_flat({"law": law, "duration": 1.0})
         for _ in run_cores(s, *build_cores(s)):
             pass
@@ -436,24 +450,6 @@ window: [0.5, 1.0]
 """
 
 
-def fe_tick(repeats: int, ticks: int = 300) -> float:
-    """CPU µs per FE plant tick (advance + measurement + truth), median of ``repeats``."""
-    from pac_rig.closed_loop import build_cores
-    from pac_rig.simulate import scenario_from_flat
-
-    costs = []
-    for _ in range(repeats):
-        plant = build_cores(scenario_from_flat({"catenary_model": "fe", "duration": 1.0}))[0]
-        plant.advance(100.0)
-        start = time.process_time()
-        for _ in range(ticks):
-            plant.measurement()
-            plant.truth()
-            plant.advance(100.0)
-        costs.append(1e6 * (time.process_time() - start) / ticks)
-    return median(costs)
-
-
 def load_average() -> str:
     return ", ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -477,12 +473,24 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         f"what a 10-tick call does ({per_call}: the arrays handed over by Python, once per call)"
     )
     print("bench: simulate 100 s as a process ...", flush=True)
-    figures["simulate_100s_x"] = median([simulate_process(workdir) for _ in range(args.repeats)])
+    speeds, cpus = [], []
+    for _ in range(args.repeats):
+        speeds.append(simulate_process(workdir))
+        cpus.append(LAST_PROCESS_CPU[0])
+    figures["simulate_100s_x"] = median(speeds)
+    notes.append(
+        f"100 s simulate as a process: {100.0 / median(speeds):.1f} s wall, {median(cpus):.1f} s CPU "
+        f"({100.0 / median(cpus):.0f}× real time per CPU-second; start-up included)"
+    )
     today["simulate_100s_x"] = {"value": simulate_today(workdir), "what": "per-record path, 10 s, in process"}
     print("bench: batch ...", flush=True)
     batch, batch_today = batch_rates(args.batch_threads)
     figures["batch_rate"] = batch
     today["batch_rate"] = {"value": batch_today, "what": "core objects tick by tick, 1 thread"}
+    notes.append(
+        f"batch: {BATCH_CPU[0]:.0f} scenario-s per CPU-second (both threads, packing included); "
+        f"wall-clock rate {batch:.0f} on two cores shared with the load above"
+    )
     if args.campaigns:
         print("bench: campaigns ...", flush=True)
         spec = Path(args.campaign_spec)
@@ -497,13 +505,21 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         whole, inner, wall = campaign_rate(fe_spec, workdir)
         figures["campaign_fe_rate"] = whole
         notes.append(
-            f"FE campaign (2 laws x 2 speeds x 1 s, core objects tick by tick: the FE step is not "
-            f"compiled yet): {wall:.1f} s as a whole command, runs alone {inner:.2f} scenario-s per wall-s"
+            f"FE campaign (2 laws x 2 speeds x 1 s, through the core objects tick by tick: the closed "
+            f"loop has no compiled FE plant step yet): {wall:.1f} s as a whole command, runs alone "
+            f"{inner:.2f} scenario-s per wall-s"
         )
     print("bench: FE tick ...", flush=True)
-    fe_us = fe_tick(args.repeats)
-    figures["fe_tick_x"] = 1e3 / fe_us
-    notes.append(f"FE plant tick {fe_us:.0f} µs CPU (advance + measurement + truth)")
+    from .bench_fe import fe_tick_figures  # the FE line's own timing (by part, old and new step)
+
+    fe = fe_tick_figures()
+    figures["fe_tick_x"] = fe["fe_plant_realtime_factor"]
+    today["fe_tick_x"] = {"value": 1e3 / fe["step_old_us"], "what": "numpy step alone"}
+    notes.append(
+        f"FE plant tick {fe['fe_plant_tick_us']:.0f} µs CPU (advance + measurement + truth; compiled step "
+        f"{fe['step_new_us']:.0f} µs, numpy step {fe['step_old_us']:.0f} µs): "
+        "`python -m pac_experiments.bench_fe` for the parts"
+    )
     if startup:
         medians = {name: median(times) for name, times in startup.items()}
         figures["startup_s"] = max(medians.values()) if all(startup.values()) else None

@@ -1,5 +1,8 @@
 """``ros2 run pac_observer observer_node``: the adaptive observer (eq. (17)) on the ROS graph.
 
+``-p observer:=contact_force`` runs the contact-force Kalman filter instead
+(pac_observer.contact_force: F as a state, no F = k z1; docs/laws.md).
+
 Subscribes ``measurement`` (FrameMeasurement), publishes ``estimate``
 (ObserverEstimate) for the same tick.  A repeated tick (a lock-step re-send)
 re-publishes the last estimate; a gap (lost samples) is bridged by the core.
@@ -13,6 +16,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from pac_common import diagnostics, messages
@@ -21,6 +25,7 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import PantographParameters, TrackParameters
 
+from .contact_force import ContactForceObserver, make_observer
 from .observer import AdaptiveObserver, ObserverDivergedError
 from .parameters import ObserverParameters
 
@@ -67,8 +72,9 @@ class ObserverNode(PacNode):
         LifecycleOptions,
     ]
     FROZEN_REASON = "the observer's model and tuning are fixed for a run: restart the node"
-    #: The core; ``observer_relay`` swaps in one that does no work (the floor of ``make bench``).
-    CORE: type[AdaptiveObserver] = AdaptiveObserver
+    #: The core's factory (``observer`` selects it); ``observer_relay`` swaps in one that does no
+    #: work (the floor of ``make bench``).
+    CORE: Callable[..., AdaptiveObserver | ContactForceObserver] = staticmethod(make_observer)
     HEALTH = "observer"
 
     def __init__(self) -> None:

@@ -9,7 +9,32 @@ from pac_common.parameters import ParameterSet, parameter
 
 @dataclass(frozen=True)
 class ObserverParameters(ParameterSet):
-    """Tuning of eq. (17). Defaults are Section 6's values (Sigma read as 100 I_2)."""
+    """Observer selection; tuning of eq. (17) (defaults: Section 6's values, Sigma read as 100 I_2)
+    and of the contact-force Kalman filter (pac_observer.contact_force, docs/laws.md)."""
+
+    observer: str = parameter(
+        "adaptive",
+        "'adaptive' the paper's observer, eq. (17) (theta_hat, F_hat = k_hat z1); 'contact_force' a "
+        "Kalman filter on the nominal pantograph with F as a random-walk state (no F = k z1; no "
+        "theta_hat: for law line_adaptive or passive)",
+        choices=("adaptive", "contact_force"),
+    )
+    force_process_noise: float = parameter(
+        2e4,
+        "contact_force: intensity q_F of the random walk of F (sets F_hat's bandwidth)",
+        "N/s^0.5",
+        low=0.0,
+        low_open=True,
+        high=1e9,
+    )
+    position_noise: float = parameter(
+        1e-5,
+        "contact_force: standard deviation r of the position measurement the filter assumes",
+        "m",
+        low=0.0,
+        low_open=True,
+        high=0.1,
+    )
 
     rho_z: float = parameter(
         40.0,

@@ -66,6 +66,10 @@ class FEPlant(Plant):
             START_SPAN * self.data.span,
             endless=True,
         )
+        # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
+        # no tick pays one later.
+        span = self.data.span
+        self.sim.prepare_contact_columns(START_SPAN * span, (WINDOW_SPANS // 2 + 1) * span)
         self.datum = self.line.static_height(self.sim.x)
         self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
         self.sim.readings(self._flex, self._readings)

@@ -95,9 +95,11 @@ def pack(scenarios: Sequence[Scenario]) -> tuple:
 
 def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
-    parameters without building the cores: the lumped line, a law with a kernel, the delay it holds."""
+    parameters without building the cores: the lumped line, the adaptive observer, a law with a
+    kernel, the delay it holds."""
     return (
         s.plant.catenary_model == "lumped"
+        and s.observer.observer == "adaptive"
         and s.controller.effective_law in LAW_CODES
         and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
     )

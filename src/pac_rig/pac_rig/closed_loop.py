@@ -22,6 +22,7 @@ from pac_controller.kernels import MODES
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_observer.contact_force import ContactForceObserver, make_observer
 from pac_observer.observer import _DIVERGED_REASONS, AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
 from pac_plant.fe_plant import make_plant
@@ -86,12 +87,12 @@ class DivergenceError(RuntimeError):
         super().__init__(f"closed loop diverged at tick {tick}: {reason}")
 
 
-def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver, Controller]:
+def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
     dt = s.loop.sample_period
     plant = make_plant(
         s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt
     )  # lumped | fe
-    observer = AdaptiveObserver(s.pantograph, s.track, s.observer, dt)
+    observer = make_observer(s.pantograph, s.track, s.observer, dt)  # observer: adaptive | contact_force
     # backstepping_known is told the plant's own catenary: the oracle.
     controller = make_controller(s.pantograph, s.track, s.controller, s.reference, dt, s.laws, s.catenary)
     return plant, observer, controller
@@ -173,9 +174,10 @@ def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
 
 
 def run_cores(
-    s: Scenario, plant: Plant, observer: AdaptiveObserver, controller: Controller
+    s: Scenario, plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller
 ) -> Iterator[TickRecord]:
-    """The loop stepped through the core objects tick by tick, as the nodes step them (the FE line)."""
+    """The loop stepped through the core objects tick by tick, as the nodes step them (the FE line,
+    the contact-force observer, line_adaptive)."""
     delay = s.loop.command_delay_ticks
     pending: deque[float] = deque([0.0] * delay)
     for _ in range(s.loop.ticks):
@@ -187,7 +189,7 @@ def run_cores(
             est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force)
         except ObserverDivergedError as exc:
             raise DivergenceError(y.tick, exc.reason) from exc
-        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat)
+        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat)
         if not abs(cmd.u_unsaturated) < DIVERGENCE_FORCE:
             raise DivergenceError(y.tick, divergence_reason(FORCE, cmd.u_unsaturated))
         yield TickRecord(y, truth, est, cmd)

@@ -25,6 +25,7 @@ MODULES = (
     "pac_model.model",
     "pac_plant.plant",
     "pac_observer.observer",
+    "pac_observer.contact_force",
     "pac_controller.reference",
     "pac_controller.backstepping",
     "pac_controller.controller",
@@ -48,7 +49,7 @@ def compiled_functions() -> dict[str, CPUDispatcher]:
 
 def exercise() -> None:
     """Call the cores with the argument types production code uses (nodes, simulate, replay, batch)."""
-    from pac_rig.batch import run_batch
+    from pac_rig.batch import batchable, run_batch
     from pac_rig.closed_loop import build_cores, run, run_cores
     from pac_rig.simulate import scenario_from_flat
 
@@ -61,6 +62,7 @@ def exercise() -> None:
         {"law": "lqr"},
         {"law": "backstepping_known"},
         {"catenary_model": "fe"},
+        {"law": "line_adaptive", "observer": "contact_force"},
     ]
     scenarios = [scenario_from_flat({**short, **v}) for v in variants]
     for s in scenarios:
@@ -68,7 +70,7 @@ def exercise() -> None:
             pass
         for _ in run_cores(s, *build_cores(s)):  # the core objects tick by tick (the nodes' calls)
             pass
-    run_batch([s for s in scenarios if s.plant.catenary_model == "lumped"])
+    run_batch([s for s in scenarios if batchable(s)])
     # What the nodes do besides the loop: a gap bridged, a fallback, a reset, the plant's helpers.
     plant, observer, controller = build_cores(scenarios[0])
     observer.update(0, (0.0, 0.0), 0.0)

@@ -333,6 +333,13 @@ class ContactSimulation:
     def _advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> int:
         return kn.fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
 
+    def prepare_contact_columns(self, x_from: float, x_to: float) -> None:
+        """Solve the contact columns (A^-1 e_i, 2 solves per node) of the stretch [x_from, x_to] now:
+        a run over it then never pays them (``step`` otherwise does at each node's first use)."""
+        e_from, _ = self.line.locate(x_from)
+        e_to, _ = self.line.locate(x_to)
+        kn.prepare_unit_patches(self.constants, self.state, e_from, e_to + 1)
+
     def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
         """``kernels.contact_readings`` of the present state into ``readings``."""
         kn.contact_readings(self.constants, self.state, flexibility, readings)

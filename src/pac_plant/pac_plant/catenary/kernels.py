@@ -369,6 +369,13 @@ def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
 
 
 @numba.njit(cache=True)
+def prepare_unit_patches(c: StepConstants, s: StepState, node_from: int, node_to: int) -> None:
+    """The contact columns of nodes node_from .. node_to (inclusive) now, not at their first use."""
+    for node in range(max(node_from, 0), min(node_to, s.unit_ready.shape[0] - 1) + 1):
+        _unit_patches(c, s, node)
+
+
+@numba.njit(cache=True)
 def shift_window(c: StepConstants, s: StepState) -> None:
     """Move the window one span forward: states shift back one span, the new span is at rest."""
     sh, dps = c.indices[3], c.indices[4]

@@ -1,0 +1,233 @@
+"""Control on the distributed (FE) line: the contact-force observer, law line_adaptive and its guard."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pac_common.contact_statistics import contact_statistics, lowpass
+from pac_controller.line_adaptive import LineAdaptiveLaw
+from pac_controller.parameters import LawParameters
+from pac_model.parameters import PantographParameters, TrackParameters
+from pac_observer.contact_force import ContactForceObserver, kalman_design
+from pac_observer.parameters import ObserverParameters
+
+pytestmark = pytest.mark.offline
+
+SPAN = 55.0
+
+
+def fe_flat(speed: float, spans: float, **extra) -> dict:
+    """An FE-line run on the fixed datum, the EN 50367 target uplift, the contact-force observer."""
+    flat = {
+        "catenary_model": "fe",
+        "fe_datum": "fixed",
+        "speed_kmh": speed,
+        "span_length": SPAN,
+        "duration": spans * SPAN / (speed / 3.6),
+        "force_amplitude": 0.00097 * speed**2 + 70.0,
+        "observer": "contact_force",
+        "watchdog_ticks": 0,
+    }
+    flat.update(extra)
+    return flat
+
+
+def run_fe(flat: dict) -> dict[str, np.ndarray]:
+    from pac_rig.closed_loop import run
+    from pac_rig.simulate import scenario_from_flat
+
+    cols: dict[str, list] = {"F": [], "F_hat": [], "x": [], "u": [], "mode": []}
+    for rec in run(scenario_from_flat(flat)):
+        cols["F"].append(rec.truth.contact_force)
+        cols["F_hat"].append(rec.estimate.contact_force_hat)
+        cols["x"].append(rec.truth.contact_position)
+        cols["u"].append(rec.command.u)
+        cols["mode"].append(rec.command.mode)
+    return {k: np.array(v) for k, v in cols.items()}
+
+
+def span_window(r: dict[str, np.ndarray], first: int, last: int) -> tuple[float, float]:
+    """Positions of whole spans first .. last (counted from the run's start) as a statistics window."""
+    x0 = float(r["x"][0])
+    return x0 + first * SPAN, x0 + (last + 1) * SPAN
+
+
+def test_kalman_gain_stabilises_the_sampled_model():
+    phi, _, gain = kalman_design(PantographParameters(), 2e4, 1e-5, 1e-3)
+    c = np.zeros((2, 5))
+    c[0, 0] = c[1, 1] = 1.0
+    # The filter's error dynamics (I - K C) Phi must be stable (the DARE's solution guarantees it).
+    assert np.max(np.abs(np.linalg.eigvals((np.eye(5) - gain @ c) @ phi))) < 1.0
+
+
+def test_contact_force_observer_follows_the_lumped_lines_force():
+    """Lumped line (F = k(t) z1, known to the test, not to the filter): |F_hat - F| small after 1 s."""
+    from pac_rig.closed_loop import run
+    from pac_rig.simulate import scenario_from_flat
+
+    s = scenario_from_flat({"duration": 3.0, "law": "passive", "observer": "contact_force"})
+    f, f_hat = [], []
+    for rec in run(s):
+        f.append(rec.truth.contact_force)
+        f_hat.append(rec.estimate.contact_force_hat)
+    f, f_hat = np.array(f[1000:]), np.array(f_hat[1000:])
+    assert np.std(f) > 20.0  # the lumped line at 360 km/h: the force does vary
+    assert math.sqrt(np.mean((f_hat - f) ** 2)) < 0.05 * np.std(f)
+
+
+@pytest.mark.timeout(900)  # an FE run: minutes on a loaded machine
+def test_contact_force_estimate_error_on_the_fe_line():
+    """The estimate against the FE plant's penalty force (PlantTruth.contact_force): < 10 % of sigma_F.
+
+    Measured 3.6 % at 300 km/h over spans 2..3 (docs/laws.md); 20 Hz low-pass on both, as the
+    EN 50318 statistics.
+    """
+    r = run_fe(fe_flat(300.0, 4.0, law="passive"))
+    a, b = span_window(r, 2, 3)
+    w = (r["x"] >= a) & (r["x"] <= b)
+    f, f_hat = lowpass(r["F"], 1e-3)[w], lowpass(r["F_hat"], 1e-3)[w]
+    sigma = contact_statistics(r["F"], r["x"], 1e-3, a, b).contact_force_std
+    assert sigma > 30.0
+    assert math.sqrt(np.mean((f_hat - f) ** 2)) < 0.10 * sigma
+
+
+@pytest.mark.timeout(1800)  # two 12-span FE runs
+def test_line_adaptive_lowers_sigma_against_passive_on_the_fe_line():
+    """300 km/h, 12 spans: over spans 9..11 sigma at least 20 % below the passive run's (same window)."""
+    spans = 12
+    passive = run_fe(fe_flat(300.0, spans, law="passive"))
+    active = run_fe(fe_flat(300.0, spans, law="line_adaptive"))
+    sigma = {}
+    for name, r in (("passive", passive), ("active", active)):
+        a, b = span_window(r, 9, 11)
+        sigma[name] = contact_statistics(r["F"], r["x"], 1e-3, a, b)
+    assert set(active["mode"][-100:]) == {"active"}  # the guard did not fall back
+    active, passive = sigma["active"], sigma["passive"]
+    assert active.contact_force_std < 0.8 * passive.contact_force_std, sigma
+    assert active.contact_loss_percent == 0.0
+    assert abs(active.contact_force_mean - passive.contact_force_mean) < 0.02 * passive.contact_force_mean
+
+
+# -- the guard, on a synthetic periodic line (fast; the law's core only) -------------------------
+def synthetic_loop(gain_sign: float, spans: int = 16, speed: float = 300.0) -> tuple[LineAdaptiveLaw, list]:
+    """F = F_r + d(t) + (u - F_r) delayed one tick: a line whose force follows u (D = -1 exactly).
+
+    d is span-periodic (two harmonics of v / L). With the right sign the law cancels d; with
+    the sign flipped (``gain_sign`` = -1) each span adds to it: the guard must fall back.
+    """
+    dt = 1e-3
+    track = TrackParameters(speed_kmh=speed, span_length=SPAN)
+    law = LineAdaptiveLaw(track, LawParameters(), dt)
+    law.gain *= gain_sign
+    w = 2 * math.pi / (law.period_ticks * dt)
+    f_r = 150.0
+    out = []
+    u_applied = f_r
+    for k in range(spans * law.period_ticks):
+        t = k * dt
+        f_hat = f_r + 40 * math.cos(w * t) + 15 * math.sin(3 * w * t + 0.4) + (u_applied - f_r)
+        u, _ = law.output(k, t, np.array([f_r, 0, 0, 0, 0]), np.zeros(4), np.zeros(3), f_hat)
+        law.commit(k, u)
+        out.append((law.mode, u, f_hat))
+        u_applied = u
+    return law, out
+
+
+def test_guard_stays_out_when_the_law_helps():
+    law, out = synthetic_loop(+1.0)
+    assert not law.tripped
+    f_hat = np.array([o[2] for o in out[-law.period_ticks :]])
+    assert np.std(f_hat) < 0.2 * 40 / math.sqrt(2)  # the periodic force is mostly cancelled
+
+
+def test_guard_falls_back_to_passive_when_forced_to_harm():
+    law, out = synthetic_loop(-1.0)
+    assert law.tripped
+    modes = [o[0] for o in out]
+    first = modes.index("passive")
+    # Announced and latched, and from then on u = F_r exactly (the passive command).
+    assert set(modes[first:]) == {"passive"}
+    assert all(o[1] == 150.0 for o in out[first + 1 :])
+    # It fell back within the guard's spans after the run-in (3 + line_guard_spans + 1).
+    assert first < (3 + LawParameters().line_guard_spans + 1) * law.period_ticks
+
+
+def test_line_adaptive_through_the_controller_needs_a_finite_force_estimate():
+    from pac_controller.laws import make_controller
+    from pac_controller.parameters import ControllerParameters, ReferenceParameters
+
+    ctrl = make_controller(
+        PantographParameters(),
+        TrackParameters(speed_kmh=300.0, span_length=SPAN),
+        ControllerParameters(law="line_adaptive"),
+        ReferenceParameters(),
+        1e-3,
+    )
+    assert ctrl.compute(0, np.zeros(4), np.zeros(3), math.nan).mode == "fallback"
+    assert ctrl.compute(1, np.zeros(4), np.zeros(3), 0.0).mode == "active"
+
+
+def test_contact_force_observer_bridges_a_gap_and_refuses_going_back():
+    obs = ContactForceObserver(PantographParameters(), TrackParameters(), ObserverParameters(), 1e-3)
+    obs.update(0, (0.0, 0.0), 0.0)
+    est = obs.update(3, (0.0, 0.0), 100.0)
+    assert est.tick == 3 and np.isfinite(est.contact_force_hat)
+    with pytest.raises(ValueError):
+        obs.update(3, (0.0, 0.0), 100.0)
+
+
+def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_path):
+    """4 processes over DDS in lock step, observer contact_force + law line_adaptive == closed_loop.
+
+    360 km/h, run-in 2 spans: the learned feedforward acts from 1.1 s on, so the bit-for-bit
+    comparison covers a learning update and the commands it gives.
+    """
+    from pac_rig.bag import read_bag
+    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+    duration = 1.8
+    params = {
+        "catenary_model": "fe",
+        "speed_kmh": 360.0,
+        "span_length": SPAN,
+        "observer": "contact_force",
+        "law": "line_adaptive",
+        "line_runin_spans": 2,
+    }
+    rig = rigs("line_lockstep", duration=duration, timing_mode="lockstep", params={"all": params})
+    rig.start()
+    rig.wait_finished(timeout=240)
+    assert set(rig.exit_codes().values()) == {0}, {n: p.log()[-500:] for n, p in rig.processes.items()}
+    simulate_to_bag(scenario_from_flat({"duration": duration, **params}), tmp_path / "offline")
+    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
+    for topic, column in (
+        ("plant_truth", "contact_force"),
+        ("estimate", "contact_force_hat"),
+        ("command", "u"),
+        ("command", "mode"),
+    ):
+        ticks = np.asarray(live[topic]["tick"])
+        _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
+        np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
+    u = np.asarray(offline["command"]["u"])
+    f_r = np.asarray(offline["command"]["force_reference"])
+    assert np.max(np.abs(u[1200:] - f_r[1200:])) > 1.0  # the learned feedforward did act
+
+
+def test_line_adaptive_on_the_lumped_line_with_the_papers_observer():
+    """The lumped line of eq. (7) at 360 km/h, F_hat = k_hat z1 of eq. (17): F - F_r over 8..10 s
+    at most half the passive pantograph's (measured 15.8 vs 52.5 N RMS)."""
+    from pac_rig.closed_loop import run
+    from pac_rig.simulate import scenario_from_flat
+
+    rms = {}
+    for law in ("passive", "line_adaptive"):
+        error = [
+            rec.truth.contact_force - rec.command.force_reference
+            for rec in run(scenario_from_flat({"law": law, "duration": 10.0}))
+        ]
+        rms[law] = math.sqrt(np.mean(np.square(error[8000:])))
+    assert rms["line_adaptive"] < 0.5 * rms["passive"], rms
