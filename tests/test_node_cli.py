@@ -150,7 +150,8 @@ def test_the_by_hand_recipe_ends_by_itself(domain_id, tmp_path):
     (mcap_file,) = bag.glob("*.mcap")
     ticks = {}
     for item in read_ros2_messages(str(mcap_file)):
-        ticks.setdefault(item.channel.topic.lstrip("/"), []).append(int(item.ros_msg.tick))
+        if hasattr(item.ros_msg, "tick"):  # the loop's topics and run_status; not /diagnostics
+            ticks.setdefault(item.channel.topic.lstrip("/"), []).append(int(item.ros_msg.tick))
     assert max(ticks["measurement"]) == last_tick
     assert max(ticks["command"]) == last_tick, "the run's last command answers the plant's last tick"
     assert np.unique(ticks["plant_truth"]).size == last_tick + 1

@@ -15,6 +15,7 @@ mode may be changed at run time (validated like at start).
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -60,7 +61,8 @@ class EstimateLimits(ParameterSet):
     )
     max_tick_jump: int = parameter(
         10000,
-        "an estimate more than this many ticks ahead of the last one is implausible",
+        "an estimate more than this many ticks ahead of the last one, beyond the ticks the wall "
+        "clock has let pass since that one, is implausible",
         "ticks",
         low=1,
         runtime=True,
@@ -124,6 +126,7 @@ class ControllerNode(PacNode):
         self.watch_start(self.missing)
         self.last_estimate_tick = -1
         self.last_estimate_wall: float | None = None
+        self.last_accepted_wall: float | None = None  # when the last accepted estimate arrived
         self.last_answer = None  # the command that answered the last fresh estimate
         self.in_fallback = False
         self.sent = 0
@@ -173,13 +176,21 @@ class ControllerNode(PacNode):
         lim = self.limits
         if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
             return False
-        if self.last_estimate_tick >= 0 and tick > self.last_estimate_tick + lim.max_tick_jump:
+        if self.last_estimate_tick >= 0 and tick > self.last_estimate_tick + self.allowed_tick_jump():
             return False
         return bool(
             np.all(np.abs(z_hat[:2]) <= lim.estimate_position_limit)
             and np.all(np.abs(z_hat[2:]) <= lim.estimate_velocity_limit)
             and np.all(np.abs(theta_hat) <= lim.estimate_stiffness_limit)
         )
+
+    def allowed_tick_jump(self) -> int:
+        """How far ahead of the last accepted estimate a new one may be: max_tick_jump, plus the
+        ticks a real-time plant can have advanced since that estimate arrived. Without the
+        wall-clock part, an observer restarted after more than max_tick_jump ticks (a slow
+        process start on a loaded machine) would be refused for ever: its ticks are the plant's."""
+        since = 0.0 if self.last_accepted_wall is None else time.monotonic() - self.last_accepted_wall
+        return self.limits.max_tick_jump + int(math.ceil(1.05 * since / self.loop.sample_period))
 
     def on_estimate(self, msg) -> None:
         start_ns = time.monotonic_ns()
@@ -210,6 +221,7 @@ class ControllerNode(PacNode):
         if self.last_estimate_tick >= 0:
             self.skipped += tick - self.last_estimate_tick - 1
         self.last_estimate_tick = tick
+        self.last_accepted_wall = time.monotonic()
         # Tick 0 is the plant's start-up handshake (re-sent until answered, the real-time loop
         # starts after it): the watchdog arms with the loop itself, from tick 1.
         self.last_estimate_wall = time.monotonic() if tick > 0 else None
