@@ -50,8 +50,11 @@ class Command:
 class Law(Protocol):
     """What a control-law core provides to :class:`Controller`."""
 
-    #: Command.mode of its commands: "active" (feedback) or "passive".
-    mode: str
+    @property
+    def mode(self) -> str:
+        """Command.mode of its commands: "active" (feedback) or "passive" (a law may change it:
+        line_adaptive's guard falls back to passive)."""
+
     #: False: the law ignores the estimate (then a non-finite one does not force the fallback).
     uses_estimate: bool
 
@@ -59,9 +62,16 @@ class Law(Protocol):
         """Forget the law's state; the next output continues from ``u_applied`` (None: at rest)."""
 
     def output(
-        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+        self,
+        tick: int,
+        t: float,
+        f_r: np.ndarray,
+        z_hat: np.ndarray,
+        theta_hat: np.ndarray,
+        contact_force_hat: float = math.nan,
     ) -> tuple[float, Errors]:
-        """The unlimited force u_law for ``tick`` and three law-specific errors; no state change."""
+        """The unlimited force u_law for ``tick`` and three law-specific errors; no state change.
+        ``contact_force_hat`` (F̂) is passed only to laws with ``uses_contact_force``."""
 
     def commit(self, tick: int, u_applied: float) -> None:
         """The limited force actually commanded for ``tick``: update the law's state."""

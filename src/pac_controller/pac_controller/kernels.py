@@ -294,7 +294,13 @@ class KernelLaw:
         )
 
     def output(
-        self, tick: int, t: float, f_r: np.ndarray, z_hat: np.ndarray, theta_hat: np.ndarray
+        self,
+        tick: int,
+        t: float,
+        f_r: np.ndarray,
+        z_hat: np.ndarray,
+        theta_hat: np.ndarray,
+        contact_force_hat: float = math.nan,  # the Law protocol's; these laws do not use F̂
     ) -> tuple[float, tuple[float, float, float]]:
         u, e1, e2, e3 = _output_one(
             self.params, self.state, int(tick), float(t), float(f_r[0]), float(f_r[1]), float(f_r[2]),

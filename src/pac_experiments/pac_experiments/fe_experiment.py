@@ -88,7 +88,7 @@ def passive_for(rows: list[dict[str, Any]], row: dict[str, Any]) -> dict[str, An
 def change_percent(rows: list[dict[str, Any]], row: dict[str, Any]) -> float:
     """sigma change against passive [%] (negative: lower than passive); NaN when either failed."""
     p = passive_for(rows, row)
-    if not (ok(row) and ok(p)):
+    if p is None or not (ok(row) and ok(p)):
         return math.nan
     return 100.0 * (float(row[SIGMA]) - float(p[SIGMA])) / float(p[SIGMA])
 

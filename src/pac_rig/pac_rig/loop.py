@@ -31,6 +31,7 @@ from numba import njit
 from pac_controller.controller import Controller
 from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLaw, controller_step, new_state
 from pac_model import model
+from pac_observer.contact_force import ContactForceObserver
 from pac_observer.observer import AdaptiveObserver, observer_advance, observer_start
 from pac_plant.plant import Plant, plant_advance_inplace, quantise
 
@@ -199,7 +200,7 @@ class CompiledLoop:
 
 
 def compile_loop(
-    plant: Plant, observer: AdaptiveObserver, controller: Controller, delay: int
+    plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller, delay: int
 ) -> CompiledLoop | None:
     """The records of the cores as built (``closed_loop.build_cores``), or None if the loop has no
     compiled form for them: a plant other than the lumped :class:`Plant` (the FE line), an observer
