@@ -185,7 +185,7 @@ def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_
     360 km/h, run-in 2 spans: the learned feedforward acts from 1.1 s on, so the bit-for-bit
     comparison covers a learning update and the commands it gives.
     """
-    from pac_rig.bag import read_bag
+    from pac_bag.reader import read_bag
     from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
     duration = 1.8
