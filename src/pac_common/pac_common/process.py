@@ -6,6 +6,7 @@ and exit status 2; SIGINT / SIGTERM are a clean shutdown with exit status 0.
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import sys
 import threading
@@ -17,6 +18,7 @@ from .discovery import loopback_only
 from .executor import make_executor
 from .node_help import node_help, print_help
 from .parameters import ParameterError
+from .scheduling import normal_scheduling
 
 
 def run_node(program: str, node_class: type, args: list[str] | None = None) -> int:
@@ -95,11 +97,18 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
                 node.health.print_stats()
                 status = status or node.exit_status
             # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
-            # stops; everything that matters is done, so a stuck teardown ends the process.
+            # stops; everything that matters is done, so a stuck teardown ends the process. The
+            # guard must be able to run: no real-time thread may starve it (normal scheduling
+            # first), and a hang that holds the GIL is ended by faulthandler's own C thread
+            # (exit 1, with every thread's traceback on stderr to show where it hung).
             final = status
+            sys.stdout.flush()
+            sys.stderr.flush()
+            normal_scheduling()
             guard = threading.Timer(5.0, lambda: os._exit(final))
             guard.daemon = True
             guard.start()
+            faulthandler.dump_traceback_later(20.0, exit=True)
             if executor is not None:
                 executor.shutdown(timeout_sec=1.0)
         for node in nodes:

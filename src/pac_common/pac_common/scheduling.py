@@ -36,3 +36,13 @@ def set_realtime_priority(node: Any, priority: int) -> bool:
         return False
     node.get_logger().info(f"running with SCHED_FIFO priority {priority} ({len(process_threads())} threads)")
     return True
+
+
+def normal_scheduling() -> None:
+    """Every thread of this process back to SCHED_OTHER (best effort), for the teardown: a
+    real-time thread spinning while rclpy shuts down must not starve the thread that guards it."""
+    for tid in process_threads():
+        try:
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+        except OSError:
+            pass
