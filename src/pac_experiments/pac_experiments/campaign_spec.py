@@ -113,7 +113,9 @@ def load_spec(path: Path) -> Spec:
         raise SpecError(f"cannot read spec {path}: {exc.strerror or exc}") from None
     except yaml.YAMLError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise SpecError(f"spec {path} is not valid YAML ({first})") from None
+        mark = getattr(exc, "problem_mark", None)  # where the parser stopped (0-based)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        raise SpecError(f"spec {path} is not valid YAML{where} ({first})") from None
     if not isinstance(data, dict):
         raise SpecError(f"spec {path} must be a mapping with 'grid' (or 'grids'), 'fixed', 'window'")
     unknown = sorted(set(data) - set(KEYS))
