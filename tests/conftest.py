@@ -8,6 +8,7 @@ module says.  ``make test-fast`` runs
 ``unit or offline`` without ``live``; ``make test`` runs them all.
 """
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -116,3 +117,39 @@ def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[s
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+@contextlib.contextmanager
+def parameter_tester(domain_id: int, procs: dict[str, subprocess.Popen]):
+    """A test node in its own rclpy context in ``domain_id`` and ``call(future)``, which spins it
+    until the future is done (10 s) and returns the result. On exit, pass or fail: the node and
+    its context are gone and every process of ``procs`` is stopped (SIGINT, killed after 15 s)."""
+    import rclpy
+    import rclpy.executors
+
+    try:
+        context = rclpy.Context()
+        rclpy.init(context=context, domain_id=domain_id)
+        node = rclpy.create_node("tester", context=context)
+        executor = rclpy.executors.SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+
+        def call(future):
+            executor.spin_until_future_complete(future, timeout_sec=10)
+            assert future.done()
+            return future.result()
+
+        try:
+            yield node, call
+        finally:
+            node.destroy_node()
+            rclpy.shutdown(context=context)
+    finally:
+        for p in procs.values():
+            p.send_signal(signal.SIGINT)
+        for p in procs.values():
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()

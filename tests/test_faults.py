@@ -6,14 +6,13 @@ recovery time) are measurements; the assertions are the safety properties and lo
 
 import math
 import os
-import signal
 import subprocess
 import time
 
 import numpy as np
 import pytest
 import rclpy
-from conftest import node_stats
+from conftest import node_stats, parameter_tester
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
@@ -286,18 +285,7 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
         procs[name] = subprocess.Popen(
             ["ros2", "run", pkg, exe, *args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    node = rclpy.create_node("tester", context=context)
-    executor = rclpy.executors.SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-
-    def call(future):
-        executor.spin_until_future_complete(future, timeout_sec=10)
-        assert future.done()
-        return future.result()
-
-    try:
+    with parameter_tester(domain_id, procs) as (node, call):
         refused = 0
         for name in NODES:
             client = AsyncParameterClient(node, NODES[name].executable)
@@ -319,17 +307,6 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
         assert result.successful
         assert call(controller.get_parameters(["c1"])).values[0].double_value == 30.0
         print(f"\n{refused} invalid runtime changes refused over {len(NODES)} nodes")
-    finally:
-        node.destroy_node()
-        rclpy.shutdown(context=context)
-        for p in procs.values():
-            p.send_signal(signal.SIGINT)
-        for p in procs.values():
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
 
 
 def test_two_rigs_in_parallel_do_not_hear_each_other(rigs, tmp_path):

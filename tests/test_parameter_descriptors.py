@@ -5,11 +5,10 @@ and rqt_reconfigure read) are checked against the parameter declarations. The de
 module itself is checked without DDS first.
 """
 
-import signal
 import subprocess
 
 import pytest
-import rclpy
+from conftest import parameter_tester
 from rcl_interfaces.msg import ParameterType
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
@@ -81,18 +80,7 @@ def test_every_live_node_describes_every_parameter_with_range_and_read_only(doma
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
-    context = rclpy.Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    tester = rclpy.create_node("describer", context=context)
-    executor = rclpy.executors.SingleThreadedExecutor(context=context)
-    executor.add_node(tester)
-
-    def call(future):
-        executor.spin_until_future_complete(future, timeout_sec=10)
-        assert future.done()
-        return future.result()
-
-    try:
+    with parameter_tester(domain_id, procs) as (tester, call):
         described = 0
         for name, (*_, sets) in NODES.items():
             client = AsyncParameterClient(tester, name)
@@ -115,14 +103,3 @@ def test_every_live_node_describes_every_parameter_with_range_and_read_only(doma
         bad = call(controller.set_parameters([Parameter("c1", value=-5.0)])).results[0]
         assert bad.reason.startswith("invalid parameter 'c1' = -5.0: allowed")
         print(f"\n{described} descriptors over {len(NODES)} live nodes match the declarations")
-    finally:
-        tester.destroy_node()
-        rclpy.shutdown(context=context)
-        for p in procs.values():
-            p.send_signal(signal.SIGINT)
-        for p in procs.values():
-            try:
-                p.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
