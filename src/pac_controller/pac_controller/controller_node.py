@@ -176,7 +176,9 @@ class ControllerNode(PacNode):
         lim = self.limits
         if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
             return False
-        if self.last_estimate_tick >= 0 and tick > self.last_estimate_tick + self.allowed_tick_jump():
+        # The wall-clock allowance only where the plain limit is passed (not on every 1 kHz tick).
+        ahead = tick - self.last_estimate_tick
+        if self.last_estimate_tick >= 0 and ahead > lim.max_tick_jump and ahead > self.allowed_tick_jump():
             return False
         return bool(
             np.all(np.abs(z_hat[:2]) <= lim.estimate_position_limit)
