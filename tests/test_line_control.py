@@ -112,11 +112,14 @@ def test_line_adaptive_lowers_sigma_against_passive_on_the_fe_line():
 
 
 # -- the guard, on a synthetic periodic line (fast; the law's core only) -------------------------
-def synthetic_loop(gain_sign: float, spans: int = 16, speed: float = 300.0) -> tuple[LineAdaptiveLaw, list]:
+def synthetic_loop(
+    gain_sign: float, spans: int = 16, speed: float = 300.0, u_max: float = math.inf
+) -> tuple[LineAdaptiveLaw, list]:
     """F = F_r + d(t) + (u - F_r) delayed one tick: a line whose force follows u (D = -1 exactly).
 
     d is span-periodic (two harmonics of v / L). With the right sign the law cancels d; with
     the sign flipped (``gain_sign`` = -1) each span adds to it: the guard must fall back.
+    ``u_max``: the actuator's upper limit, applied to the command before the law is told it.
     """
     dt = 1e-3
     track = TrackParameters(speed_kmh=speed, span_length=SPAN)
@@ -130,6 +133,7 @@ def synthetic_loop(gain_sign: float, spans: int = 16, speed: float = 300.0) -> t
         t = k * dt
         f_hat = f_r + 40 * math.cos(w * t) + 15 * math.sin(3 * w * t + 0.4) + (u_applied - f_r)
         u, _ = law.output(k, t, np.array([f_r, 0, 0, 0, 0]), np.zeros(4), np.zeros(3), f_hat)
+        u = min(u, u_max)
         law.commit(k, u)
         out.append((law.mode, u, f_hat))
         u_applied = u
@@ -141,6 +145,25 @@ def test_guard_stays_out_when_the_law_helps():
     assert not law.tripped
     f_hat = np.array([o[2] for o in out[-law.period_ticks :]])
     assert np.std(f_hat) < 0.2 * 40 / math.sqrt(2)  # the periodic force is mostly cancelled
+
+
+def test_clipped_feedforward_keeps_the_mean_force_and_does_not_wind_up():
+    """u <= F_r + 30 N against a disturbance of up to 55 N: the peaks cannot be cancelled.
+
+    In a periodic steady state mean(F) = mean(u); the mean force must stay on F_r (within
+    1 %) and the clipped share of a span must settle, not grow span after span (it does when
+    the law steps from the harmonics it asked for instead of the ones applied).
+    """
+    spans = 24
+    law, out = synthetic_loop(+1.0, spans=spans, u_max=180.0)
+    n = law.period_ticks
+    assert not law.tripped
+    f_hat = np.array([o[2] for o in out]).reshape(spans, n)
+    clipped = (np.array([o[1] for o in out]) >= 180.0).reshape(spans, n).mean(axis=1)
+    assert abs(f_hat[-4:].mean() - 150.0) < 1.5, f_hat.mean(axis=1)
+    assert clipped[-1] <= clipped[-8] + 0.02 and clipped[-1] < 0.5, clipped
+    # And what it can cancel it still does: sigma well below the disturbance's 30 N RMS.
+    assert np.std(f_hat[-1]) < 0.6 * math.sqrt(40**2 + 15**2) / math.sqrt(2), np.std(f_hat[-1])
 
 
 def test_guard_falls_back_to_passive_when_forced_to_harm():

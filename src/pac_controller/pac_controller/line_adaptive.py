@@ -27,16 +27,28 @@ At the end of span j (j >= ``line_runin_spans`` - 1) each harmonic takes a secan
                                              (``line_probe_step`` until D_h has been identified)
 
 (lam = ``line_forgetting``, s0 = ``line_prior_weight``, gamma = ``line_learning_gain``;
-an update with |dU_h| < 0.5 N carries no information and is skipped.)  The mean error
-E_0 is learned too, with its exact static response (U_0 += gamma E_0): the estimate's
-mean is unbiased by a mass error, and when the actuator's limits clip the feedforward's
-peaks they would otherwise shift the mean force.  (Scaling the whole feedforward down to
-stay inside the limits was tried: sigma -59 % instead of -74 % at 300 km/h; clipping the
-few peaks costs less.)  Why identified:
-the line's response u -> F at the span harmonics differs from any spring model of it by
-up to ~90 deg in phase and a factor 5 in gain (docs/laws.md, measured), and with a wrong
-phase beyond 90 deg a fixed learning filter diverges.  In a periodic steady state
-mean(F) = mean(u) (the pantograph's momentum balance), so U_0 stays ~0 unless limits clip.
+an update with |dU_h| < 0.5 N carries no information and is skipped.)
+
+Anti-windup: U_h^j in the step and in the secant is the harmonic the actuator *applied*
+over span j (the Fourier coefficients of the command ``commit`` reports, on the
+feedforward's own phase), not the one asked for.  Where the limits (+-500 N, 100 kN/s)
+clip, asking for more changes nothing applied: the identified response would shrink, the
+steps grow and the clipped share of a span grow without end (it reached 28 % at 360 km/h
+and pulled the mean force 6.5 % below its target).
+
+The mean: U_0 += gamma E_0 (E_0 the span's mean of F_r - F_hat; the static response is
+-1 exactly), plus C, the mean the limits took off the last span's command, measured
+exactly on the applied command and given back (C^{j+1} = mean over span j of what the
+limits removed; a fixed point that converges, the clipped share being below one).  In a
+periodic steady state mean(F) = mean(u) (the pantograph's momentum balance), so U_0 stays
+near 0 and C is what keeps the mean force on its target when the peaks clip.  (Scaling the
+whole feedforward down to stay inside the limits was tried: sigma -59 % instead of -74 % at
+300 km/h; clipping the few peaks costs less.  U_0 at gain 1 instead of C oscillated span to
+span with the plant's masses x1.2.)
+
+Why identified: the line's response u -> F at the span harmonics differs from any spring
+model of it by up to ~90 deg in phase and a factor 5 in gain (docs/laws.md, measured), and
+with a wrong phase beyond 90 deg a fixed learning filter diverges.
 
 Do-no-harm guard: the spans 1 .. ``line_runin_spans`` - 1 run passive (u = F_r) and give
 the passive variance of F_hat, sigma_p^2.  At the end of every learning span the RMS of
@@ -46,8 +58,8 @@ secant learning may rise above passive for its first spans; one span above
 ``GUARD_HARD_FACTOR`` times that trips at once), the law falls back to passive for
 the rest of the run (U = 0, ``Command.mode`` "passive"; latched).
 
-State: explicit numpy arrays (``u_ff``, ``u_prev``, ``e_acc``, ``e_prev``, ``s``, ``z``)
-and scalars; :meth:`restart` forgets them all.
+State: explicit numpy arrays (``u_ff``, ``u_prev``, ``e_acc``, ``a_acc``, ``e_prev``, ``s``,
+``z``) and scalars; :meth:`restart` forgets them all.
 """
 
 from __future__ import annotations
@@ -100,6 +112,7 @@ class LineAdaptiveLaw:
         self.guard_ratio = laws.line_guard_ratio
         self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
         self._pending_error = 0.0
+        self._pending_reference = 0.0
         self.restart(None)
 
     # -- state -----------------------------------------------------------------------
@@ -108,9 +121,12 @@ class LineAdaptiveLaw:
         h = self.harmonics
         self.u_ff = np.zeros(h, dtype=np.complex128)  # U_h of the current span
         self.u_mean = 0.0  # U_0: the mean correction (D_0 = -1 exactly: statics)
+        self.clip_offset = 0.0  # C: what the limits took off the last span's mean, added back
+        self.a_mean = 0.0  # mean of (applied - F_r - U_0 - C) over the current span: minus the loss
         self.e_mean = 0.0  # E_0 accumulating over the current span
         self.u_prev = np.zeros(h, dtype=np.complex128)
         self.e_acc = np.zeros(h, dtype=np.complex128)  # E_h accumulating over the current span
+        self.a_acc = np.zeros(h, dtype=np.complex128)  # A_h: the applied command's harmonics, accumulating
         self.e_prev = np.zeros(h, dtype=np.complex128)
         self.has_prev = False
         self.s = np.zeros(h)
@@ -129,9 +145,13 @@ class LineAdaptiveLaw:
         return "passive" if self.tripped else "active"
 
     def feedforward(self, tick: int) -> float:
-        """Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
+        """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
         phase = (tick + self.delay) % self.period_ticks
-        return self.u_mean + float(np.real(np.sum(self.u_ff * self.ahead * self.basis[phase])))
+        return (
+            self.u_mean
+            + self.clip_offset
+            + float(np.real(np.sum(self.u_ff * self.ahead * self.basis[phase])))
+        )
 
     # -- the law -------------------------------------------------------------------
     def output(
@@ -146,6 +166,7 @@ class LineAdaptiveLaw:
         error = float(f_r[0]) - contact_force_hat
         # The sample commit() accumulates (output itself changes nothing).
         self._pending_error = error
+        self._pending_reference = float(f_r[0])
         u_ff = 0.0 if self.tripped else self.feedforward(tick)
         return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
 
@@ -157,6 +178,10 @@ class LineAdaptiveLaw:
         phase = tick % n
         e = self._pending_error
         self.e_acc += (2.0 / n) * e * np.conj(self.basis[phase])
+        # The command as the actuator's limits let it through, on the feedforward's own phase.
+        applied = u_applied - self._pending_reference - self.u_mean - self.clip_offset
+        self.a_acc += (2.0 / n) * applied * np.conj(self.basis[(tick + self.delay) % n])
+        self.a_mean += applied / n
         self.e_mean += e / n
         self.span_sum += e
         self.span_sum_sq += e * e
@@ -183,15 +208,20 @@ class LineAdaptiveLaw:
                 self.tripped = True
                 self.u_ff[:] = 0.0
                 self.u_mean = 0.0
+                self.clip_offset = 0.0
         if span >= self.runin_spans - 1 and not self.tripped:
             self._learn()
         self.e_acc[:] = 0.0
+        self.a_acc[:] = 0.0
+        self.a_mean = 0.0
         self.e_mean = 0.0
 
     def _learn(self) -> None:
         """One secant step per harmonic (module docstring)."""
+        # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
+        realized = self.a_acc / self.ahead
         if self.has_prev:
-            d_u = self.u_ff - self.u_prev
+            d_u = realized - self.u_prev
             d_e = self.e_acc - self.e_prev
             informative = np.abs(d_u) > MIN_INFORMATIVE_STEP
             lam = self.forgetting
@@ -207,8 +237,10 @@ class LineAdaptiveLaw:
         # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
         limit = np.where(self.s > 0.0, self.step_max, self.probe_step)
         step /= np.maximum(1.0, np.abs(step) / limit)
-        self.u_prev = self.u_ff.copy()
+        self.u_prev = realized
         self.e_prev = self.e_acc.copy()
         self.has_prev = True
         self.u_mean += self.gain * self.e_mean
-        self.u_ff = self.u_ff + step
+        # C: the mean the limits took off is known exactly from the applied command (module docstring).
+        self.clip_offset = -self.a_mean
+        self.u_ff = realized + step
