@@ -10,7 +10,7 @@ from pac_controller.parameters import COMPILED_LAW_NAMES, LAW_NAMES
 from pac_experiments.reproduce import COMMON, PAPER_GAINS
 from pac_rig.batch import TRACES, batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, build_cores, run, run_cores
-from pac_rig.loop import compile_loop
+from pac_rig.loop import MAX_DELAY, compile_loop
 from pac_rig.simulate import scenario_from_flat
 
 pytestmark = pytest.mark.offline
@@ -67,6 +67,8 @@ def traces_of(records):
                     rec.truth.stiffness,
                     rec.estimate.stiffness_hat,
                     rec.truth.z[0],
+                    rec.estimate.contact_force_hat,
+                    rec.truth.contact_uplift,
                 )
             )
     except DivergenceError as exc:
@@ -75,7 +77,7 @@ def traces_of(records):
 
 
 def fields(rec):
-    """Every number a tick's four records carry."""
+    """Every number a tick's four records carry (NaN as "nan": equal to itself)."""
     out = []
     for part in (rec.measurement, rec.truth, rec.estimate, rec.command):
         for f in dataclasses.fields(part):
@@ -83,7 +85,7 @@ def fields(rec):
             out.extend(
                 np.ravel(np.asarray(value, dtype=object)).tolist() if not isinstance(value, str) else [value]
             )
-    return out
+    return ["nan" if isinstance(v, float) and v != v else v for v in out]
 
 
 @pytest.fixture(scope="module")
@@ -132,19 +134,56 @@ def test_paper_gains_diverge_in_batch_too(batch):
     assert result.ticks[i] == 234 and "exceeded" in result.diverged[i]
 
 
-def test_every_law_is_batchable_on_the_lumped_line_only():
+def test_every_law_and_observer_is_batchable_on_both_lines():
+    assert COMPILED_LAW_NAMES == LAW_NAMES
     for law in LAW_NAMES:
-        for line, expected in (("lumped", law in COMPILED_LAW_NAMES), ("fe", False)):
-            s = scenario_from_flat({"law": law, "catenary_model": line, "duration": 0.01})
-            assert batchable(s) is expected
-            # told from the parameters: the same answer as compiling the cores
-            assert (compile_loop(*build_cores(s), s.loop.command_delay_ticks) is not None) is expected
-    # No kernel yet for the learning law or the contact-force observer: they run tick by tick.
-    assert set(LAW_NAMES) - set(COMPILED_LAW_NAMES) == {"line_adaptive"}
-    s = scenario_from_flat({"observer": "contact_force", "duration": 0.01})
-    assert not batchable(s) and compile_loop(*build_cores(s), s.loop.command_delay_ticks) is None
-    with pytest.raises(ValueError, match="no form for catenary_model fe"):
-        run_batch([scenario_from_flat({"catenary_model": "fe", "duration": 0.01})])
+        for line in ("lumped", "fe"):
+            for observer in ("adaptive", "contact_force"):
+                flat = {"law": law, "catenary_model": line, "observer": observer, "duration": 0.01}
+                s = scenario_from_flat(flat)
+                assert batchable(s)
+                # told from the parameters: the same answer as compiling the cores
+                assert compile_loop(*build_cores(s), s.loop.command_delay_ticks) is not None
+    # The most delay a scenario can ask for.
+    s = scenario_from_flat({"command_delay_ticks": MAX_DELAY, "duration": 0.01})
+    assert batchable(s) and compile_loop(*build_cores(s), MAX_DELAY) is not None
+
+
+#: Short FE runs (the line's set-up dominates): the compiled loop against the core objects.
+FE_SCENARIOS = {
+    "passive_static_wire": {"law": "passive", "observer": "contact_force", "fe_datum": "static_wire"},
+    "line_adaptive_fixed": {
+        "law": "line_adaptive", "observer": "contact_force", "fe_datum": "fixed", "noise_std": (1e-5, 1e-5),
+        "command_delay_ticks": 2, "speed_kmh": 300.0,
+    },
+    "pid_adaptive_observer": {"law": "pid", "observer": "adaptive", "speed_kmh": 250.0},
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def fe_batch():
+    scenarios = [
+        scenario_from_flat({"catenary_model": "fe", "duration": 0.4, **flat})
+        for flat in FE_SCENARIOS.values()
+    ]
+    return scenarios, run_batch(scenarios, threads=2)
+
+
+@pytest.mark.parametrize("index", range(len(FE_SCENARIOS)), ids=list(FE_SCENARIOS))
+def test_fe_line_compiled_equals_tick_by_tick_cores(fe_batch, index):
+    """On the FE line: closed_loop.run (compiled) == the core objects, every field of every record;
+    the batch's traces == the same."""
+    scenarios, result = fe_batch
+    s = scenarios[index]
+    compiled = [fields(rec) for rec in run(s)]
+    per_tick = [fields(rec) for rec in run_cores(s, *build_cores(s))]
+    assert len(compiled) == len(per_tick) == s.loop.ticks
+    # NaN-free on the FE line (the uplifts are numbers there), so == compares every value.
+    assert compiled == per_tick
+    want, reason = traces_of(run_cores(s, *build_cores(s)))
+    assert reason is None and result.diverged[index] is None
+    for j, name in enumerate(TRACES):
+        np.testing.assert_array_equal(result.traces[name][index], want[j], err_msg=name)
 
 
 def test_empty_batch_is_refused():

@@ -158,24 +158,26 @@ def test_resume_runs_only_what_is_not_done(tmp_path, client, monkeypatch):
     assert len(read_rows(out)) == 6
 
 
-def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
-    """The compiled batch serves every lumped run of a law with a kernel; every row equals the row of the
-    same point stepped tick by tick through the core objects (no compiled loop at all)."""
+@pytest.mark.parametrize("statistics", ["raw", "en50318"])
+def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch, statistics):
+    """The compiled batch serves every run (every law, both lines and observers); every row equals the
+    row of the same point stepped tick by tick through the core objects (no compiled loop at all)."""
     spec = campaign_spec.Spec(
         "t",
         (
             {"law": list(COMPILED_LAW_NAMES), "plant_mass_scale": [0.85, 1.0]},
             {"noise_std": [[1e-5, 1e-5]], "command_delay_ticks": [0, 3]},
             {"law": ["pid", "lqr"], "speed_kmh": [300.0]},
-            {"catenary_model": ["fe"]},  # not batchable: the FE line goes tick by tick
+            {"catenary_model": ["fe"], "law": ["passive", "line_adaptive"], "observer": ["contact_force"]},
             PAPER_GAINS,  # diverges: left to run_point for its reason
         ),
         {"duration": 0.5},
         (0.25, 0.5),
+        statistics=statistics,
     )
     points = campaign_spec.expand(spec)
     batched = campaign_run.run_batched(points)
-    assert len(batched) == len(points) - 2  # all but the FE point and the divergence
+    assert len(batched) == len(points) - 1  # all but the divergence
     chunk = campaign_run.run_chunk(points)
     with monkeypatch.context() as m:
         m.setattr(closed_loop, "compile_loop", lambda *args: None)  # closed_loop.run: core objects

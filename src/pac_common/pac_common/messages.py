@@ -258,9 +258,9 @@ def tick_columns(block: Any, rate_hz: float, command_delay_ticks: int) -> dict[s
             "round_trip_latency": nan,
             "wall_stamp.sec": 0,
             "wall_stamp.nanosec": 0,
-            "contact_uplift": nan,
-            "support_uplift": nan,
-            "contact_position": nan,
+            "contact_uplift": block["contact_uplift"],  # NaN on the lumped line
+            "support_uplift": block["support_uplift"],
+            "contact_position": block["contact_position"],
         },
         "estimate": {
             **head,

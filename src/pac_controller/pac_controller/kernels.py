@@ -29,8 +29,10 @@ from .controller import limit_command
 from .reference import reference_at4
 
 #: Law name -> the code the compiled functions dispatch on.
-LAW_CODES = {"adaptive_backstepping": 0, "backstepping_known": 1, "pid": 2, "lqr": 3, "passive": 4}
-_ADAPTIVE, _KNOWN, _PID, _LQR, _PASSIVE = 0, 1, 2, 3, 4
+LAW_CODES = {
+    "adaptive_backstepping": 0, "backstepping_known": 1, "pid": 2, "lqr": 3, "passive": 4, "line_adaptive": 5,
+}  # fmt: skip
+_ADAPTIVE, _KNOWN, _PID, _LQR, _PASSIVE, _LINE = 0, 1, 2, 3, 4, 5
 #: Command.mode by code (``MODES[code]``): what ``controller_step`` returns as its mode.
 MODES = tuple(messages.MODES)  # the message's codes
 assert MODES == ("active", "passive", "fallback")
@@ -77,6 +79,19 @@ CONTROLLER_PARAMS = np.dtype(
         ("delay", "i8"),
         ("design_stiffness", "f8"),
         ("tracking_time", "f8"),
+        # line_adaptive (line_adaptive.LineAdaptiveLaw; its arrays: the law's table and memory)
+        ("line_period", "i8"),  # N, ticks per span
+        ("line_harmonics", "i8"),  # H
+        ("line_delay", "i8"),  # d, design_delay_ticks
+        ("line_gain", "f8"),
+        ("line_step_max", "f8"),
+        ("line_probe_step", "f8"),
+        ("line_forgetting", "f8"),
+        ("line_prior_weight", "f8"),
+        ("line_response_min", "f8"),
+        ("line_runin_spans", "i8"),
+        ("line_guard_ratio", "f8"),
+        ("line_guard_after", "i8"),
     ]
 )
 
@@ -103,8 +118,27 @@ CONTROLLER_STATE = np.dtype(
         ("pending_u", "f8"),
         ("commands", "f8", MAX_PENDING),  # lqr: commands sent, not yet applied (a ring)
         ("head", "i8"),  # the oldest of them
+        # line_adaptive's scalars (module docstring of line_adaptive)
+        ("line_u_mean", "f8"),  # U_0
+        ("line_clip_offset", "f8"),  # C
+        ("line_a_mean", "f8"),
+        ("line_e_mean", "f8"),
+        ("line_has_prev", "b1"),
+        ("line_start_tick", "i8"),  # -1: the spans have not started
+        ("line_span_sum", "f8"),
+        ("line_span_sum_sq", "f8"),
+        ("line_passive_var", "f8"),
+        ("line_passive_spans", "i8"),
+        ("line_recent_var", "f8", 3),  # line_adaptive.GUARD_SPANS
+        ("line_last_sigma_ratio", "f8"),
+        ("line_tripped", "b1"),
+        ("line_pending_error", "f8"),
+        ("line_pending_reference", "f8"),
     ]
 )
+
+#: The law tables of a law without arrays (every law but line_adaptive): one complex zero.
+NO_TABLE = np.zeros((1, 1), dtype=np.complex128)
 
 
 @njit(cache=True)
@@ -121,8 +155,11 @@ def _contact_force_estimate(t: float, omega: float, z_hat, theta_hat) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def law_restart(p, s, has_u: bool, u_applied: float) -> None:
+def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
     """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
+    if p.law == _LINE:
+        line_adaptive.line_restart(s, memory)
+        return
     s.has_bumpless, s.bumpless_from = has_u, u_applied
     s.started = False
     s.integral, s.rate, s.derivative, s.last_error, s.law_last_tick = 0.0, 0.0, 0.0, 0.0, 0
@@ -133,9 +170,16 @@ def law_restart(p, s, has_u: bool, u_applied: float) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def law_output(p, s, tick: int, t: float, f_r, z_hat, theta_hat) -> tuple[float, float, float, float]:
-    """The unlimited force u_law for ``tick`` and three law-specific errors; remembers them for commit."""
+def law_output(
+    p, s, table, memory, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float
+) -> tuple[float, float, float, float]:
+    """The unlimited force u_law for ``tick`` and three law-specific errors; remembers them for commit.
+
+    ``table``, ``memory``: the law's arrays (line_adaptive; NO_TABLE for the others); ``f_hat``:
+    the estimate's contact force (read by line_adaptive only)."""
     law = p.law
+    if law == _LINE:
+        return line_adaptive.line_output(p, s, table, memory, tick, f_r[0], f_hat)
     if law == _ADAPTIVE or law == _KNOWN:  # eq. (43); the oracle is told the true theta
         if law == _ADAPTIVE:
             th0, th1, th2 = theta_hat[0], theta_hat[1], theta_hat[2]
@@ -186,10 +230,12 @@ def law_output(p, s, tick: int, t: float, f_r, z_hat, theta_hat) -> tuple[float,
 
 
 @njit(cache=True, error_model="numpy")
-def law_commit(p, s, tick: int, u_applied: float) -> None:
+def law_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     """The limited force actually commanded for ``tick``: update the law's state."""
     law = p.law
-    if law == _PID:
+    if law == _LINE:
+        line_adaptive.line_commit(p, s, table, memory, tick, u_applied)
+    elif law == _PID:
         s.integral, s.derivative, s.last_error = s.pending_integral, s.pending_derivative, s.pending_error
         s.law_last_tick = tick
         s.rate = p.ki * s.pending_error + (u_applied - s.pending_u) / p.tt  # back-calculation
@@ -228,7 +274,7 @@ def controller_fallback(p, s, tick: int) -> tuple[float, float, float, float, fl
 
 @njit(cache=True, error_model="numpy")
 def controller_step(
-    p, s, tick: int, z_hat, theta_hat
+    p, s, table, memory, tick: int, z_hat, theta_hat, f_hat: float
 ) -> tuple[float, float, float, float, float, float, int]:
     """``Controller.compute`` compiled: (u, u_unsaturated, F_r, e1, e2, e3, mode code)."""
     t = tick * p.dt
@@ -243,31 +289,35 @@ def controller_step(
             finite = finite and math.isfinite(theta_hat[i])
         if not finite:
             return controller_fallback(p, s, tick)
+    if p.law == _LINE and not math.isfinite(f_hat):  # the law that reads F_hat
+        return controller_fallback(p, s, tick)
     if not s.has_law_tick or tick <= s.law_tick:
-        law_restart(p, s, s.has_last, s.last_u)
-    u_law, e1, e2, e3 = law_output(p, s, tick, t, f_r, z_hat, theta_hat)
+        law_restart(p, s, memory, s.has_last, s.last_u)
+    u_law, e1, e2, e3 = law_output(p, s, table, memory, tick, t, f_r, z_hat, theta_hat, f_hat)
     if not math.isfinite(u_law):
         return controller_fallback(p, s, tick)
+    # The mode of this command (line_adaptive's guard may trip in commit: from the next one on).
+    passive = p.law == _PASSIVE or (p.law == _LINE and s.line_tripped)
     u = _limited(p, s, tick, u_law)
-    law_commit(p, s, tick, u)
+    law_commit(p, s, table, memory, tick, u)
     s.has_law_tick, s.law_tick = True, tick
-    return u, u_law, f_r[0], e1, e2, e3, _MODE_PASSIVE if p.law == _PASSIVE else _ACTIVE
+    return u, u_law, f_r[0], e1, e2, e3, _MODE_PASSIVE if passive else _ACTIVE
 
 
 # Entry points for Python callers (the law classes): records travel as 1-element arrays.
 @njit(cache=True, error_model="numpy")
-def _restart_one(params, states, has_u, u_applied) -> None:
-    law_restart(params[0], states[0], has_u, u_applied)
+def _restart_one(params, states, memory, has_u, u_applied) -> None:
+    law_restart(params[0], states[0], memory, has_u, u_applied)
 
 
 @njit(cache=True, error_model="numpy")
-def _output_one(params, states, tick, t, f0, f1, f2, f3, z_hat, theta_hat):
-    return law_output(params[0], states[0], tick, t, (f0, f1, f2, f3), z_hat, theta_hat)
+def _output_one(params, states, table, memory, tick, t, f0, f1, f2, f3, z_hat, theta_hat, f_hat):
+    return law_output(params[0], states[0], table, memory, tick, t, (f0, f1, f2, f3), z_hat, theta_hat, f_hat)
 
 
 @njit(cache=True, error_model="numpy")
-def _commit_one(params, states, tick, u_applied) -> None:
-    law_commit(params[0], states[0], tick, u_applied)
+def _commit_one(params, states, table, memory, tick, u_applied) -> None:
+    law_commit(params[0], states[0], table, memory, tick, u_applied)
 
 
 class KernelLaw:
@@ -280,6 +330,9 @@ class KernelLaw:
 
     mode = "active"
     uses_estimate = True
+    #: The law's arrays (line_adaptive's basis and learned harmonics); one complex zero otherwise.
+    table = NO_TABLE
+    memory = NO_TABLE
 
     def __init__(self, name: str, sample_period: float) -> None:
         self.params = np.zeros(1, CONTROLLER_PARAMS)
@@ -290,8 +343,9 @@ class KernelLaw:
 
     def restart(self, u_applied: float | None) -> None:
         _restart_one(
-            self.params, self.state, u_applied is not None, 0.0 if u_applied is None else float(u_applied)
-        )
+            self.params, self.state, self.memory, u_applied is not None,
+            0.0 if u_applied is None else float(u_applied),
+        )  # fmt: skip
 
     def output(
         self,
@@ -300,17 +354,18 @@ class KernelLaw:
         f_r: np.ndarray,
         z_hat: np.ndarray,
         theta_hat: np.ndarray,
-        contact_force_hat: float = math.nan,  # the Law protocol's; these laws do not use F̂
+        contact_force_hat: float = math.nan,  # F_hat: read by line_adaptive only
     ) -> tuple[float, tuple[float, float, float]]:
         u, e1, e2, e3 = _output_one(
-            self.params, self.state, int(tick), float(t), float(f_r[0]), float(f_r[1]), float(f_r[2]),
-            float(f_r[3]), np.asarray(z_hat, dtype=np.float64), np.asarray(theta_hat, dtype=np.float64),
+            self.params, self.state, self.table, self.memory, int(tick), float(t), float(f_r[0]),
+            float(f_r[1]), float(f_r[2]), float(f_r[3]), np.asarray(z_hat, dtype=np.float64),
+            np.asarray(theta_hat, dtype=np.float64), float(contact_force_hat),
         )  # fmt: skip
         return u, (e1, e2, e3)
 
     def commit(self, tick: int, u_applied: float) -> None:
-        _commit_one(self.params, self.state, int(tick), float(u_applied))
+        _commit_one(self.params, self.state, self.table, self.memory, int(tick), float(u_applied))
 
 
 # Last: backstepping.py subclasses KernelLaw (the compiled functions look it up when they compile).
-from . import backstepping  # noqa: E402 - eqs. (23)-(43); that module imports this one
+from . import backstepping, line_adaptive  # noqa: E402 - eqs. (23)-(43), line_adaptive; they import this one

@@ -58,8 +58,15 @@ secant learning may rise above passive for its first spans; one span above
 ``GUARD_HARD_FACTOR`` times that trips at once), the law falls back to passive for
 the rest of the run (U = 0, ``Command.mode`` "passive"; latched).
 
-State: explicit numpy arrays (``u_ff``, ``u_prev``, ``e_acc``, ``a_acc``, ``e_prev``, ``s``,
-``z``) and scalars; :meth:`restart` forgets them all.
+State: the law's numbers are fields of the controller's records (``kernels.CONTROLLER_PARAMS`` /
+``CONTROLLER_STATE``, the ``line_`` fields), its per-harmonic arrays rows of two complex tables
+(``table``: the basis and the hold's advance; ``memory``: U_h, E_h, ...).  The arithmetic is the
+compiled functions below, which the class (through ``kernels.KernelLaw``) and the compiled closed
+loop (``pac_rig.loop``) both call.  Every complex operation is written as numpy performs it on
+this machine's vector paths (fused multiply-adds in products, the pairwise sum, ``abs``), so the
+law gives the numbers numpy's array expressions gave, bit for bit (``tests/test_line_kernels.py``);
+the one exception is the angle of a floored response (libm's atan2 instead of numpy's vector
+one: a few ulp, only where the floor applies).
 """
 
 from __future__ import annotations
@@ -67,10 +74,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
+from pac_common.smallmat import fma
 from pac_model.parameters import TrackParameters
 
-from .controller import Errors
+from .kernels import KernelLaw
 from .parameters import LawParameters
 
 #: An update smaller than this [N] in a harmonic says nothing about its response.
@@ -81,7 +90,222 @@ GUARD_SPANS = 3
 GUARD_HARD_FACTOR = 2.0
 
 
-class LineAdaptiveLaw:
+#: Rows of the ``memory`` table (complex, one column per harmonic); S_h is stored as real parts.
+U_FF, U_PREV, E_ACC, A_ACC, E_PREV, Z, S, SCRATCH = range(8)
+MEMORY_ROWS = 8
+
+
+# -- complex arithmetic as numpy performs it (module docstring) ---------------------------------
+@njit(cache=True, inline="always")
+def _cmul(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
+    """(a r + i a i)(b r + i b i) as numpy's vector loop: fused multiply-adds."""
+    return fma(ar, br, -(ai * bi)), fma(ar, bi, ai * br)
+
+
+@njit(cache=True, inline="always")
+def _cdiv(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
+    """a / b as numpy's loop (Smith's scaling, one reciprocal)."""
+    if abs(br) >= abs(bi):
+        rat = bi / br
+        scl = 1.0 / (br + bi * rat)
+        return (ar + ai * rat) * scl, (ai - ar * rat) * scl
+    rat = br / bi
+    scl = 1.0 / (bi + br * rat)
+    return (ar * rat + ai) * scl, (ai * rat - ar) * scl
+
+
+@njit(cache=True, inline="always")
+def _cabs(re: float, im: float) -> float:
+    """|a| as numpy's vector loop: larger * sqrt(1 + (smaller / larger)^2)."""
+    re, im = abs(re), abs(im)
+    if re == math.inf:
+        im = math.inf
+    if im == math.inf:
+        re = math.inf
+    if math.isnan(re):
+        im = math.nan
+    if math.isnan(im):
+        re = math.nan
+    larger, smaller = max(re, im), min(im, re)
+    ratio = 0.0 if (larger == 0.0 or smaller == math.inf) else smaller / larger
+    return math.sqrt(fma(ratio, ratio, 1.0)) * larger
+
+
+@njit(cache=True)
+def _pairwise_real(row: np.ndarray, lo: int, n: int) -> float:
+    """Real part of numpy's pairwise sum of ``row[lo:lo + n]`` (complex; its unrolled blocks)."""
+    if n < 4:
+        r = -0.0
+        for i in range(lo, lo + n):
+            r += row[i].real
+        return r
+    if n <= 64:
+        r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
+        m = n - n % 4
+        for i in range(lo + 4, lo + m, 4):
+            r0 += row[i].real
+            r1 += row[i + 1].real
+            r2 += row[i + 2].real
+            r3 += row[i + 3].real
+        r = (r0 + r1) + (r2 + r3)
+        for i in range(lo + m, lo + n):
+            r += row[i].real
+        return r
+    half = (n - n % 8) // 2
+    return _pairwise_real(row, lo, half) + _pairwise_real(row, lo + half, n - half)
+
+
+# -- the law, compiled: the class below and pac_controller.kernels call these --------------------
+@njit(cache=True, error_model="numpy")
+def line_restart(s, memory) -> None:
+    """Forget everything learned: the next span starts a new run-in (u = F_r)."""
+    memory[:, :] = 0.0
+    s.line_u_mean, s.line_clip_offset, s.line_a_mean, s.line_e_mean = 0.0, 0.0, 0.0, 0.0
+    s.line_has_prev, s.line_start_tick = False, -1
+    s.line_span_sum, s.line_span_sum_sq, s.line_passive_var, s.line_passive_spans = 0.0, 0.0, 0.0, 0
+    s.line_recent_var[:] = 0.0
+    s.line_last_sigma_ratio, s.line_tripped = 0.0, False
+    s.line_pending_error, s.line_pending_reference = 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def line_feedforward(p, s, table, memory, tick: int) -> float:
+    """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
+    n, h = p.line_period, p.line_harmonics
+    phase = (tick + p.line_delay) % n
+    for j in range(h):
+        ur, ui = _cmul(memory[U_FF, j].real, memory[U_FF, j].imag, table[n, j].real, table[n, j].imag)
+        pr, pi = _cmul(ur, ui, table[phase, j].real, table[phase, j].imag)
+        memory[SCRATCH, j] = complex(pr, pi)
+    return s.line_u_mean + s.line_clip_offset + (0.0 + _pairwise_real(memory[SCRATCH], 0, h))
+
+
+@njit(cache=True, error_model="numpy")
+def line_output(
+    p, s, table, memory, tick: int, f_r0: float, f_hat: float
+) -> tuple[float, float, float, float]:
+    """(u_law, error, u_ff, sigma ratio): F_r + the feedforward (0 once the guard has tripped)."""
+    error = f_r0 - f_hat
+    s.line_pending_error, s.line_pending_reference = error, f_r0  # what commit accumulates
+    u_ff = 0.0 if s.line_tripped else line_feedforward(p, s, table, memory, tick)
+    return f_r0 + u_ff, error, u_ff, s.line_last_sigma_ratio
+
+
+@njit(cache=True, error_model="numpy")
+def _accumulate(table, memory, row: int, phase: int, weight: float, h: int) -> None:
+    """memory[row] += weight conj(basis[phase]) (numpy's scalar-times-array product)."""
+    for j in range(h):
+        br, bi = table[phase, j].real, -table[phase, j].imag
+        cr, ci = _cmul(weight, 0.0, br, bi)
+        memory[row, j] = complex(memory[row, j].real + cr, memory[row, j].imag + ci)
+
+
+@njit(cache=True, error_model="numpy")
+def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
+    """The force commanded for ``tick``: accumulate this span's E_h, A_h; learn at its end."""
+    if s.line_start_tick < 0:
+        s.line_start_tick = tick
+    k = tick - s.line_start_tick
+    n, h = p.line_period, p.line_harmonics
+    e = s.line_pending_error
+    _accumulate(table, memory, E_ACC, tick % n, (2.0 / n) * e, h)
+    # The command as the actuator's limits let it through, on the feedforward's own phase.
+    applied = u_applied - s.line_pending_reference - s.line_u_mean - s.line_clip_offset
+    _accumulate(table, memory, A_ACC, (tick + p.line_delay) % n, (2.0 / n) * applied, h)
+    s.line_a_mean += applied / n
+    s.line_e_mean += e / n
+    s.line_span_sum += e
+    s.line_span_sum_sq += e * e
+    if k % n == n - 1:
+        _end_of_span(p, s, table, memory, k // n)
+
+
+@njit(cache=True, error_model="numpy")
+def _end_of_span(p, s, table, memory, span: int) -> None:
+    n = p.line_period
+    mean = s.line_span_sum / n
+    var = s.line_span_sum_sq / n - mean * mean
+    if 0.0 > var:  # max(var, 0.0)
+        var = 0.0
+    s.line_span_sum = s.line_span_sum_sq = 0.0
+    if 1 <= span < p.line_runin_spans:  # span 0 holds the start transient
+        s.line_passive_var += var
+        s.line_passive_spans += 1
+    elif span >= p.line_runin_spans and s.line_passive_spans and not s.line_tripped:
+        sigma_p = math.sqrt(s.line_passive_var / s.line_passive_spans)
+        s.line_recent_var[span % GUARD_SPANS] = var
+        learned = span - p.line_runin_spans + 1  # learning spans so far
+        m = min(learned, GUARD_SPANS)
+        total = -0.0
+        for i in range(m):
+            total += s.line_recent_var[i]
+        s.line_last_sigma_ratio = math.sqrt((0.0 + total) / m) / sigma_p if sigma_p > 0.0 else 0.0
+        span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
+        judged = learned >= p.line_guard_after and not s.line_last_sigma_ratio <= p.line_guard_ratio
+        if judged or not span_ratio <= GUARD_HARD_FACTOR * p.line_guard_ratio:
+            s.line_tripped = True
+            memory[U_FF, : p.line_harmonics] = 0.0
+            s.line_u_mean = 0.0
+            s.line_clip_offset = 0.0
+    if span >= p.line_runin_spans - 1 and not s.line_tripped:
+        _learn(p, s, table, memory)
+    memory[E_ACC, :] = 0.0
+    memory[A_ACC, :] = 0.0
+    s.line_a_mean = 0.0
+    s.line_e_mean = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _learn(p, s, table, memory) -> None:
+    """One secant step per harmonic (module docstring)."""
+    n = p.line_period
+    lam, prior, floor = p.line_forgetting, p.line_prior_weight, p.line_response_min
+    for j in range(p.line_harmonics):
+        # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
+        real_r, real_i = _cdiv(
+            memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag
+        )
+        e_r, e_i = memory[E_ACC, j].real, memory[E_ACC, j].imag
+        s_h, z_r, z_i = memory[S, j].real, memory[Z, j].real, memory[Z, j].imag
+        if s.line_has_prev:
+            du_r, du_i = real_r - memory[U_PREV, j].real, real_i - memory[U_PREV, j].imag
+            de_r, de_i = e_r - memory[E_PREV, j].real, e_i - memory[E_PREV, j].imag
+            du_abs = _cabs(du_r, du_i)
+            if du_abs > MIN_INFORMATIVE_STEP:
+                s_h = lam * s_h + du_abs * du_abs
+                zr, zi = _cmul(lam, 0.0, z_r, z_i)
+                cr, ci = _cmul(du_r, -du_i, de_r, de_i)
+                z_r, z_i = zr + cr, zi + ci
+        r_r, r_i = _cdiv(z_r - prior, z_i, s_h + prior, 0.0)
+        if _cabs(r_r, r_i) < floor:
+            angle = math.atan2(r_i, r_r)
+            r_r, r_i = _cmul(floor, 0.0, math.cos(angle), math.sin(angle))
+        g_r, g_i = _cmul(-p.line_gain, 0.0, e_r, e_i)
+        st_r, st_i = _cdiv(g_r, g_i, r_r, r_i)
+        # A harmonic whose response has not been identified yet (only the prior F = u, which can be
+        # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
+        limit = p.line_step_max if s_h > 0.0 else p.line_probe_step
+        shrink = _cabs(st_r, st_i) / limit
+        if not shrink <= 1.0:  # np.maximum(1.0, x): NaN propagates
+            st_r, st_i = _cdiv(st_r, st_i, shrink, 0.0)
+        else:
+            st_r, st_i = _cdiv(st_r, st_i, 1.0, 0.0)
+        memory[S, j] = complex(s_h, 0.0)
+        memory[Z, j] = complex(z_r, z_i)
+        memory[U_PREV, j] = complex(real_r, real_i)
+        memory[E_PREV, j] = complex(e_r, e_i)
+        memory[U_FF, j] = complex(real_r + st_r, real_i + st_i)
+    s.line_has_prev = True
+    s.line_u_mean += p.line_gain * s.line_e_mean
+    # C: the mean the limits took off is known exactly from the applied command (module docstring).
+    s.line_clip_offset = -s.line_a_mean
+
+
+class LineAdaptiveLaw(KernelLaw):
+    """The law of the module docstring: its numbers in the controller's records, its arrays in
+    ``table`` / ``memory``, its arithmetic the compiled functions above (through
+    ``kernels.law_output`` / ``law_commit``, as every compiled law)."""
+
     uses_estimate = True
     uses_contact_force = True
 
@@ -92,155 +316,59 @@ class LineAdaptiveLaw:
         sample_period: float,
     ) -> None:
         dt = sample_period
-        self.dt = dt
-        self.delay = laws.design_delay_ticks
         speed = track.speed_kmh / 3.6
-        self.period_ticks = n = max(2, round(track.span_length / speed / dt))
-        self.omega_span = w = 2.0 * math.pi / (n * dt)
-        self.harmonics = h = max(1, min(int(laws.line_max_frequency * 2.0 * math.pi / w), n // 2 - 1))
+        n = max(2, round(track.span_length / speed / dt))
+        w = 2.0 * math.pi / (n * dt)
+        h = max(1, min(int(laws.line_max_frequency * 2.0 * math.pi / w), n // 2 - 1))
         orders = np.arange(1, h + 1)
-        # basis[p, h-1] = exp(i h w p dt): one span of every harmonic, by phase index p = tick mod N.
-        self.basis = np.exp(1j * np.outer(np.arange(n), orders) * w * dt)
-        self.ahead = np.exp(1j * orders * w * 0.5 * dt)  # the hold's half period
-        self.gain = laws.line_learning_gain
-        self.step_max = laws.line_step_max
-        self.probe_step = min(laws.line_probe_step, laws.line_step_max)
-        self.forgetting = laws.line_forgetting
-        self.prior_weight = laws.line_prior_weight
-        self.response_min = laws.line_response_min
-        self.runin_spans = laws.line_runin_spans
-        self.guard_ratio = laws.line_guard_ratio
-        self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
-        self._pending_error = 0.0
-        self._pending_reference = 0.0
+        # table[p, h-1] = exp(i h w p dt): one span of every harmonic, by phase index p = tick mod N;
+        # table[N] = exp(i h w dt / 2): the hold's half period.
+        table = np.empty((n + 1, h), dtype=np.complex128)
+        table[:n] = np.exp(1j * np.outer(np.arange(n), orders) * w * dt)
+        table[n] = np.exp(1j * orders * w * 0.5 * dt)
+        self.table = table
+        self.memory = np.zeros((MEMORY_ROWS, h), dtype=np.complex128)
+        super().__init__("line_adaptive", dt)
+        p = self.params[0]
+        p["line_period"], p["line_harmonics"], p["line_delay"] = n, h, laws.design_delay_ticks
+        p["line_gain"], p["line_step_max"] = laws.line_learning_gain, laws.line_step_max
+        p["line_probe_step"] = min(laws.line_probe_step, laws.line_step_max)
+        p["line_forgetting"], p["line_prior_weight"] = laws.line_forgetting, laws.line_prior_weight
+        p["line_response_min"], p["line_runin_spans"] = laws.line_response_min, laws.line_runin_spans
+        p["line_guard_ratio"] = laws.line_guard_ratio
+        p["line_guard_after"] = max(laws.line_guard_spans, GUARD_SPANS)
+        self.dt = dt
+        self.omega_span = w
         self.restart(None)
 
-    # -- state -----------------------------------------------------------------------
-    def restart(self, u_applied: float | None) -> None:
-        """Forget everything learned: the next span starts a new run-in (u = F_r, bumpless from rest)."""
-        h = self.harmonics
-        self.u_ff = np.zeros(h, dtype=np.complex128)  # U_h of the current span
-        self.u_mean = 0.0  # U_0: the mean correction (D_0 = -1 exactly: statics)
-        self.clip_offset = 0.0  # C: what the limits took off the last span's mean, added back
-        self.a_mean = 0.0  # mean of (applied - F_r - U_0 - C) over the current span: minus the loss
-        self.e_mean = 0.0  # E_0 accumulating over the current span
-        self.u_prev = np.zeros(h, dtype=np.complex128)
-        self.e_acc = np.zeros(h, dtype=np.complex128)  # E_h accumulating over the current span
-        self.a_acc = np.zeros(h, dtype=np.complex128)  # A_h: the applied command's harmonics, accumulating
-        self.e_prev = np.zeros(h, dtype=np.complex128)
-        self.has_prev = False
-        self.s = np.zeros(h)
-        self.z = np.zeros(h, dtype=np.complex128)
-        self.start_tick: int | None = None  # the tick the law's spans count from
-        self.span_sum = 0.0  # sum of e and e^2 over the current span (guard)
-        self.span_sum_sq = 0.0
-        self.passive_var = 0.0
-        self.passive_spans = 0
-        self.recent_var = np.zeros(GUARD_SPANS)  # sigma^2 of F_hat over the last learning spans
-        self.last_sigma_ratio = 0.0
-        self.tripped = False
+    # -- what the tests and reports read ---------------------------------------------------
+    period_ticks = property(lambda self: int(self.params[0]["line_period"]))
+    harmonics = property(lambda self: int(self.params[0]["line_harmonics"]))
+    delay = property(lambda self: int(self.params[0]["line_delay"]))
+    basis = property(lambda self: self.table[: self.period_ticks])
+    ahead = property(lambda self: self.table[self.period_ticks])
+    u_ff = property(lambda self: self.memory[U_FF])
+    tripped = property(lambda self: bool(self.state[0]["line_tripped"]))
+    last_sigma_ratio = property(lambda self: float(self.state[0]["line_last_sigma_ratio"]))
 
     @property
-    def mode(self) -> str:
+    def gain(self) -> float:
+        """gamma, ``line_learning_gain`` (settable: a test flips its sign to force harm)."""
+        return float(self.params[0]["line_gain"])
+
+    @gain.setter
+    def gain(self, value: float) -> None:
+        self.params[0]["line_gain"] = value
+
+    @property
+    def mode(self) -> str:  # type: ignore[override]
         return "passive" if self.tripped else "active"
 
     def feedforward(self, tick: int) -> float:
         """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
-        phase = (tick + self.delay) % self.period_ticks
-        return (
-            self.u_mean
-            + self.clip_offset
-            + float(np.real(np.sum(self.u_ff * self.ahead * self.basis[phase])))
-        )
+        return _feedforward_one(self.params, self.state, self.table, self.memory, int(tick))
 
-    # -- the law -------------------------------------------------------------------
-    def output(
-        self,
-        tick: int,
-        t: float,
-        f_r: np.ndarray,
-        z_hat: np.ndarray,
-        theta_hat: np.ndarray,
-        contact_force_hat: float = math.nan,
-    ) -> tuple[float, Errors]:
-        error = float(f_r[0]) - contact_force_hat
-        # The sample commit() accumulates (output itself changes nothing).
-        self._pending_error = error
-        self._pending_reference = float(f_r[0])
-        u_ff = 0.0 if self.tripped else self.feedforward(tick)
-        return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
 
-    def commit(self, tick: int, u_applied: float) -> None:
-        if self.start_tick is None:
-            self.start_tick = tick
-        k = tick - self.start_tick
-        n = self.period_ticks
-        phase = tick % n
-        e = self._pending_error
-        self.e_acc += (2.0 / n) * e * np.conj(self.basis[phase])
-        # The command as the actuator's limits let it through, on the feedforward's own phase.
-        applied = u_applied - self._pending_reference - self.u_mean - self.clip_offset
-        self.a_acc += (2.0 / n) * applied * np.conj(self.basis[(tick + self.delay) % n])
-        self.a_mean += applied / n
-        self.e_mean += e / n
-        self.span_sum += e
-        self.span_sum_sq += e * e
-        if k % n == n - 1:
-            self._end_of_span(k // n)
-
-    def _end_of_span(self, span: int) -> None:
-        n = self.period_ticks
-        mean = self.span_sum / n
-        var = max(self.span_sum_sq / n - mean * mean, 0.0)
-        self.span_sum = self.span_sum_sq = 0.0
-        if 1 <= span < self.runin_spans:  # span 0 holds the start transient
-            self.passive_var += var
-            self.passive_spans += 1
-        elif span >= self.runin_spans and self.passive_spans and not self.tripped:
-            sigma_p = math.sqrt(self.passive_var / self.passive_spans)
-            self.recent_var[span % GUARD_SPANS] = var
-            learned = span - self.runin_spans + 1  # learning spans so far
-            window = self.recent_var[: min(learned, GUARD_SPANS)]
-            self.last_sigma_ratio = math.sqrt(float(np.mean(window))) / sigma_p if sigma_p > 0.0 else 0.0
-            span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
-            judged = learned >= self.guard_after and not self.last_sigma_ratio <= self.guard_ratio
-            if judged or not span_ratio <= GUARD_HARD_FACTOR * self.guard_ratio:
-                self.tripped = True
-                self.u_ff[:] = 0.0
-                self.u_mean = 0.0
-                self.clip_offset = 0.0
-        if span >= self.runin_spans - 1 and not self.tripped:
-            self._learn()
-        self.e_acc[:] = 0.0
-        self.a_acc[:] = 0.0
-        self.a_mean = 0.0
-        self.e_mean = 0.0
-
-    def _learn(self) -> None:
-        """One secant step per harmonic (module docstring)."""
-        # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
-        realized = self.a_acc / self.ahead
-        if self.has_prev:
-            d_u = realized - self.u_prev
-            d_e = self.e_acc - self.e_prev
-            informative = np.abs(d_u) > MIN_INFORMATIVE_STEP
-            lam = self.forgetting
-            self.s = np.where(informative, lam * self.s + np.abs(d_u) ** 2, self.s)
-            self.z = np.where(informative, lam * self.z + np.conj(d_u) * d_e, self.z)
-        response = (self.z - self.prior_weight) / (self.s + self.prior_weight)
-        modulus = np.abs(response)
-        response = np.where(
-            modulus < self.response_min, self.response_min * np.exp(1j * np.angle(response)), response
-        )
-        step = -self.gain * self.e_acc / response
-        # A harmonic whose response has not been identified yet (only the prior F = u, which can be
-        # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
-        limit = np.where(self.s > 0.0, self.step_max, self.probe_step)
-        step /= np.maximum(1.0, np.abs(step) / limit)
-        self.u_prev = realized
-        self.e_prev = self.e_acc.copy()
-        self.has_prev = True
-        self.u_mean += self.gain * self.e_mean
-        # C: the mean the limits took off is known exactly from the applied command (module docstring).
-        self.clip_offset = -self.a_mean
-        self.u_ff = realized + step
+@njit(cache=True, error_model="numpy")
+def _feedforward_one(params, states, table, memory, tick):
+    return line_feedforward(params[0], states[0], table, memory, tick)

@@ -168,13 +168,11 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
 
     One ``run_batch`` call for all of them (no per-tick Python); its traces equal
     ``closed_loop.run``'s bit for bit (tests/test_batch.py), so the rows equal
-    :func:`run_point`'s. A run that diverges, a point that does not validate, or one that
-    asks for the EN 50318 columns (they need per-tick records) is left to :func:`run_point`.
+    :func:`run_point`'s. A run that diverges or a point that does not validate is left to
+    :func:`run_point`.
     """
     chosen: list[tuple[Point, Scenario]] = []
     for point in points:
-        if point.statistics != "raw":
-            continue
         try:
             scenario = scenario_from_flat(point.values)
         except Exception:  # noqa: BLE001 - run_point reports it as the row's error
@@ -190,11 +188,23 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
     for i, (point, scenario) in enumerate(chosen):
         if result.diverged[i] is not None:
             continue
-        m = metrics_from_series(_batch_series(result, i), point.window[0], point.window[1])
+        series = _batch_series(result, i)
+        m = metrics_from_series(series, point.window[0], point.window[1])
         row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
         row.update(scenario_to_flat(scenario))
         row.update({k: getattr(m, k) for k in METRIC_COLUMNS})
-        verdict = en50367_criteria(m.contact_force_mean, m.contact_force_std)
+        mean, sigma = m.contact_force_mean, m.contact_force_std
+        if point.statistics == "en50318":
+            n = int(result.ticks[i])
+            row.update(
+                en50318_measures(
+                    series.time, series.contact_force, series.u,
+                    result.traces["contact_force_hat"][i, :n], result.traces["contact_uplift"][i, :n],
+                    point.window, scenario.loop.sample_period,
+                )
+            )  # fmt: skip
+            mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]
+        verdict = en50367_criteria(mean, sigma)
         row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))
         row["ticks_run"] = int(result.ticks[i])
         row["simulated_seconds"] = int(result.ticks[i]) / scenario.loop.rate_hz

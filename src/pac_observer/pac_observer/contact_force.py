@@ -21,7 +21,8 @@ steady-state (predictor-corrector) Kalman filter::
 q_F sets the bandwidth of F_hat: large enough to follow the line's dropper and span
 harmonics (up to ~20 Hz, what the EN 50318 statistics keep), small enough that the
 position noise twice differentiated does not swamp it (docs/laws.md, measured accuracy).
-The state is the numpy array ``x``; :func:`contact_force_step` is pure and compiled.
+The state is the ``cf_x`` field of an OBSERVER_STATE record; :func:`contact_force_step` is
+compiled and shared with the compiled closed loop (``pac_rig.loop``).
 This observer estimates no theta: ``theta_hat`` and ``stiffness_hat`` are published as
 zeros, so the laws built on F = k_hat z1 (backstepping, pid, lqr) need the adaptive
 observer; ``line_adaptive`` and ``passive`` run on this one.
@@ -32,18 +33,27 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 
-from .observer import AdaptiveObserver, Estimate, ObserverDivergedError
+from .observer import (
+    _DIVERGED_REASONS,
+    CONTACT_FORCE,
+    OBSERVER_CONSTS,
+    OBSERVER_STATE,
+    AdaptiveObserver,
+    Estimate,
+    ObserverDivergedError,
+)
 from .parameters import ObserverParameters
 
 #: State size: (z1, z2, z1', z2', F).
 STATE_SIZE = 5
 _FORCE = 4
+#: ``contact_force_advance``'s status when the state is not finite (observer._DIVERGED_REASONS).
+NOT_FINITE = 6
 
 
 def contact_force_model(pantograph: PantographParameters) -> tuple[np.ndarray, np.ndarray]:
@@ -60,6 +70,8 @@ def kalman_design(
     pantograph: PantographParameters, force_process_noise: float, position_noise: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(Phi, Gamma, K) of the sampled model and its steady-state Kalman gain (module docstring)."""
+    import scipy.linalg  # here, not at import: a node starts without loading scipy
+
     a_aug, b_aug = contact_force_model(pantograph)
     n = STATE_SIZE
     zoh = np.zeros((n + 1, n + 1))
@@ -82,28 +94,65 @@ def kalman_design(
 
 
 @njit(cache=True, error_model="numpy")
-def contact_force_step(
-    x: np.ndarray, y: np.ndarray, u: float, phi: np.ndarray, gamma: np.ndarray, gain: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """One period: (x_k, innovation y_k - C x_k^-) from x_{k-1}, y_k and the force u held over it. Pure."""
-    n = x.shape[0]
-    pred = np.empty(n)
-    for i in range(n):
-        s = gamma[i] * u
-        for j in range(n):
-            s += phi[i, j] * x[j]
+def contact_force_step(st, y1: float, y2: float, u: float, c) -> None:
+    """One period, in place: ``st.cf_x`` <- x_k from x_{k-1}, y_k and the force u held over it;
+    ``st.innovation`` <- y_k - C x_k^- (module docstring)."""
+    x, pred = st.cf_x, st.cf_pred
+    for i in range(STATE_SIZE):
+        s = c.cf_gamma[i] * u
+        for j in range(STATE_SIZE):
+            s += c.cf_phi[i, j] * x[j]
         pred[i] = s
-    innovation = np.empty(2)
-    innovation[0] = y[0] - pred[0]
-    innovation[1] = y[1] - pred[1]
-    new = np.empty(n)
-    for i in range(n):
-        new[i] = pred[i] + gain[i, 0] * innovation[0] + gain[i, 1] * innovation[1]
-    return new, innovation
+    st.innovation[0] = y1 - pred[0]
+    st.innovation[1] = y2 - pred[1]
+    for i in range(STATE_SIZE):
+        x[i] = pred[i] + c.cf_gain[i, 0] * st.innovation[0] + c.cf_gain[i, 1] * st.innovation[1]
+
+
+@njit(cache=True, error_model="numpy")
+def contact_force_start(st, y1: float, y2: float) -> None:
+    """The first sample: the positions are measured, so the state starts from them."""
+    st.cf_x[0], st.cf_x[1] = y1, y2
+    st.y_prev[0], st.y_prev[1] = y1, y2
+    st.innovation[0], st.innovation[1] = 0.0, 0.0
+    _output(st)
+
+
+@njit(cache=True, error_model="numpy")
+def contact_force_advance(st, y1: float, y2: float, gap: int, u: float, c) -> int:
+    """``gap`` periods to y_k (lost samples: y interpolated linearly, u held, as the adaptive
+    observer); 0, or 6 (``observer._DIVERGED_REASONS``) if the state is not finite."""
+    y_start_1, y_start_2 = st.y_prev[0], st.y_prev[1]
+    for j in range(1, gap + 1):
+        f = j / gap
+        contact_force_step(st, y_start_1 + f * (y1 - y_start_1), y_start_2 + f * (y2 - y_start_2), u, c)
+    for i in range(STATE_SIZE):
+        if not math.isfinite(st.cf_x[i]):
+            return NOT_FINITE
+    st.y_prev[0], st.y_prev[1] = y1, y2
+    _output(st)
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def _output(st) -> None:
+    for i in range(4):
+        st.z_hat[i] = st.cf_x[i]
+
+
+@njit(cache=True, error_model="numpy")
+def _start_one(states, y1, y2) -> None:
+    contact_force_start(states[0], y1, y2)
+
+
+@njit(cache=True, error_model="numpy")
+def _advance_one(states, y1, y2, gap, u, consts) -> int:
+    return contact_force_advance(states[0], y1, y2, gap, u, consts[0])
 
 
 class ContactForceObserver:
-    """The filter with explicit state ``x``; same interface as ``AdaptiveObserver`` (update, reset, tick)."""
+    """The filter with explicit state (``state``: an OBSERVER_STATE record, its ``cf_x``); same
+    interface as ``AdaptiveObserver`` (update, reset, tick, consts, state)."""
 
     def __init__(
         self,
@@ -117,20 +166,33 @@ class ContactForceObserver:
         self.pantograph = pantograph
         self.params = params
         self.sample_period = sample_period
-        self.phi, self.gamma, self.gain = (
-            np.ascontiguousarray(m, dtype=np.float64)
-            for m in kalman_design(
-                pantograph, params.force_process_noise, params.position_noise, sample_period
-            )
+        self.phi, self.gamma, self.gain = kalman_design(
+            pantograph, params.force_process_noise, params.position_noise, sample_period
         )
+        #: What the compiled functions take as constants: one OBSERVER_CONSTS record.
+        self.consts = np.zeros(1, OBSERVER_CONSTS)
+        c = self.consts[0]
+        c["kind"], c["dt"] = CONTACT_FORCE, sample_period
+        c["cf_phi"], c["cf_gamma"], c["cf_gain"] = self.phi, self.gamma, self.gain
+        self._st = np.zeros(1, OBSERVER_STATE)
         self.reset()
 
     def reset(self) -> None:
         """Back to rest: z_hat from ``z_hat0``, F_hat = 0; the first sample sets the positions."""
         self.tick = -1
-        self.x = np.zeros(STATE_SIZE)
-        self.x[:4] = self.params.z_hat0
-        self._y_prev = np.zeros(2)
+        self._st[0] = 0
+        self._st[0]["cf_x"][:4] = self.params.z_hat0
+        self._st[0]["z_hat"] = self.params.z_hat0
+
+    @property
+    def state(self) -> np.ndarray:
+        """The OBSERVER_STATE record (a 1-element array): what the compiled loop starts from."""
+        return self._st
+
+    @property
+    def x(self) -> np.ndarray:
+        """(z1, z2, z1', z2', F) of the last update (a view)."""
+        return self._st[0]["cf_x"]
 
     @property
     def z_hat(self) -> np.ndarray:
@@ -142,36 +204,32 @@ class ContactForceObserver:
 
     def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
         """Process y_k of ``tick`` and the force applied over (t_{k-1}, t_k]; a gap is predicted through."""
-        y_now = np.array(y, dtype=float)
+        y1, y2 = float(y[0]), float(y[1])
         if self.tick < 0:
             self.tick = tick
-            self.x[0], self.x[1] = y_now  # the positions are measured: start from them
-            self._y_prev = y_now
-            return self._estimate(np.zeros(2))
+            _start_one(self._st, y1, y2)
+            return self._estimate()
         gap = tick - self.tick
         if gap < 1:
             raise ValueError(f"observer expects a tick after {self.tick}, got {tick}")
-        x = self.x
-        y_start = self._y_prev
-        innovation = np.zeros(2)
-        for j in range(1, gap + 1):  # lost samples: y interpolated linearly, u held (as the adaptive one)
-            y_j = y_start + (j / gap) * (y_now - y_start)
-            x, innovation = contact_force_step(x, y_j, float(actuator_force), self.phi, self.gamma, self.gain)
-        if not np.isfinite(x).all():
-            raise ObserverDivergedError(tick, "the contact-force state is not finite")
-        self.x, self._y_prev = x, y_now
+        saved = self._st.copy()
+        status = _advance_one(self._st, y1, y2, gap, float(actuator_force), self.consts)
+        if status:
+            self._st[:] = saved
+            raise ObserverDivergedError(tick, _DIVERGED_REASONS[status])
         self.tick = tick
-        return self._estimate(innovation)
+        return self._estimate()
 
-    def _estimate(self, innovation: np.ndarray) -> Estimate:
+    def _estimate(self) -> Estimate:
+        st = self._st[0]
         return Estimate(
             tick=self.tick,
             time=self.tick * self.sample_period,
-            z_hat=self.z_hat,
+            z_hat=st["z_hat"].copy(),
             theta_hat=np.zeros(3),
             stiffness_hat=0.0,
-            contact_force_hat=float(self.x[_FORCE]),
-            innovation=innovation,
+            contact_force_hat=float(st["cf_x"][_FORCE]),
+            innovation=st["innovation"].copy(),
         )
 
 

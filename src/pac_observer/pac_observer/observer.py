@@ -36,7 +36,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 from numba import njit
 
 from pac_model import model
@@ -49,6 +48,7 @@ _DIVERGED_REASONS = {
     1: "xi or Lambda is not finite",
     2: "S_theta not positive definite (Cholesky failed)",
     3: "theta_hat is not finite",
+    6: "the contact-force state is not finite",  # pac_observer.contact_force (4, 5: pac_rig.loop's)
 }
 
 
@@ -81,6 +81,9 @@ OBSERVER_STATE = np.dtype(
         ("step", "f8", (3, 1)),
         ("innovation", "f8", 2),  # a priori y - C z_hat of the last period
         ("z_hat", "f8", 4),  # z_hat = xi + Lambda theta_hat after the last update
+        # observer:=contact_force (pac_observer.contact_force): its state x and the prediction x^-
+        ("cf_x", "f8", 5),
+        ("cf_pred", "f8", 5),
     ]
 )
 
@@ -98,8 +101,15 @@ OBSERVER_CONSTS = np.dtype(
         ("omega", "f8"),
         ("m1", "f8"),
         ("m2", "f8"),
+        ("kind", "i8"),  # ADAPTIVE or CONTACT_FORCE: which observer the records are
+        # observer:=contact_force: the sampled model and its steady-state Kalman gain
+        ("cf_phi", "f8", (5, 5)),
+        ("cf_gamma", "f8", 5),
+        ("cf_gain", "f8", (5, 2)),
     ]
 )
+#: OBSERVER_CONSTS.kind
+ADAPTIVE, CONTACT_FORCE = 0, 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -399,6 +409,8 @@ def _s_z_maps(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(E, S_z limit, Q_h): the exact half-step map of
     S_z' = -(A + rho/2 I)^T S_z - S_z (A + rho/2 I) + C^T Sigma C (docs/numerics.md, observer step 1)."""
+    import scipy.linalg  # here, not at import: a node starts without loading scipy
+
     a, c, sigma = model.state_matrix(pantograph), model.OUTPUT_MATRIX, np.diag(sigma_diag)
     shifted = a + 0.5 * rho_z * np.eye(4)
     half_map = scipy.linalg.expm(-shifted * (0.5 * dt))

@@ -5,13 +5,12 @@ whole tick loop of each in compiled code, groups of scenarios in parallel thread
 releases the GIL).  The loop calls the same compiled core functions as the classes
 ``Plant``, ``AdaptiveObserver`` and ``BacksteppingController`` do, in the same order,
 so every trace equals the one ``closed_loop.run`` gives, bit for bit
-(``tests/test_batch.py``).  Every law with a compiled kernel (all five); a scenario the
-compiled loop has no form for (the FE line: :func:`batchable`) is refused with a ValueError.
+(``tests/test_batch.py``).  Every law, both lines (lumped and FE), both observers; a scenario
+the compiled loop has no form for (:func:`batchable`) is refused with a ValueError.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -26,33 +25,33 @@ from .closed_loop import Scenario, build_cores, divergence_reason
 from .loop import MAX_DELAY, TICK, CompiledLoop, compile_loop, loop_tick
 
 #: Per-tick traces, rows of ``BatchResult.traces[name]`` (NaN after a divergence): fields of loop.TICK.
-TRACES = ("contact_force", "force_reference", "u", "stiffness", "stiffness_hat", "z1")
+TRACES = (
+    "contact_force", "force_reference", "u", "stiffness", "stiffness_hat", "z1", "contact_force_hat",
+    "contact_uplift",
+)  # fmt: skip
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _run_rows(rows, ticks, pp, ps, oc, os, cp, cs, noise, out, result_tick, result_code, result_value):
-    """The scenarios ``rows`` (one thread), each tick by :func:`pac_rig.loop.loop_tick`, into ``out``.
+def _run_one(ticks, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) -> tuple[int, int, float]:
+    """One scenario, tick by tick by :func:`pac_rig.loop.loop_tick`, its TRACES into ``out``
+    (len(TRACES) x ticks); (ticks reached, divergence code, value).
 
-    Threads rather than numba's ``parallel=True``: compiled for parallel, the same core
-    functions gave results a few ulp apart from the per-tick path's (seen), which would
-    break "batch == closed_loop.run bit for bit".
+    One thread runs one scenario at a time (``run_batch``).  Threads rather than numba's
+    ``parallel=True``: compiled for parallel, the same core functions gave results a few ulp
+    apart from the per-tick path's (seen), which would break "batch == closed_loop.run bit for bit".
     """
     rec = np.zeros(1, TICK)[0]
-    for i in rows:
-        code, value = 0, 0.0
-        reached = ticks[i]
-        quiet = noise.shape[1] == 1
-        for k in range(ticks[i]):
-            j = 0 if quiet else k
-            code, value = loop_tick(
-                k, pp[i], ps[i], oc[i], os[i], cp[i], cs[i], noise[i, j, 0], noise[i, j, 1], rec
-            )
-            if code:
-                reached = k
-                break
-            out[i, 0, k], out[i, 1, k], out[i, 2, k] = rec.contact_force, rec.force_reference, rec.u
-            out[i, 3, k], out[i, 4, k], out[i, 5, k] = rec.stiffness, rec.stiffness_hat, rec.z[0]
-        result_tick[i], result_code[i], result_value[i] = reached, code, value
+    quiet = noise.shape[0] == 1
+    p, s, o, q, c, d = pp[0], ps[0], oc[0], os[0], cp[0], cs[0]
+    for k in range(ticks):
+        j = 0 if quiet else k
+        code, value = loop_tick(k, p, s, fe_args, o, q, c, d, table, memory, noise[j, 0], noise[j, 1], rec)
+        if code:
+            return k, code, value
+        out[0, k], out[1, k], out[2, k] = rec.contact_force, rec.force_reference, rec.u
+        out[3, k], out[4, k], out[5, k] = rec.stiffness, rec.stiffness_hat, rec.z[0]
+        out[6, k], out[7, k] = rec.contact_force_hat, rec.contact_uplift
+    return ticks, 0, 0.0
 
 
 @dataclass(frozen=True)
@@ -70,39 +69,24 @@ class BatchResult:
         return float(np.sum(self.ticks * self.sample_period))
 
 
-def pack(scenarios: Sequence[Scenario]) -> tuple:
-    """The records :func:`_run_rows` takes after ``rows`` (one per scenario, from the cores' set-up)."""
-    loops = []
-    for i, s in enumerate(scenarios):
-        loop = compile_loop(*build_cores(s), s.loop.command_delay_ticks)
-        if loop is None:
-            raise ValueError(
-                f"scenario {i}: the compiled loop has no form for catenary_model {s.plant.catenary_model} "
-                f"with law {s.controller.effective_law}"
-            )
-        loops.append(loop)
-    ticks = np.array([s.loop.ticks for s in scenarios], dtype=np.int64)
-    noisy = [s for s in scenarios if any(v > 0.0 for v in s.plant.noise_std)]
-    noise = np.zeros((len(scenarios), int(ticks.max()) if noisy else 1, 2))
-    for i, s in enumerate(scenarios):
-        if any(v > 0.0 for v in s.plant.noise_std):
-            noise[i, : s.loop.ticks] = build_cores(s)[0].noise_rows(0, s.loop.ticks)
-    records = [
-        np.concatenate([getattr(loop, f.name) for loop in loops]) for f in dataclasses.fields(CompiledLoop)
-    ]
-    return (ticks, *records, noise)
+def prepare(i: int, s: Scenario) -> tuple[CompiledLoop, np.ndarray]:
+    """The compiled loop of scenario ``i`` and its sensor noise (one row per tick, or one zero row)."""
+    cores = build_cores(s)
+    loop = compile_loop(*cores, s.loop.command_delay_ticks)
+    if loop is None:
+        raise ValueError(
+            f"scenario {i}: the compiled loop has no form for catenary_model {s.plant.catenary_model}, "
+            f"observer {s.observer.observer}, law {s.controller.effective_law}, "
+            f"command_delay_ticks {s.loop.command_delay_ticks}"
+        )
+    noisy = any(v > 0.0 for v in s.plant.noise_std)
+    return loop, cores[0].noise_rows(0, s.loop.ticks) if noisy else np.zeros((1, 2))
 
 
 def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
-    parameters without building the cores: the lumped line, the adaptive observer, a law with a
-    kernel, the delay it holds."""
-    return (
-        s.plant.catenary_model == "lumped"
-        and s.observer.observer == "adaptive"
-        and s.controller.effective_law in LAW_CODES
-        and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
-    )
+    parameters without building the cores: every line, observer and law; the delay it holds."""
+    return s.controller.effective_law in LAW_CODES and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
 
 
 def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
@@ -111,23 +95,27 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
         raise ValueError("run_batch needs at least one scenario")
     if threads < 1:
         raise ValueError(f"threads must be >= 1, got {threads!r}")
-    args = pack(scenarios)
     n = len(scenarios)
-    out = np.full((n, len(TRACES), int(args[0].max())), np.nan)
+    ticks = np.array([s.loop.ticks for s in scenarios], dtype=np.int64)
+    out = np.full((n, len(TRACES), int(ticks.max())), np.nan)
     result_tick, result_code, result_value = (
         np.zeros(n, dtype=np.int64),
         np.zeros(n, dtype=np.int64),
         np.zeros(n),
     )
-    # Interleaved groups: neighbouring scenarios often cost alike (e.g. a sweep row).
-    groups = [np.arange(g, n, threads, dtype=np.int64) for g in range(min(threads, n))]
+
+    def run_one(i: int) -> None:
+        # Built in the thread: an FE line's set-up (factorisation, contact columns) runs in parallel too.
+        loop, noise = prepare(i, scenarios[i])
+        result_tick[i], result_code[i], result_value[i] = _run_one(int(ticks[i]), *loop.args(), noise, out[i])
+
     start = time.perf_counter()
-    with ThreadPoolExecutor(max_workers=len(groups)) as pool:
-        done = [
-            pool.submit(_run_rows, rows, *args, out, result_tick, result_code, result_value)
-            for rows in groups
-        ]
-        for future in done:
+    # Zero ticks of the first scenario here first: numba compiles (or loads) the loop in this thread,
+    # not in two threads at once on their first call (which crashed).
+    first, noise = prepare(0, scenarios[0])
+    _run_one(0, *first.args(), noise, out[0])
+    with ThreadPoolExecutor(max_workers=min(threads, n)) as pool:
+        for future in [pool.submit(run_one, i) for i in range(n)]:
             future.result()
     wall = time.perf_counter() - start
     return BatchResult(
@@ -138,5 +126,5 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
             for c, v in zip(result_code, result_value, strict=True)
         ],
         wall_seconds=wall,
-        sample_period=args[1]["dt"].copy(),
+        sample_period=np.array([s.loop.sample_period for s in scenarios]),
     )

@@ -34,6 +34,7 @@ from .loop import (
     DIVERGENCE_DISPLACEMENT,
     DIVERGENCE_FORCE,
     FORCE,
+    OFF_LINE,
     TICK,
     CompiledLoop,
     compile_loop,
@@ -101,9 +102,9 @@ def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObse
 def run(s: Scenario) -> Iterator[TickRecord]:
     """Yield one record per tick, ticks 0 .. loop.ticks - 1; raise DivergenceError on divergence.
 
-    The compiled step (:func:`pac_rig.loop.loop_tick`) runs the ticks block by block; cores
-    without a compiled form (the FE line) are stepped by :func:`run_cores`.  Both give the same
-    records (``tests/test_batch.py``).
+    The compiled step (:func:`pac_rig.loop.loop_tick`) runs the ticks block by block (every line,
+    observer and law); cores without a compiled form are stepped by :func:`run_cores`.  Both give
+    the same records (``tests/test_batch.py``).
     """
     plant, observer, controller = build_cores(s)
     loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
@@ -123,6 +124,8 @@ def run_blocks(s: Scenario, plant: Plant, loop: CompiledLoop) -> Iterator[np.nda
         noise = plant.noise_rows(k0, k1) if plant._noisy else _NO_NOISE
         reached, code, value = loop.run(k0, k1, noise, out)
         yield out[: reached - k0]
+        if code == OFF_LINE:  # as FEPlant.advance says it
+            raise ValueError(f"the pantograph ran off the line at x = {value:.2f} m")
         if code:
             raise DivergenceError(reached, divergence_reason(code, value))
 
@@ -143,8 +146,8 @@ def divergence_reason(code: int, value: float) -> str:
 
 _RECORD_COLUMNS = (
     "tick", "time", "y", "actuator_force", "z", "stiffness", "contact_force", "in_contact", "u_applied",
-    "stiffness_hat", "contact_force_hat", "u", "u_unsaturated", "force_reference", "tracking_error",
-    "saturated", "mode",
+    "contact_uplift", "support_uplift", "contact_position", "stiffness_hat", "contact_force_hat", "u",
+    "u_unsaturated", "force_reference", "tracking_error", "saturated", "mode",
 )  # fmt: skip
 
 
@@ -160,7 +163,8 @@ def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
             Measurement(tick, t, y1, y2, col["actuator_force"][i]),
             Truth(
                 tick, t, (z0, z1, z2, z3), col["stiffness"][i], col["contact_force"][i],
-                col["in_contact"][i], col["u_applied"][i],
+                col["in_contact"][i], col["u_applied"][i], col["contact_uplift"][i],
+                col["support_uplift"][i], col["contact_position"][i],
             ),
             Estimate(
                 tick, t, z_hat[i], theta_hat[i], col["stiffness_hat"][i], col["contact_force_hat"][i],
@@ -176,8 +180,8 @@ def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
 def run_cores(
     s: Scenario, plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller
 ) -> Iterator[TickRecord]:
-    """The loop stepped through the core objects tick by tick, as the nodes step them (the FE line,
-    the contact-force observer, line_adaptive)."""
+    """The loop stepped through the core objects tick by tick, as the nodes step them (the
+    reference the compiled loop is checked against, ``tests/test_batch.py``)."""
     delay = s.loop.command_delay_ticks
     pending: deque[float] = deque([0.0] * delay)
     for _ in range(s.loop.ticks):

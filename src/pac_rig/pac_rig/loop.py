@@ -15,10 +15,18 @@ Everything a tick reads or writes is a field of a numpy structured record
 its output is one :data:`TICK` record (what the four topics carry), so a tick allocates
 nothing (``tests/test_compiled.py`` counts numba's allocations over a run).
 
+Every plant, observer and law has its compiled form: the lumped line (``plant_advance_inplace``)
+and the FE line (``pac_plant.catenary.kernels.fe_advance``, on the buffers its ``ContactSimulation``
+packs: :data:`FE_ARGS`), the paper's observer and the contact-force filter (``OBSERVER_CONSTS.kind``),
+every law of ``pac_controller.kernels`` (line_adaptive with its two tables).  Which one a tick
+runs is a field of the records (``PLANT_PARAMS.kind``, ``OBSERVER_CONSTS.kind``,
+``CONTROLLER_PARAMS.law``), so one compiled function serves every combination.
+
 A plant, an observer or a law added later is added in one place: its record fields, its
 compiled step, and the one call in :func:`loop_tick` (docs/design.md, "Adding to the loop").
-A scenario whose cores have no compiled form (the FE line until its step is compiled)
-returns None from :func:`compile_loop`; ``closed_loop.run`` then steps the core objects.
+A scenario whose cores have no compiled form (a core class this module does not know, more
+command delay than :data:`MAX_DELAY`) returns None from :func:`compile_loop`;
+``closed_loop.run`` then steps the core objects.
 """
 
 from __future__ import annotations
@@ -31,20 +39,25 @@ from numba import njit
 from pac_controller.controller import Controller
 from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLaw, controller_step, new_state
 from pac_model import model
-from pac_observer.contact_force import ContactForceObserver
-from pac_observer.observer import AdaptiveObserver, observer_advance, observer_start
+from pac_observer.contact_force import ContactForceObserver, contact_force_advance, contact_force_start
+from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
+from pac_plant.catenary import kernels as fe
+from pac_plant.fe_plant import FEPlant
 from pac_plant.plant import Plant, plant_advance_inplace, quantise
 
 #: |z1|, |z2| beyond this [m] is not a pantograph any more: the run is stopped as diverged.
 DIVERGENCE_DISPLACEMENT = 1.0
 #: A control law asking for more than this [N] has run away (Table 1's uplift is ~100 N).
 DIVERGENCE_FORCE = 1e6
-#: Divergence codes of :func:`loop_tick` after the observer's (1-3, ``_DIVERGED_REASONS``).
-DISPLACEMENT, FORCE = 4, 5
+#: Divergence codes of :func:`loop_tick` besides the observers' (1-3, 6: ``_DIVERGED_REASONS``);
+#: OFF_LINE: the pantograph ran off the FE line (value: the contact point's x).
+DISPLACEMENT, FORCE, OFF_LINE = 4, 5, 7
+#: PLANT_PARAMS.kind
+LUMPED, FE = 0, 1
 #: The fields of CONTROLLER_PARAMS that ``reference.reference_args`` gives, in its order.
 REFERENCE_FIELDS = ("shape", "force_amplitude", "force_initial", "step_time", "period", "filter_bandwidth")
-#: Most ticks of command delay the compiled loop holds.
-MAX_DELAY = 64
+#: Most ticks of command delay the compiled loop holds (``command_delay_ticks``' upper bound).
+MAX_DELAY = 100
 
 PLANT_PARAMS = np.dtype(
     [
@@ -59,6 +72,10 @@ PLANT_PARAMS = np.dtype(
         ("a", "f8", (4, 4)),  # A of eq. (12) of the plant's pantograph
         ("theta", "f8", 3),  # the catenary's theta, eq. (9)
         ("delay", "i8"),  # command_delay_ticks
+        ("kind", "i8"),  # LUMPED or FE
+        # FE line (fe_plant.FEPlant): the fixed datum, or the static wire under the contact point
+        ("static_wire", "b1"),
+        ("datum", "f8"),
     ]
 )
 
@@ -85,6 +102,9 @@ TICK = np.dtype(
         ("contact_force", "f8"),
         ("in_contact", "b1"),
         ("u_applied", "f8"),
+        ("contact_uplift", "f8"),  # FE line only (NaN on the lumped one), as plant.Truth
+        ("support_uplift", "f8"),
+        ("contact_position", "f8"),
         # estimate
         ("z_hat", "f8", 4),
         ("theta_hat", "f8", 3),
@@ -102,45 +122,118 @@ TICK = np.dtype(
 )
 
 
-@njit(cache=True, error_model="numpy")
-def loop_tick(k, pp, ps, oc, os, cp, cs, n1, n2, out) -> tuple[int, float]:
-    """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
+#: The FE line's arguments of :func:`loop_tick` (``FE_ARGS``): the packed constants and state of its
+#: ``ContactSimulation`` (``kernels.pack``), the element flexibilities and the contact readings.
+FE_ARGS = ("cf", "ci", "cl", "sf", "si", "sl", "flexibility", "readings")
 
-    Returns (0, 0) or a divergence (code, value): 1-3 the observer's (the state is that of
-    tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law).  n1, n2:
-    this tick's sensor noise.  The order of operations is that of ``closed_loop.run_cores``
-    and of the nodes.
-    """
+
+@njit(cache=True, error_model="numpy")
+def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
+    """The plant at tick k: truth into ``out`` and ``ps.z``, and the measurement y_k (eq. (10),
+    plus noise and quantisation)."""
     t = k * pp.dt
     z = ps.z
-    # Plant: measurement y_k (eq. (10), plus noise and quantisation) and truth.
+    if pp.kind == FE:
+        cf, ci, cl, sf, si, sl, _, readings = fe_args
+        c, st = fe.unpack(cf, ci, cl, sf, si, sl)
+        if pp.static_wire:  # the datum moves with the contact point along the pre-sagged wire
+            datum, rate = readings[fe.STATIC_HEIGHT], c.numbers[1] * readings[fe.STATIC_SLOPE]
+        else:
+            datum, rate = pp.datum, 0.0
+        z[0], z[1], z[2], z[3] = st.p[0] - datum, st.p[1] - datum, st.vp[0] - rate, st.vp[1] - rate
+        stiff = readings[fe.STATIC_STIFFNESS]
+        force = c.numbers[4] * st.scalars[fe.DELTA] if st.counters[fe.IN_CONTACT] else 0.0
+        out.contact_uplift, out.support_uplift = readings[fe.CONTACT_UPLIFT], readings[fe.SUPPORT_UPLIFT]
+        out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET]
+    else:
+        stiff = model.stiffness(t, pp.omega, pp.theta)
+        force = model.contact_force(stiff, z[0], pp.unilateral)
+        out.contact_uplift, out.support_uplift, out.contact_position = np.nan, np.nan, np.nan
     y1, y2 = z[0], z[1]
     if pp.noisy:
         y1, y2 = y1 + n1, y2 + n2
     y1, y2 = quantise(y1, pp.quantisation), quantise(y2, pp.quantisation)
-    stiff = model.stiffness(t, pp.omega, pp.theta)
-    force = model.contact_force(stiff, z[0], pp.unilateral)
     out.tick, out.time = k, t
     out.y[0], out.y[1] = y1, y2
     out.actuator_force = ps.u_applied
     out.z[:] = z
     out.stiffness, out.contact_force, out.in_contact, out.u_applied = stiff, force, force > 0.0, ps.u_applied
-    if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
-        return DISPLACEMENT, y1
-    # Observer, eq. (17).
-    if k == 0:
-        observer_start(os, y1, y2)
+    return y1, y2
+
+
+@njit(cache=True, error_model="numpy")
+def _plant_advance(k, pp, ps, fe_args, applied) -> int:
+    """The plant over [t_k, t_k+1] with ``applied`` held (zero-order hold); 0 or OFF_LINE."""
+    if pp.kind == FE:
+        cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
+        c, st = fe.unpack(cf, ci, cl, sf, si, sl)
+        if fe.fe_advance(c, st, applied, pp.substeps, flexibility, readings) != fe.STEP_OK:
+            return OFF_LINE
     else:
-        status, _ = observer_advance(k - 1, os, y1, y2, 1, ps.u_applied, oc)
-        if status:
-            return status, np.nan
+        plant_advance_inplace(
+            ps.z,
+            k * pp.dt,
+            pp.dt,
+            pp.substeps,
+            applied,
+            pp.a,
+            pp.theta,
+            pp.omega,
+            pp.m1,
+            pp.m2,
+            pp.unilateral,
+        )
+    ps.u_applied = applied
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def _observer_update(k, t, oc, os, y1, y2, u_applied, out) -> int:
+    """The observer at tick k (eq. (17), or the contact-force filter); the estimate into ``out``."""
+    if oc.kind == CONTACT_FORCE:
+        if k == 0:
+            contact_force_start(os, y1, y2)
+        else:
+            status = contact_force_advance(os, y1, y2, 1, u_applied, oc)
+            if status:
+                return status
+        out.stiffness_hat, out.contact_force_hat = 0.0, os.cf_x[4]
+    else:
+        if k == 0:
+            observer_start(os, y1, y2)
+        else:
+            status, _ = observer_advance(k - 1, os, y1, y2, 1, u_applied, oc)
+            if status:
+                return status
+        k_hat = model.stiffness(t, oc.omega, os.theta_hat)
+        out.stiffness_hat, out.contact_force_hat = k_hat, k_hat * y1
     out.z_hat[:] = os.z_hat
     out.theta_hat[:] = os.theta_hat
-    k_hat = model.stiffness(t, oc.omega, os.theta_hat)
-    out.stiffness_hat, out.contact_force_hat = k_hat, k_hat * y1
     out.innovation[:] = os.innovation
+    return 0
+
+
+@njit(cache=True, error_model="numpy")
+def loop_tick(k, pp, ps, fe_args, oc, os, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
+    """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
+
+    Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
+    tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
+    ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
+    ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``).  n1, n2: this
+    tick's sensor noise.  The order of operations is that of ``closed_loop.run_cores`` and of
+    the nodes.
+    """
+    y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
+    if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
+        return DISPLACEMENT, y1
+    status = _observer_update(k, out.time, oc, os, y1, y2, ps.u_applied, out)
+    if status:
+        return status, np.nan
     # Controller: law and safety chain.
-    u, u_law, f_r, e1, e2, e3, mode = controller_step(cp, cs, k, os.z_hat, os.theta_hat)
+    u, u_law, f_r, e1, e2, e3, mode = controller_step(
+        cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
+    )
     if not abs(u_law) < DIVERGENCE_FORCE:
         return FORCE, u_law
     out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
@@ -153,61 +246,77 @@ def loop_tick(k, pp, ps, oc, os, cp, cs, n1, n2, out) -> tuple[int, float]:
         applied = ps.pending[ps.head]
         ps.pending[ps.head] = u
         ps.head = (ps.head + 1) % pp.delay
-    plant_advance_inplace(
-        z, t, pp.dt, pp.substeps, applied, pp.a, pp.theta, pp.omega, pp.m1, pp.m2, pp.unilateral
-    )
-    ps.u_applied = applied
+    if _plant_advance(k, pp, ps, fe_args, applied):
+        return OFF_LINE, out.contact_position
     return 0, 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def run_ticks(k0, k1, pp, ps, oc, os, cp, cs, noise, out) -> tuple[int, int, float]:
+def run_ticks(k0, k1, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) -> tuple[int, int, float]:
     """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
 
     ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
     """
     for k in range(k0, k1):
         i = min(k - k0, noise.shape[0] - 1)
-        code, value = loop_tick(k, pp, ps, oc, os, cp, cs, noise[i, 0], noise[i, 1], out[k - k0])
+        code, value = loop_tick(
+            k, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+        )
         if code:
             return k, code, value
     return k1, 0, 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_block(k0, k1, pp, ps, oc, os, cp, cs, noise, out) -> tuple[int, int, float]:
+def run_block(k0, k1, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) -> tuple[int, int, float]:
     """:func:`run_ticks` on the records of 1-element arrays (how Python hands them over)."""
-    return run_ticks(k0, k1, pp[0], ps[0], oc[0], os[0], cp[0], cs[0], noise, out)
+    return run_ticks(k0, k1, pp[0], ps[0], fe_args, oc[0], os[0], cp[0], cs[0], table, memory, noise, out)
+
+
+#: FE_ARGS of the lumped line: empty arrays of the FE line's types (one compiled loop for both).
+NO_FE = (
+    np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64),
+    np.zeros((0, 4), np.int64), np.zeros((0, 4, 4)), np.zeros(0),
+)  # fmt: skip
 
 
 @dataclass
 class CompiledLoop:
-    """The records of one run: parameters and states, each a 1-element structured array."""
+    """The records of one run: parameters and states (each a 1-element structured array), the FE
+    line's buffers (:data:`FE_ARGS`, :data:`NO_FE` for the lumped line) and the law's tables."""
 
     plant_params: np.ndarray
     plant_state: np.ndarray
+    fe_args: tuple
     observer_consts: np.ndarray
     observer_state: np.ndarray
     controller_params: np.ndarray
     controller_state: np.ndarray
+    table: np.ndarray
+    memory: np.ndarray
+
+    def args(self) -> tuple:
+        """The records and arrays in the order :func:`loop_tick` takes them (after the tick)."""
+        return (
+            self.plant_params, self.plant_state, self.fe_args, self.observer_consts, self.observer_state,
+            self.controller_params, self.controller_state, self.table, self.memory,
+        )  # fmt: skip
 
     def run(self, k0: int, k1: int, noise: np.ndarray, out: np.ndarray) -> tuple[int, int, float]:
         """Ticks k0..k1-1 into ``out`` (a TICK array); (ticks reached, divergence code, value)."""
-        return run_block(
-            k0, k1, self.plant_params, self.plant_state, self.observer_consts, self.observer_state,
-            self.controller_params, self.controller_state, noise, out,
-        )  # fmt: skip
+        return run_block(k0, k1, *self.args(), noise, out)
 
 
 def compile_loop(
     plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller, delay: int
 ) -> CompiledLoop | None:
-    """The records of the cores as built (``closed_loop.build_cores``), or None if the loop has no
-    compiled form for them: a plant other than the lumped :class:`Plant` (the FE line), an observer
-    other than :class:`AdaptiveObserver`, a law without kernel (not a :class:`KernelLaw`)."""
+    """The records of the cores as built (``closed_loop.build_cores``; copies: the cores are not
+    changed by running them), or None if the loop has no compiled form for them: a plant other
+    than :class:`Plant` / :class:`FEPlant`, an observer other than the two, a law without kernel
+    (not a :class:`KernelLaw`), more delay than :data:`MAX_DELAY`."""
     if (
-        type(plant) is not Plant
-        or type(observer) is not AdaptiveObserver
+        type(plant) not in (Plant, FEPlant)
+        or type(observer) not in (AdaptiveObserver, ContactForceObserver)
         or type(controller) is not Controller
     ):
         return None
@@ -215,14 +324,26 @@ def compile_loop(
         return None
     pp = np.zeros(1, PLANT_PARAMS)
     p = pp[0]
-    p["dt"], p["omega"] = plant.sample_period, plant._omega
+    p["dt"] = plant.sample_period
     p["m1"], p["m2"] = plant.pantograph.m1, plant.pantograph.m2
     p["quantisation"], p["noisy"] = plant.options.quantisation, plant._noisy
-    p["substeps"], p["unilateral"] = plant.options.substeps, plant._unilateral
-    p["a"], p["theta"], p["delay"] = plant._a, plant._theta, delay
+    p["substeps"], p["delay"] = plant.options.substeps, delay
     ps = np.zeros(1, PLANT_STATE)
     ps[0]["z"], ps[0]["u_applied"] = plant.z, plant.u_applied
-    cp = controller.law.params.copy()
+    if isinstance(plant, FEPlant):
+        sim = plant.sim
+        p["kind"], p["substeps"] = FE, plant.options.fe_substeps
+        p["static_wire"], p["datum"] = plant.options.fe_datum == "static_wire", plant.datum
+        fe_args = (
+            sim._cf, sim._ci, sim._cl, sim._sf.copy(), sim._si.copy(), sim._sl,
+            np.ascontiguousarray(plant._flex, dtype=np.float64), plant._readings.copy(),
+        )  # fmt: skip
+    else:
+        p["kind"], p["omega"], p["unilateral"] = LUMPED, plant._omega, plant._unilateral
+        p["a"], p["theta"] = plant._a, plant._theta
+        fe_args = NO_FE
+    law = controller.law
+    cp = law.params.copy()
     c, chain = cp[0], controller.params
     c["dt"] = controller.sample_period
     c["slew_rate_max"], c["u_min"], c["u_max"] = chain.slew_rate_max, chain.u_min, chain.u_max
@@ -231,7 +352,10 @@ def compile_loop(
         c[name] = value
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
-    return CompiledLoop(pp, ps, observer.consts.copy(), observer.state.copy(), cp, cs)
+    memory = law.memory.copy()
+    return CompiledLoop(
+        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), cp, cs, law.table, memory
+    )
 
 
-__all__ = ["CONTROLLER_PARAMS", "TICK", "CompiledLoop", "compile_loop", "loop_tick", "run_ticks"]
+__all__ = ["CONTROLLER_PARAMS", "FE_ARGS", "TICK", "CompiledLoop", "compile_loop", "loop_tick", "run_ticks"]

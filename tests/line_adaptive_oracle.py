@@ -1,0 +1,187 @@
+"""line_adaptive as it was before it was compiled (numpy array expressions, commit c49f3bf).
+
+A test oracle only: ``tests/test_line_kernels.py`` checks the shipped law (compiled) against it,
+so a change to what the law computes shows up as a disagreement.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from pac_controller.controller import Errors
+from pac_controller.parameters import LawParameters
+from pac_model.parameters import TrackParameters
+
+#: An update smaller than this [N] in a harmonic says nothing about its response.
+MIN_INFORMATIVE_STEP = 0.5
+#: The guard judges the RMS of the last this many spans' sigma (learning is not monotone span by span).
+GUARD_SPANS = 3
+#: One span's sigma above this multiple of line_guard_ratio * sigma_passive trips the guard at once.
+GUARD_HARD_FACTOR = 2.0
+
+
+class LineAdaptiveLaw:
+    uses_estimate = True
+    uses_contact_force = True
+
+    def __init__(
+        self,
+        track: TrackParameters,
+        laws: LawParameters,
+        sample_period: float,
+    ) -> None:
+        dt = sample_period
+        self.dt = dt
+        self.delay = laws.design_delay_ticks
+        speed = track.speed_kmh / 3.6
+        self.period_ticks = n = max(2, round(track.span_length / speed / dt))
+        self.omega_span = w = 2.0 * math.pi / (n * dt)
+        self.harmonics = h = max(1, min(int(laws.line_max_frequency * 2.0 * math.pi / w), n // 2 - 1))
+        orders = np.arange(1, h + 1)
+        # basis[p, h-1] = exp(i h w p dt): one span of every harmonic, by phase index p = tick mod N.
+        self.basis = np.exp(1j * np.outer(np.arange(n), orders) * w * dt)
+        self.ahead = np.exp(1j * orders * w * 0.5 * dt)  # the hold's half period
+        self.gain = laws.line_learning_gain
+        self.step_max = laws.line_step_max
+        self.probe_step = min(laws.line_probe_step, laws.line_step_max)
+        self.forgetting = laws.line_forgetting
+        self.prior_weight = laws.line_prior_weight
+        self.response_min = laws.line_response_min
+        self.runin_spans = laws.line_runin_spans
+        self.guard_ratio = laws.line_guard_ratio
+        self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
+        self._pending_error = 0.0
+        self._pending_reference = 0.0
+        self.restart(None)
+
+    # -- state -----------------------------------------------------------------------
+    def restart(self, u_applied: float | None) -> None:
+        """Forget everything learned: the next span starts a new run-in (u = F_r, bumpless from rest)."""
+        h = self.harmonics
+        self.u_ff = np.zeros(h, dtype=np.complex128)  # U_h of the current span
+        self.u_mean = 0.0  # U_0: the mean correction (D_0 = -1 exactly: statics)
+        self.clip_offset = 0.0  # C: what the limits took off the last span's mean, added back
+        self.a_mean = 0.0  # mean of (applied - F_r - U_0 - C) over the current span: minus the loss
+        self.e_mean = 0.0  # E_0 accumulating over the current span
+        self.u_prev = np.zeros(h, dtype=np.complex128)
+        self.e_acc = np.zeros(h, dtype=np.complex128)  # E_h accumulating over the current span
+        self.a_acc = np.zeros(h, dtype=np.complex128)  # A_h: the applied command's harmonics, accumulating
+        self.e_prev = np.zeros(h, dtype=np.complex128)
+        self.has_prev = False
+        self.s = np.zeros(h)
+        self.z = np.zeros(h, dtype=np.complex128)
+        self.start_tick: int | None = None  # the tick the law's spans count from
+        self.span_sum = 0.0  # sum of e and e^2 over the current span (guard)
+        self.span_sum_sq = 0.0
+        self.passive_var = 0.0
+        self.passive_spans = 0
+        self.recent_var = np.zeros(GUARD_SPANS)  # sigma^2 of F_hat over the last learning spans
+        self.last_sigma_ratio = 0.0
+        self.tripped = False
+
+    @property
+    def mode(self) -> str:
+        return "passive" if self.tripped else "active"
+
+    def feedforward(self, tick: int) -> float:
+        """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
+        phase = (tick + self.delay) % self.period_ticks
+        return (
+            self.u_mean
+            + self.clip_offset
+            + float(np.real(np.sum(self.u_ff * self.ahead * self.basis[phase])))
+        )
+
+    # -- the law -------------------------------------------------------------------
+    def output(
+        self,
+        tick: int,
+        t: float,
+        f_r: np.ndarray,
+        z_hat: np.ndarray,
+        theta_hat: np.ndarray,
+        contact_force_hat: float = math.nan,
+    ) -> tuple[float, Errors]:
+        error = float(f_r[0]) - contact_force_hat
+        # The sample commit() accumulates (output itself changes nothing).
+        self._pending_error = error
+        self._pending_reference = float(f_r[0])
+        u_ff = 0.0 if self.tripped else self.feedforward(tick)
+        return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
+
+    def commit(self, tick: int, u_applied: float) -> None:
+        if self.start_tick is None:
+            self.start_tick = tick
+        k = tick - self.start_tick
+        n = self.period_ticks
+        phase = tick % n
+        e = self._pending_error
+        self.e_acc += (2.0 / n) * e * np.conj(self.basis[phase])
+        # The command as the actuator's limits let it through, on the feedforward's own phase.
+        applied = u_applied - self._pending_reference - self.u_mean - self.clip_offset
+        self.a_acc += (2.0 / n) * applied * np.conj(self.basis[(tick + self.delay) % n])
+        self.a_mean += applied / n
+        self.e_mean += e / n
+        self.span_sum += e
+        self.span_sum_sq += e * e
+        if k % n == n - 1:
+            self._end_of_span(k // n)
+
+    def _end_of_span(self, span: int) -> None:
+        n = self.period_ticks
+        mean = self.span_sum / n
+        var = max(self.span_sum_sq / n - mean * mean, 0.0)
+        self.span_sum = self.span_sum_sq = 0.0
+        if 1 <= span < self.runin_spans:  # span 0 holds the start transient
+            self.passive_var += var
+            self.passive_spans += 1
+        elif span >= self.runin_spans and self.passive_spans and not self.tripped:
+            sigma_p = math.sqrt(self.passive_var / self.passive_spans)
+            self.recent_var[span % GUARD_SPANS] = var
+            learned = span - self.runin_spans + 1  # learning spans so far
+            window = self.recent_var[: min(learned, GUARD_SPANS)]
+            self.last_sigma_ratio = math.sqrt(float(np.mean(window))) / sigma_p if sigma_p > 0.0 else 0.0
+            span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
+            judged = learned >= self.guard_after and not self.last_sigma_ratio <= self.guard_ratio
+            if judged or not span_ratio <= GUARD_HARD_FACTOR * self.guard_ratio:
+                self.tripped = True
+                self.u_ff[:] = 0.0
+                self.u_mean = 0.0
+                self.clip_offset = 0.0
+        if span >= self.runin_spans - 1 and not self.tripped:
+            self._learn()
+        self.e_acc[:] = 0.0
+        self.a_acc[:] = 0.0
+        self.a_mean = 0.0
+        self.e_mean = 0.0
+
+    def _learn(self) -> None:
+        """One secant step per harmonic (module docstring)."""
+        # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
+        realized = self.a_acc / self.ahead
+        if self.has_prev:
+            d_u = realized - self.u_prev
+            d_e = self.e_acc - self.e_prev
+            informative = np.abs(d_u) > MIN_INFORMATIVE_STEP
+            lam = self.forgetting
+            self.s = np.where(informative, lam * self.s + np.abs(d_u) ** 2, self.s)
+            self.z = np.where(informative, lam * self.z + np.conj(d_u) * d_e, self.z)
+        response = (self.z - self.prior_weight) / (self.s + self.prior_weight)
+        modulus = np.abs(response)
+        response = np.where(
+            modulus < self.response_min, self.response_min * np.exp(1j * np.angle(response)), response
+        )
+        step = -self.gain * self.e_acc / response
+        # A harmonic whose response has not been identified yet (only the prior F = u, which can be
+        # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
+        limit = np.where(self.s > 0.0, self.step_max, self.probe_step)
+        step /= np.maximum(1.0, np.abs(step) / limit)
+        self.u_prev = realized
+        self.e_prev = self.e_acc.copy()
+        self.has_prev = True
+        self.u_mean += self.gain * self.e_mean
+        # C: the mean the limits took off is known exactly from the applied command (module docstring).
+        self.clip_offset = -self.a_mean
+        self.u_ff = realized + step
