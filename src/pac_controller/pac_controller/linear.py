@@ -15,7 +15,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.linalg
 
 from pac_model import model
 from pac_model.parameters import PantographParameters
@@ -34,6 +33,8 @@ def contact_model(p: PantographParameters, k: float) -> tuple[np.ndarray, np.nda
 def discretise(a: np.ndarray, b: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold sampling: (e^{A dt}, int_0^dt e^{A s} ds B)."""
     n = a.shape[0]
+    import scipy.linalg  # here, not at import: a node starts without loading scipy
+
     m = scipy.linalg.expm(np.block([[a, b[:, None]], [np.zeros((1, n + 1))]]) * dt)
     return m[:n, :n], m[:n, n]
 

@@ -33,7 +33,6 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from pac_common.parameters import ParameterError
 from pac_model.parameters import PantographParameters, TrackParameters
@@ -92,6 +91,8 @@ def design_lqr(pantograph: PantographParameters, laws: LawParameters, dt: float)
     q[3, 3] += 1.0 / laws.lqr_velocity_scale**2
     q[-1, -1] = 1.0 / (laws.lqr_force_scale * laws.lqr_integral_time) ** 2
     r = np.array([[1.0 / laws.lqr_input_scale**2]])
+    import scipy.linalg  # here, not at import: a node starts without loading scipy
+
     try:
         p = scipy.linalg.solve_discrete_are(aa, ba[:, None], q, r)
     except (np.linalg.LinAlgError, ValueError) as exc:

@@ -33,7 +33,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize
 
 from pac_common.parameters import ParameterError
 from pac_model.parameters import PantographParameters, TrackParameters
@@ -98,6 +97,8 @@ def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float)
             f"pid_phase_margin = {laws.pid_phase_margin:g} deg needs ({achievable} with "
             f"pid_integral_ratio = {ratio:g}, pid_derivative_filter = {n:g})",
         )
+    import scipy.optimize  # here, not at import: a node starts without loading scipy
+
     x = float(scipy.optimize.brentq(lambda v: phase(v) - needed, xs[0], xs[top], xtol=1e-12))
     td = x / wc
     ti = ratio * td
