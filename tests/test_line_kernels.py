@@ -55,7 +55,8 @@ def drive(law, speed_seed: int, spans: int, u_max: float, gain_sign: float = 1.0
         (300.0, 1, math.inf, 1.0, {}),
         (250.0, 2, 200.0, 1.0, {}),  # the limits clip: anti-windup and the mean given back
         (360.0, 3, math.inf, -1.0, {}),  # forced to harm: the guard trips
-        (200.0, 4, 190.0, 1.0, {"line_max_frequency": 60.0, "design_delay_ticks": 2}),  # H > 64 (recursion)
+        (200.0, 4, 190.0, 1.0, {"line_max_frequency": 60.0, "design_delay_ticks": 2}),  # H > 8: blocks
+        (160.0, 6, math.inf, 1.0, {"line_max_frequency": 200.0}),  # H > 128: numpy's sums recurse
         (330.0, 5, math.inf, 1.0, {"line_response_min": 0.9, "line_forgetting": 0.3}),  # the floor applies
     ],
 )

@@ -125,8 +125,6 @@ CONTROLLER_STATE = np.dtype(
         ("line_e_mean", "f8"),
         ("line_has_prev", "b1"),
         ("line_start_tick", "i8"),  # -1: the spans have not started
-        ("line_span_sum", "f8"),
-        ("line_span_sum_sq", "f8"),
         ("line_passive_var", "f8"),
         ("line_passive_spans", "i8"),
         ("line_recent_var", "f8", 3),  # line_adaptive.GUARD_SPANS
