@@ -132,6 +132,8 @@ CONTROLLER_STATE = np.dtype(
         ("line_tripped", "b1"),
         ("line_pending_error", "f8"),
         ("line_pending_reference", "f8"),
+        ("line_stack", "i8", (64, 3)),  # scratch of line_adaptive._pairwise: (start, length, stage)
+        ("line_values", "f8", 64),
     ]
 )
 

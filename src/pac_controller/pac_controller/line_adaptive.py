@@ -137,58 +137,85 @@ def _cabs(re: float, im: float) -> float:
 
 
 @njit(cache=True)
-def _pairwise_real(row: np.ndarray, lo: int, n: int) -> float:
-    """Real part of numpy's pairwise sum of ``row[lo:lo + n]`` (complex; its unrolled blocks)."""
+def _leaf_complex(row: np.ndarray, lo: int, n: int) -> float:
+    """Real part of numpy's pairwise sum of complex ``row[lo:lo + n]``, n <= 64 (no split)."""
     if n < 4:
         r = -0.0
         for i in range(lo, lo + n):
             r += row[i].real
         return r
-    if n <= 64:
-        r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
-        m = n - n % 4
-        for i in range(lo + 4, lo + m, 4):
-            r0 += row[i].real
-            r1 += row[i + 1].real
-            r2 += row[i + 2].real
-            r3 += row[i + 3].real
-        r = (r0 + r1) + (r2 + r3)
-        for i in range(lo + m, lo + n):
-            r += row[i].real
-        return r
-    half = (n - n % 8) // 2
-    return _pairwise_real(row, lo, half) + _pairwise_real(row, lo + half, n - half)
+    r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
+    m = n - n % 4
+    for i in range(lo + 4, lo + m, 4):
+        r0 += row[i].real
+        r1 += row[i + 1].real
+        r2 += row[i + 2].real
+        r3 += row[i + 3].real
+    r = (r0 + r1) + (r2 + r3)
+    for i in range(lo + m, lo + n):
+        r += row[i].real
+    return r
 
 
 @njit(cache=True)
-def _pairwise_float(row: np.ndarray, lo: int, n: int) -> float:
-    """numpy's pairwise sum of the real numbers ``row[lo:lo + n].real`` (a float array's: blocks
-    of eight)."""
+def _leaf_float(row: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum of the float array ``row[lo:lo + n].real``, n <= 128 (no split)."""
     if n < 8:
         r = -0.0
         for i in range(lo, lo + n):
             r += row[i].real
         return r
-    if n <= 128:
-        r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
-        r4, r5, r6, r7 = row[lo + 4].real, row[lo + 5].real, row[lo + 6].real, row[lo + 7].real
-        m = n - n % 8
-        for i in range(lo + 8, lo + m, 8):
-            r0 += row[i].real
-            r1 += row[i + 1].real
-            r2 += row[i + 2].real
-            r3 += row[i + 3].real
-            r4 += row[i + 4].real
-            r5 += row[i + 5].real
-            r6 += row[i + 6].real
-            r7 += row[i + 7].real
-        r = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        for i in range(lo + m, lo + n):
-            r += row[i].real
-        return r
-    half = n // 2
-    half -= half % 8
-    return _pairwise_float(row, lo, half) + _pairwise_float(row, lo + half, n - half)
+    r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
+    r4, r5, r6, r7 = row[lo + 4].real, row[lo + 5].real, row[lo + 6].real, row[lo + 7].real
+    m = n - n % 8
+    for i in range(lo + 8, lo + m, 8):
+        r0 += row[i].real
+        r1 += row[i + 1].real
+        r2 += row[i + 2].real
+        r3 += row[i + 3].real
+        r4 += row[i + 4].real
+        r5 += row[i + 5].real
+        r6 += row[i + 6].real
+        r7 += row[i + 7].real
+    r = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    for i in range(lo + m, lo + n):
+        r += row[i].real
+    return r
+
+
+@njit(cache=True)
+def _pairwise(s, row: np.ndarray, n: int, as_float: bool) -> float:
+    """numpy's pairwise sum of ``row[:n]``: the real part of a complex array's (as_float False) or
+    of the float array of the real parts (True).  numpy splits in halves until a block is small
+    (64 complex, 128 float numbers) and adds the halves' sums; the same tree here, walked with an
+    explicit stack in the state record (numba's cache cannot load recursive functions)."""
+    leaf = 128 if as_float else 64
+    stack, values = s.line_stack, s.line_values
+    top, count = 1, 0
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0, n, 0
+    while top:
+        lo, m, stage = stack[top - 1, 0], stack[top - 1, 1], stack[top - 1, 2]
+        if m <= leaf:
+            values[count] = _leaf_float(row, lo, m) if as_float else _leaf_complex(row, lo, m)
+            count += 1
+            top -= 1
+            continue
+        if as_float:
+            half = m // 2
+            half -= half % 8
+        else:
+            half = (m - m % 8) // 2
+        if stage < 2:  # the left half, then the right half
+            stack[top - 1, 2] = stage + 1
+            stack[top, 0], stack[top, 1], stack[top, 2] = (
+                (lo, half, 0) if stage == 0 else (lo + half, m - half, 0)
+            )
+            top += 1
+        else:  # both halves summed: their sum replaces them
+            values[count - 2] = values[count - 2] + values[count - 1]
+            count -= 1
+            top -= 1
+    return values[0]
 
 
 # -- the law, compiled: the class below and pac_controller.kernels call these --------------------
@@ -213,7 +240,7 @@ def line_feedforward(p, s, table, memory, tick: int) -> float:
         ur, ui = _cmul(memory[U_FF, j].real, memory[U_FF, j].imag, table[n, j].real, table[n, j].imag)
         pr, pi = _cmul(ur, ui, table[phase, j].real, table[phase, j].imag)
         memory[SCRATCH, j] = complex(pr, pi)
-    return s.line_u_mean + s.line_clip_offset + (0.0 + _pairwise_real(memory[SCRATCH], 0, h))
+    return s.line_u_mean + s.line_clip_offset + (0.0 + _pairwise(s, memory[SCRATCH], h, False))
 
 
 @njit(cache=True, error_model="numpy")
@@ -263,7 +290,7 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
     for j in range(h):
         a = _cabs(memory[E_ACC, j].real, memory[E_ACC, j].imag)
         memory[SCRATCH, j] = complex(a * a, 0.0)
-    var = 0.5 * (0.0 + _pairwise_float(memory[SCRATCH], 0, h))
+    var = 0.5 * (0.0 + _pairwise(s, memory[SCRATCH], h, True))
     if 1 <= span < p.line_runin_spans:  # span 0 holds the start transient
         s.line_passive_var += var
         s.line_passive_spans += 1
