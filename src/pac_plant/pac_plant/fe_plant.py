@@ -17,6 +17,7 @@ and at the nearest support.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -34,6 +35,18 @@ from .plant import Plant, Truth
 #: Spans in the moving window; the contact point stays in spans 4..6 of it (4 behind, >= 4 ahead).
 WINDOW_SPANS = 10
 START_SPAN = 4
+
+
+@functools.lru_cache(maxsize=4)
+def line_and_flexibility(
+    data: CatenaryData, numerics: NumericalOptions, n_spans: int
+) -> tuple[Line, np.ndarray]:
+    """The line (matrices, static state, dropper lengths) and its element flexibilities: a pure
+    function of the data, built once per process and shared by every plant on it (nothing writes
+    to them after this); they are most of an FE plant's set-up (~0.7 s of CPU), which a campaign
+    would otherwise pay per run."""
+    line = Line(data, numerics, n_spans=n_spans)
+    return line, line.element_flexibility()
 
 
 class FEPlant(Plant):
@@ -56,8 +69,7 @@ class FEPlant(Plant):
         self.sample_period = sample_period
         self.data = CatenaryData() if data is None else data
         numerics = NumericalOptions(element_size=options.fe_element_size)
-        self.line = Line(self.data, numerics, n_spans=WINDOW_SPANS)
-        self._flex = self.line.element_flexibility()
+        self.line, self._flex = line_and_flexibility(self.data, numerics, WINDOW_SPANS)
         self.sim = ContactSimulation(
             self.line,
             paper_pantograph(pantograph),
