@@ -66,7 +66,7 @@ GOALS = (
     ),
     Goal(
         "batch_rate",
-        "batch, all five laws, 2 threads",
+        "batch, every law (six), 2 threads",
         "scenario-s per wall-s",
         1000.0,
         True,
@@ -82,7 +82,7 @@ GOALS = (
     ),
     Goal(
         "campaign_fe_rate",
-        "FE campaign (4 runs), whole command",
+        "FE campaign (8 runs x 10 s), whole command",
         "scenario-s per wall-s",
         50.0,
         True,
