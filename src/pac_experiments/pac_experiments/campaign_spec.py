@@ -34,7 +34,7 @@ import yaml
 
 from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.parameters import ParameterError
-from pac_plant.catenary.data import CatenaryData
+from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig.closed_loop import Scenario
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
 
@@ -219,10 +219,11 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     if spec.force_target == "en50367":
         values["force_amplitude"] = target_mean_force(scenario.track.speed_kmh)
     if spec.window_spans is not None:
-        if scenario.plant.catenary_model == "fe" and scenario.track.span_length != CatenaryData().span:
+        fe_span = load_catenary(scenario.plant.catenary).data.span
+        if scenario.plant.catenary_model == "fe" and scenario.track.span_length != fe_span:
             raise SpecError(
                 f"invalid parameter 'span_length' = {scenario.track.span_length:g}: window_spans on the "
-                f"FE line needs its span, {CatenaryData().span:g} m"
+                f"FE line needs its (mean) span, {fe_span:g} m"
             )
         if "duration" not in values:
             span_time = scenario.track.span_length / (scenario.track.speed_kmh / 3.6)

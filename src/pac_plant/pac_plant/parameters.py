@@ -37,9 +37,14 @@ class PlantOptions(ParameterSet):
     catenary_model: str = parameter(
         "lumped",
         "catenary: 'lumped' k(t) = k0 (1 + alpha cos(omega t - beta)) of eq. (7); 'fe' the "
-        "finite-element simple catenary of docs/catenary.md (endless moving window, 55 m spans; "
+        "finite-element line of the file 'catenary' (docs/catenary.md; endless moving window; "
         "ignores k0/alpha/beta/span_length and contact_model: its contact is always unilateral)",
         choices=("lumped", "fe"),
+    )
+    catenary: str = parameter(
+        "benchmark_55m",
+        "fe: the line, a catenary file (a path) or a shipped preset's name (config/catenaries/: "
+        "benchmark_55m, ...); the file format is documented in docs/catenary.md, 'The catenary file'",
     )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
@@ -52,5 +57,21 @@ class PlantOptions(ParameterSet):
         choices=("fixed", "static_wire"),
     )
     fe_element_size: float = parameter(
-        0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
+        0.0,
+        "fe: largest beam element length, 0: the catenary file's (numerics.element_size; "
+        "docs/catenary.md: convergence)",
+        "m",
+        low=0.0,
+        high=2.0,
     )
+
+    def check_consistency(self) -> None:
+        from pac_common.parameters import ParameterError
+
+        from .catenary.catenary_file import load_catenary
+
+        load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)
+        if 0.0 < self.fe_element_size < 0.1:
+            raise ParameterError(
+                "fe_element_size", self.fe_element_size, "0 (the file's) or a number in [0.1, 2] m"
+            )

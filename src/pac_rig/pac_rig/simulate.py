@@ -75,9 +75,9 @@ class RunResult:
 def plant_line(scenario: Scenario) -> tuple[str, float]:
     """(catenary_model, span length) of the line the plant simulates, as run_status announces it."""
     if scenario.plant.catenary_model == "fe":
-        from pac_plant.catenary.data import CatenaryData
+        from pac_plant.catenary.catenary_file import load_catenary
 
-        return "fe", CatenaryData().span
+        return "fe", load_catenary(scenario.plant.catenary).data.span
     return scenario.plant.catenary_model, scenario.track.span_length
 
 

@@ -109,7 +109,9 @@ class _Reader:
         where = f", line {mark[0]}, column {mark[1]}" if mark else ""
         return CatenaryFileError(self.source, key, value, allowed, where)
 
-    def mapping(self, parent: _Map, name: str, path: str, keys: tuple[str, ...], optional: bool = False) -> _Map:
+    def mapping(
+        self, parent: _Map, name: str, path: str, keys: tuple[str, ...], optional: bool = False
+    ) -> _Map:
         key = f"{path}{name}"
         if name not in parent:
             if optional:
@@ -126,7 +128,9 @@ class _Reader:
     def known(self, mapping: _Map, path: str, keys: tuple[str, ...]) -> None:
         for k in mapping:
             if k not in keys:
-                raise self.fail(f"{path}{k}", mapping[k], f"one of the keys {', '.join(keys)}", mapping.marks[k])
+                raise self.fail(
+                    f"{path}{k}", mapping[k], f"one of the keys {', '.join(keys)}", mapping.marks[k]
+                )
 
     def number(
         self,
@@ -144,7 +148,9 @@ class _Reader:
         if name not in parent:
             if default is not None:
                 return default
-            raise self.fail(key, None, f"{_range(low, high, low_open)} {unit} (it is missing)".strip(), parent.start)
+            raise self.fail(
+                key, None, f"{_range(low, high, low_open)} {unit} (it is missing)".strip(), parent.start
+            )
         return self.check_number(parent[name], key, unit, low, high, low_open, parent.marks[name])
 
     def check_number(
@@ -154,11 +160,22 @@ class _Reader:
         if ok:
             ok = (value > low if low_open else value >= low) and value <= high
         if not ok:
-            raise self.fail(key, value, f"a finite number in {_range(low, high, low_open)} {unit}".strip(), mark)
+            raise self.fail(
+                key, value, f"a finite number in {_range(low, high, low_open)} {unit}".strip(), mark
+            )
         return float(value)
 
     def numbers(
-        self, parent: _Map, name: str, path: str, unit: str, low: float, high: float, *, low_open: bool, count: int | None
+        self,
+        parent: _Map,
+        name: str,
+        path: str,
+        unit: str,
+        low: float,
+        high: float,
+        *,
+        low_open: bool,
+        count: int | None,
     ) -> tuple[float, ...]:
         key = f"{path}{name}"
         size = "a non-empty list" if count is None else f"a list of {count}"
@@ -194,7 +211,12 @@ TOP_KEYS = (
 )
 WIRE_KEYS = ("rho", "tension", "ei")
 DROPPER_KEYS = ("ea", "rho", "clamp_mass_contact", "clamp_mass_messenger")
-SUPPORT_KEYS = ("steady_arm_stiffness", "steady_arm_mass", "messenger_support_stiffness", "messenger_support_mass")
+SUPPORT_KEYS = (
+    "steady_arm_stiffness",
+    "steady_arm_mass",
+    "messenger_support_stiffness",
+    "messenger_support_mass",
+)
 SPAN_KEYS = ("length", "encumbrance", "droppers", "presag", "stitch")
 STITCH_KEYS = ("length", "tension", "rho", "droppers", "presag")
 DAMPING_KEYS = ("rayleigh_alpha", "rayleigh_beta")
@@ -235,7 +257,9 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
     sp = r.mapping(raw, "supports", "", SUPPORT_KEYS)
     spans_raw = raw.get("spans")
     if not isinstance(spans_raw, _Seq) or not spans_raw or not all(isinstance(s, _Map) for s in spans_raw):
-        raise r.fail("spans", spans_raw, "a non-empty list of spans (mappings)", raw.marks.get("spans", raw.start))
+        raise r.fail(
+            "spans", spans_raw, "a non-empty list of spans (mappings)", raw.marks.get("spans", raw.start)
+        )
     spans = tuple(_span(r, s, i) for i, s in enumerate(spans_raw))
     _check_stitches(r, spans_raw, spans)
     section = raw.get("section_spans", 10)
@@ -251,10 +275,14 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
         dropper_ea=r.number(dr, "ea", "droppers.", "N", 0.0, 1e9),
         dropper_rho=r.number(dr, "rho", "droppers.", "kg/m", 0.0, 10.0, low_open=False),
         clamp_mass_contact=r.number(dr, "clamp_mass_contact", "droppers.", "kg", 0.0, 10.0, low_open=False),
-        clamp_mass_messenger=r.number(dr, "clamp_mass_messenger", "droppers.", "kg", 0.0, 10.0, low_open=False),
+        clamp_mass_messenger=r.number(
+            dr, "clamp_mass_messenger", "droppers.", "kg", 0.0, 10.0, low_open=False
+        ),
         steady_arm_stiffness=r.number(sp, "steady_arm_stiffness", "supports.", "N/m", 0.0, 1e9),
         messenger_support_stiffness=r.number(sp, "messenger_support_stiffness", "supports.", "N/m", 0.0, 1e9),
-        steady_arm_mass=r.number(sp, "steady_arm_mass", "supports.", "kg", 0.0, 100.0, low_open=False, default=0.0),
+        steady_arm_mass=r.number(
+            sp, "steady_arm_mass", "supports.", "kg", 0.0, 100.0, low_open=False, default=0.0
+        ),
         messenger_support_mass=r.number(
             sp, "messenger_support_mass", "supports.", "kg", 0.0, 100.0, low_open=False, default=0.0
         ),
@@ -276,21 +304,32 @@ def _span(r: _Reader, s: _Map, i: int) -> SpanData:
     r.known(s, p, SPAN_KEYS)
     length = r.number(s, "length", p, "m", 5.0, 200.0)
     encumbrance = r.number(s, "encumbrance", p, "m", 0.2, 5.0)
-    droppers = r.numbers(s, "droppers", p, "m", 0.0, length, low_open=True, count=None)
-    if droppers[-1] >= length:
-        raise r.fail(f"{p}droppers[{len(droppers) - 1}]", droppers[-1], f"a position in (0, {length:g}) m", s.marks["droppers"])
+    droppers = r.numbers(s, "droppers", p, "m", -math.inf, math.inf, low_open=True, count=None)
+    for j, d in enumerate(droppers):
+        if not 0.0 < d < length:
+            raise r.fail(
+                f"{p}droppers[{j}]",
+                d,
+                f"a position in (0, {length:g}) m from the span's start",
+                s.marks["droppers"],
+            )
     _increasing(r, droppers, f"{p}droppers", s.marks["droppers"])
-    presag = r.numbers(s, "presag", p, "m", -0.5 * encumbrance, 0.5 * encumbrance, low_open=False, count=len(droppers))
+    presag = r.numbers(
+        s, "presag", p, "m", -0.5 * encumbrance, 0.5 * encumbrance, low_open=False, count=len(droppers)
+    )
     stitch = None
     if s.get("stitch") is not None:
         st = r.mapping(s, "stitch", p, STITCH_KEYS)
         q = f"{p}stitch."
         st_length = r.number(st, "length", q, "m", 1.0, 100.0)
-        offsets = r.numbers(st, "droppers", q, "m", -0.5 * st_length, 0.5 * st_length, low_open=True, count=None)
+        offsets = r.numbers(st, "droppers", q, "m", -math.inf, math.inf, low_open=True, count=None)
         for j, o in enumerate(offsets):
-            if o == 0.0 or o >= 0.5 * st_length:
+            if o == 0.0 or abs(o) >= 0.5 * st_length:
                 raise r.fail(
-                    f"{q}droppers[{j}]", o, f"an offset from the support in (-{0.5 * st_length:g}, 0) or (0, {0.5 * st_length:g}) m", st.marks["droppers"]
+                    f"{q}droppers[{j}]",
+                    o,
+                    f"an offset from the support in (-{0.5 * st_length:g}, 0) or (0, {0.5 * st_length:g}) m",
+                    st.marks["droppers"],
                 )
         _increasing(r, offsets, f"{q}droppers", st.marks["droppers"])
         stitch = StitchData(
@@ -298,7 +337,16 @@ def _span(r: _Reader, s: _Map, i: int) -> SpanData:
             tension=r.number(st, "tension", q, "N", 0.0, 1e5),
             rho=r.number(st, "rho", q, "kg/m", 0.0, 10.0),
             dropper_offsets=offsets,
-            presag=r.numbers(st, "presag", q, "m", -0.5 * encumbrance, 0.5 * encumbrance, low_open=False, count=len(offsets)),
+            presag=r.numbers(
+                st,
+                "presag",
+                q,
+                "m",
+                -0.5 * encumbrance,
+                0.5 * encumbrance,
+                low_open=False,
+                count=len(offsets),
+            ),
         )
     return SpanData(length, encumbrance, droppers, presag, stitch)
 
@@ -306,7 +354,12 @@ def _span(r: _Reader, s: _Map, i: int) -> SpanData:
 def _increasing(r: _Reader, values: tuple[float, ...], key: str, mark: tuple[int, int]) -> None:
     for j in range(1, len(values)):
         if values[j] <= values[j - 1]:
-            raise r.fail(f"{key}[{j}]", values[j], f"a value above the one before it ({values[j - 1]:g}): ascending", mark)
+            raise r.fail(
+                f"{key}[{j}]",
+                values[j],
+                f"a value above the one before it ({values[j - 1]:g}): ascending",
+                mark,
+            )
 
 
 def _check_stitches(r: _Reader, raw: _Seq, spans: tuple[SpanData, ...]) -> None:
@@ -319,9 +372,9 @@ def _check_stitches(r: _Reader, raw: _Seq, spans: tuple[SpanData, ...]) -> None:
             continue
         before = spans[(i - 1) % n]
         key, mark = f"spans[{i}].stitch.length", raw[i]["stitch"].marks["length"]
-        room = min(span.length, before.length)
+        room = 0.5 * min(span.length, before.length)  # its clamps between the support and mid-span
         if 0.5 * st.length >= room:
-            raise r.fail(key, st.length, f"less than twice the shorter neighbouring span ({2 * room:g} m)", mark)
+            raise r.fail(key, st.length, f"less than the shorter neighbouring span ({2 * room:g} m)", mark)
         for j, o in enumerate(st.dropper_offsets):
             pos, own = (o, span) if o > 0 else (before.length + o, before)
             if any(abs(pos - d) < 1e-6 for d in own.dropper_positions):
@@ -356,7 +409,9 @@ def resolve(catenary: str) -> Path:
     path = preset_path(catenary)
     if path is None:
         raise ParameterError(
-            "catenary", catenary, f"a catenary file or a preset: one of {', '.join(presets())} (docs/catenary.md)"
+            "catenary",
+            catenary,
+            f"a catenary file or a preset: one of {', '.join(presets())} (docs/catenary.md)",
         )
     return path
 
@@ -367,7 +422,9 @@ def load_catenary(catenary: str = DEFAULT) -> CatenaryFile:
     try:
         stat = path.stat()
     except OSError as exc:
-        raise ParameterError("catenary", catenary, f"a readable catenary file ({exc.strerror or exc})") from None
+        raise ParameterError(
+            "catenary", catenary, f"a readable catenary file ({exc.strerror or exc})"
+        ) from None
     return _load(str(path), stat.st_mtime_ns, stat.st_size)
 
 

@@ -133,7 +133,9 @@ def build_layout(data: CatenaryData, element_size: float, n_spans: int, droppers
             h = _height(span, after, off) if off > 0.0 else _height(before, span, before.length + off)
             drops.append((xi + off, node_at(xi + off), WS, sag, h))
     drops.sort(key=lambda d: d[0])
-    per_period = sum(len(sp.dropper_positions) + (len(sp.stitch.dropper_offsets) if sp.stitch else 0) for sp in spans)
+    per_period = sum(
+        len(sp.dropper_positions) + (len(sp.stitch.dropper_offsets) if sp.stitch else 0) for sp in spans
+    )
     return Layout(
         x=x,
         support_x=np.array(starts),
@@ -148,4 +150,3 @@ def build_layout(data: CatenaryData, element_size: float, n_spans: int, droppers
         period_spans=p,
         period_length=data.period,
     )
-

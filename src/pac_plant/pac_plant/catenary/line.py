@@ -91,7 +91,9 @@ def gravity_load(w: WireData, h: float, g: float) -> np.ndarray:
 
 def string_matrices(w: WireData, h: float) -> tuple[np.ndarray, np.ndarray]:
     """Element (stiffness T/h, consistent mass) of a tensioned string of length h, DOFs (w_a, w_b)."""
-    return w.tension / h * np.array([[1.0, -1.0], [-1.0, 1.0]]), w.rho * h / 6 * np.array([[2.0, 1.0], [1.0, 2.0]])
+    return w.tension / h * np.array([[1.0, -1.0], [-1.0, 1.0]]), w.rho * h / 6 * np.array(
+        [[2.0, 1.0], [1.0, 2.0]]
+    )
 
 
 def span_nodes(data: CatenaryData, element_size: float) -> np.ndarray:
@@ -199,7 +201,7 @@ class Line:
             for st in layout.stitches:
                 free[st.nodes[1:-1]] = True
             free[[0, last]] = False
-            fixed += [DOFS_PER_NODE * i + WS for i in np.flatnonzero(~free)]
+            fixed += [DOFS_PER_NODE * int(i) + WS for i in np.flatnonzero(~free)]
         self.fixed = np.array(sorted(fixed))
         self.support_nodes = layout.support_nodes
         self._supports = supports
@@ -249,7 +251,9 @@ class Line:
                     mw.add(4 * n + WM, 4 * n + WM, d.messenger_support_mass)
         self._k_wires, self._m_wires, self._f_wires = kw.ab.copy(), mw.ab.copy(), fw
 
-    def _add_string(self, kw: Banded, mw: Banded, fw: np.ndarray, wire: WireData, dofs: list[int], h: float) -> None:
+    def _add_string(
+        self, kw: Banded, mw: Banded, fw: np.ndarray, wire: WireData, dofs: list[int], h: float
+    ) -> None:
         """One string element (messenger of a stitched line, a stitch wire) with its weight."""
         ke, me = string_matrices(wire, h)
         kw.add_block(dofs, ke)
@@ -325,6 +329,14 @@ class Line:
             dr.stiffness = d.dropper_ea / dr.length0
             if change < tolerance:
                 break
+        self.set_dropper_lengths(dr.length0)
+
+    def set_dropper_lengths(self, length0: np.ndarray) -> None:
+        """Static equilibrium with the unstrained dropper lengths ``length0`` [m] (e.g. solved on
+        another mesh: what the pre-sag then is, is measured, not imposed)."""
+        d, dr = self.data, self.droppers
+        dr.length0 = np.array(length0, dtype=float)
+        dr.stiffness = d.dropper_ea / dr.length0
         self._assemble()
         self.w_static = self.solve_static(self.f_static)
         ws = self.w_static
