@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import json
 import math
 import subprocess
 import sys
@@ -220,17 +221,18 @@ BAD = [
         "'contact_stiffness' = 5.0",
         "(1000, 1e+07] N/m",
     ),
+    (GOOD, ("rayleigh_beta: 1.0e-4", "rayleigh_beta: 0.1"), "'damping.rayleigh_beta' = 0.1", "[0, 0.01] s"),
     (
         GOOD,
-        ("numerics: {element_size: 0.5}", "numerics: {element_size: 0.01}"),
-        "'numerics.element_size' = 0.01",
-        "m",
+        ("rayleigh_beta: 1.0e-4", "rayleigh_bta: 1.0e-4"),
+        "'damping.rayleigh_bta' = 0.0001",
+        "one of the keys rayleigh_alpha, rayleigh_beta",
     ),
     (
         GOOD,
-        ("numerics: {element_size: 0.5}", "numerics: {element_sise: 0.5}"),
-        "'numerics.element_sise' = 0.5",
-        "one of the keys element_size",
+        ("contact_stiffness: 50000.0", "numerics: {element_size: 0.5}\ncontact_stiffness: 50000.0"),
+        "'numerics' =",
+        "one of the keys",
     ),
     (GOOD, ("gravity: 9.81", "gravity: 9.81\ngravity: 9.81"), "'gravity' = 'given twice'", "each key once"),
     (GOOD, ("damping: {", "dampin: {"), "'dampin' =", "one of the keys"),
@@ -517,3 +519,29 @@ def test_the_plant_runs_on_a_catenary_file():
 def test_span_data_defaults_are_the_benchmark_span():
     span = SpanData()
     assert span.length == 55.0 and len(span.dropper_positions) == len(span.presag) == 9
+
+
+@pytest.mark.unit
+def test_a_campaign_may_vary_the_line_and_keeps_its_old_keys_on_the_default_line(tmp_path):
+    """Each point on the FE line is told its file's span (whole-span windows per line), and a point
+    on the default line keeps the key it had before ``catenary`` existed (earlier results resume)."""
+    from pac_experiments.campaign_spec import expand, load_spec, point_key
+    from pac_rig.simulate import scenario_from_flat, scenario_to_flat
+
+    spec_path = tmp_path / "lines.yaml"
+    spec_path.write_text(
+        "grid:\n  catenary: [benchmark_55m, stitched_hs_65m]\n"
+        "fixed:\n  catenary_model: fe\n  speed_kmh: 300.0\nwindow_spans: [4, 6]\n"
+    )
+    points = expand(load_spec(spec_path))
+    assert [p.values["span_length"] for p in points] == [55.0, 65.0]
+    for p, span in zip(points, (55.0, 65.0), strict=True):
+        assert p.window == pytest.approx((4 * span / (300 / 3.6), 6 * span / (300 / 3.6)))
+    assert len({p.key for p in points}) == 2
+    # The key of a default-line point is the hash of the parameters without ``catenary``.
+    scenario = scenario_from_flat({"catenary_model": "fe", "span_length": 55.0})
+
+    flat = scenario_to_flat(scenario)
+    del flat["catenary"]
+    text = json.dumps({"parameters": flat, "window": [1.0, 2.0]}, sort_keys=True, default=list)
+    assert point_key(scenario, (1.0, 2.0)) == hashlib.sha256(text.encode()).hexdigest()[:20]

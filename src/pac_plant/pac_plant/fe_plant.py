@@ -69,8 +69,7 @@ class FEPlant(Plant):
             data, numerics = line_file.data, line_file.numerics
         else:
             numerics = NumericalOptions()
-        if options.fe_element_size > 0.0:
-            numerics = dataclasses.replace(numerics, element_size=options.fe_element_size)
+        numerics = dataclasses.replace(numerics, element_size=options.fe_element_size)
         self.data = data
         periods, start = window_periods(data)
         self.line = Line(self.data, numerics, n_spans=periods * len(data.spans))

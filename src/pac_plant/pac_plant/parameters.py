@@ -57,21 +57,10 @@ class PlantOptions(ParameterSet):
         choices=("fixed", "static_wire"),
     )
     fe_element_size: float = parameter(
-        0.0,
-        "fe: largest beam element length, 0: the catenary file's (numerics.element_size; "
-        "docs/catenary.md: convergence)",
-        "m",
-        low=0.0,
-        high=2.0,
+        0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
     )
 
     def check_consistency(self) -> None:
-        from pac_common.parameters import ParameterError
-
         from .catenary.catenary_file import load_catenary
 
         load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)
-        if 0.0 < self.fe_element_size < 0.1:
-            raise ParameterError(
-                "fe_element_size", self.fe_element_size, "0 (the file's) or a number in [0.1, 2] m"
-            )

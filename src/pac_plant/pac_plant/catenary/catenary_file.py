@@ -207,7 +207,6 @@ TOP_KEYS = (
     "spans",
     "damping",
     "contact_stiffness",
-    "numerics",
 )
 WIRE_KEYS = ("rho", "tension", "ei")
 DROPPER_KEYS = ("ea", "rho", "clamp_mass_contact", "clamp_mass_messenger")
@@ -220,7 +219,6 @@ SUPPORT_KEYS = (
 SPAN_KEYS = ("length", "encumbrance", "droppers", "presag", "stitch")
 STITCH_KEYS = ("length", "tension", "rho", "droppers", "presag")
 DAMPING_KEYS = ("rayleigh_alpha", "rayleigh_beta")
-NUMERICS_KEYS = ("element_size",)
 
 
 def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptions]:
@@ -266,7 +264,6 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
     if isinstance(section, bool) or not isinstance(section, int) or not 2 <= section <= 1000:
         raise r.fail("section_spans", section, "an integer in [2, 1000]", raw.marks.get("section_spans"))
     damping = r.mapping(raw, "damping", "", DAMPING_KEYS)
-    numerics = r.mapping(raw, "numerics", "", NUMERICS_KEYS, optional=True)
     data = CatenaryData(
         spans=spans,
         n_spans=section,
@@ -291,7 +288,6 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
         source=" ".join(raw["source"].split()),
     )
     options = NumericalOptions(
-        element_size=r.number(numerics, "element_size", "numerics.", "m", 0.05, 2.0, default=0.5),
         rayleigh_alpha=r.number(damping, "rayleigh_alpha", "damping.", "1/s", 0.0, 10.0, low_open=False),
         rayleigh_beta=r.number(damping, "rayleigh_beta", "damping.", "s", 0.0, 0.01, low_open=False),
         contact_stiffness=r.number(raw, "contact_stiffness", "", "N/m", 1e3, 1e7),
