@@ -215,7 +215,9 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__,
         epilog="Parameters as for the nodes: -p NAME:=VALUE, --params-file FILE (a node's "
         "`ros2 param dump` too), optionally after --ros-args. Ctrl-C stops the run and closes the "
-        "bag with what was simulated (exit 130); a diverged run exits 1.",
+        "bag with what was simulated (exit 130); a diverged run exits 1. The finite-element line: "
+        "-p catenary_model:=fe -p catenary:=FILE (or a preset's name: config/catenaries/); the "
+        "catenary file's format is documented in docs/catenary.md, 'The catenary file'.",
     )
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
     add_override_arguments(parser)
