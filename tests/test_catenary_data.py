@@ -545,3 +545,84 @@ def test_a_campaign_may_vary_the_line_and_keeps_its_old_keys_on_the_default_line
     del flat["catenary"]
     text = json.dumps({"parameters": flat, "window": [1.0, 2.0]}, sort_keys=True, default=list)
     assert point_key(scenario, (1.0, 2.0)) == hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+# -- imperfections (off by default) -----------------------------------------------------------------------
+@pytest.mark.unit
+def test_imperfections_are_off_by_default_and_seeded():
+    from pac_plant.catenary.imperfections import apply_imperfections
+
+    data = load_catenary("stitched_hs_65m").data
+    assert apply_imperfections(data, 0.0, 0.0, 7) is data
+    a, b = apply_imperfections(data, 0.01, 0.0, 1), apply_imperfections(data, 0.01, 0.0, 1)
+    assert a == b and a != apply_imperfections(data, 0.01, 0.0, 2)
+    assert len(a.spans) == 10  # drawn over 10 spans (the period of one span repeated)
+    errors = np.array([e - d for s in a.spans for e, d in zip(s.presag, data.spans[0].presag, strict=True)])
+    assert abs(errors.mean()) < 0.004 and 0.007 < errors.std() < 0.013  # 70 draws of N(0, 10 mm)
+    worn = apply_imperfections(data, 0.0, 0.2, 0)
+    assert worn.contact.rho == pytest.approx(0.8 * data.contact.rho)
+    assert worn.contact.ei == pytest.approx(0.64 * data.contact.ei)
+    assert worn.contact.tension == data.contact.tension and worn.spans == data.spans
+
+
+def test_height_errors_are_where_the_wire_hangs_measured_on_a_finer_mesh():
+    """The dropper lengths solved for design pre-sag + errors, used on a mesh of half the element
+    size: the contact-wire height at each dropper is the erroneous one (1 mm standard deviation:
+    every dropper still hangs in tension) within 0.5 mm, and differs from the design by what was
+    drawn."""
+    from pac_plant.catenary.imperfections import apply_imperfections
+
+    f = load_catenary("benchmark_55m")
+    data = apply_imperfections(f.data, 0.001, 0.0, 3)
+    coarse = Line(data, f.numerics, n_spans=10)
+    fine = Line(data, dataclasses.replace(f.numerics, element_size=0.25), n_spans=10)
+    fine.set_dropper_lengths(coarse.droppers.length0)
+    measured = np.array([-fine.static_height(float(x)) for x in coarse.droppers.x])
+    assert np.all(coarse.droppers.static_tension > 0.0)
+    assert np.abs(measured - coarse.droppers.target_sag).max() < 5e-4
+    design = np.tile(f.data.presag, 10)
+    assert 0.0007 < np.std(measured - design) < 0.0013
+
+
+def test_a_worn_contact_wire_has_the_tensioned_beam_frequencies_of_its_reduced_section():
+    from pac_plant.catenary.imperfections import apply_imperfections
+
+    f = load_catenary("benchmark_55m")
+    wear = 0.2
+    line = Line(
+        apply_imperfections(f.data, 0.0, wear, 0), f.numerics, n_spans=1, droppers=False, supports=False
+    )
+    c = f.data.contact
+    rho, ei = c.rho * (1 - wear), c.ei * (1 - wear) ** 2  # the stated rule, from the new wire's data
+    n = np.arange(1, 11)
+    k = n * math.pi / line.length
+    analytic = n / (2 * line.length) * math.sqrt(c.tension / rho) * np.sqrt(1 + ei * k**2 / c.tension)
+    assert _pinned_frequencies(line, (WC, RC), 10) == pytest.approx(analytic, rel=1e-7)
+
+
+def test_the_plant_runs_on_a_line_with_height_errors():
+    from pac_model.parameters import PantographParameters, TrackParameters
+    from pac_plant.fe_plant import FEPlant
+    from pac_plant.parameters import PlantOptions
+
+    options = PlantOptions(catenary_model="fe", fe_height_error=0.001, fe_imperfection_seed=4, fe_wear=0.1)
+    plant = FEPlant(PantographParameters(), TrackParameters(speed_kmh=250.0), None, options, 1e-3)
+    assert len(plant.data.spans) == 10 and plant.line.n_spans == 30  # 3 periods of 10 spans
+    assert plant.data.contact.rho == pytest.approx(0.9 * 1.35)
+    for _ in range(100):
+        plant.advance(120.0)
+    assert math.isfinite(plant.truth().contact_force)
+    # Errors large enough to leave droppers pushing at rest are refused (the static state assumes
+    # taut droppers): 5 mm on this line compresses some of them.
+    from pac_common.parameters import ParameterError
+
+    with pytest.raises(
+        ParameterError, match=r"'fe_height_error' = 0.005: allowed a line whose droppers all hang"
+    ):
+        FEPlant(
+            PantographParameters(),
+            TrackParameters(),
+            None,
+            PlantOptions(catenary_model="fe", fe_height_error=0.005, fe_imperfection_seed=4),
+            1e-3,
+        )

@@ -22,11 +22,13 @@ import math
 
 import numpy as np
 
+from pac_common.parameters import ParameterError
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
 from .catenary import kernels
 from .catenary.catenary_file import load_catenary
 from .catenary.data import CatenaryData, NumericalOptions
+from .catenary.imperfections import apply_imperfections
 from .catenary.integrator import ContactSimulation
 from .catenary.line import Line
 from .catenary.pantographs import paper_pantograph
@@ -70,9 +72,25 @@ class FEPlant(Plant):
         else:
             numerics = NumericalOptions()
         numerics = dataclasses.replace(numerics, element_size=options.fe_element_size)
+        data = apply_imperfections(
+            data, options.fe_height_error, options.fe_wear, options.fe_imperfection_seed
+        )
         self.data = data
         periods, start = window_periods(data)
         self.line = Line(self.data, numerics, n_spans=periods * len(data.spans))
+        pushing = int(np.count_nonzero(self.line.droppers.static_tension <= 0.0))
+        if pushing:  # the static state assumes taut droppers: a dropper cannot push
+            name, value = (
+                ("fe_height_error", options.fe_height_error)
+                if options.fe_height_error > 0.0
+                else ("catenary", options.catenary)
+            )
+            raise ParameterError(
+                name,
+                value,
+                f"a line whose droppers all hang in tension at rest ({pushing} of "
+                f"{len(self.line.droppers.node)} would be compressed)",
+            )
         self._flex = self.line.element_flexibility()
         self.sim = ContactSimulation(
             self.line,

@@ -60,6 +60,26 @@ class PlantOptions(ParameterSet):
         0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
     )
 
+    fe_height_error: float = parameter(
+        0.0,
+        "fe: standard deviation of the contact-wire height error at each dropper (0: none; seeded by "
+        "fe_imperfection_seed; drawn over 10 spans, repeating on the endless line; docs/catenary.md: "
+        "Imperfections)",
+        "m",
+        low=0.0,
+        high=0.05,
+    )
+    fe_wear: float = parameter(
+        0.0,
+        "fe: fraction of the contact wire's section worn away (mass x (1 - wear), EI x (1 - wear)^2; "
+        "0: new wire)",
+        low=0.0,
+        high=0.5,
+    )
+    fe_imperfection_seed: int = parameter(
+        0, "fe: seed of the height errors (the same seed gives the same line)", low=0
+    )
+
     def check_consistency(self) -> None:
         from .catenary.catenary_file import load_catenary
 
