@@ -11,6 +11,7 @@ from pac_controller.reference import ForceReference
 from pac_experiments.bench import allocations_per_tick, loop_allocations
 from pac_experiments.reproduce import COMMON
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_observer.contact_force import BANK_ARGS
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Plant
 from pac_rig.closed_loop import run
@@ -93,8 +94,9 @@ def test_compiled_tick_allocates_nothing():
     counts = loop_allocations()  # in a fresh process with NUMBA_NRT_STATS=1
     assert len(counts) == len(LAW_NAMES)  # every law, line_adaptive included
     # The call's array arguments, not its ticks: the six records, noise and output, the FE line's
-    # buffers (empty on the lumped line) and the law's two tables.
-    arguments = 8 + len(FE_ARGS) + 2
+    # buffers (empty on the lumped line), the contact-force bank's (empty for the paper's observer)
+    # and the law's two tables.
+    arguments = 8 + len(FE_ARGS) + len(BANK_ARGS) + 2
     for law, calls in counts.items():
         assert calls["9980 ticks"] == calls["10 ticks"], (law, calls)
         assert calls["10 ticks"][0] <= arguments, (law, calls)

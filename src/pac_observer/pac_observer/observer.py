@@ -81,8 +81,10 @@ OBSERVER_STATE = np.dtype(
         ("step", "f8", (3, 1)),
         ("innovation", "f8", 2),  # a priori y - C z_hat of the last period
         ("z_hat", "f8", 4),  # z_hat = xi + Lambda theta_hat after the last update
-        # observer:=contact_force (pac_observer.contact_force): its state x and the prediction x^-
-        ("cf_x", "f8", 5),
+        # observer:=contact_force (pac_observer.contact_force; the filters' states are its bank's
+        # arrays): the selected filter, its F_hat, and the prediction x^- (scratch)
+        ("cf_selected", "i8"),
+        ("cf_force", "f8"),
         ("cf_pred", "f8", 5),
     ]
 )
@@ -102,10 +104,9 @@ OBSERVER_CONSTS = np.dtype(
         ("m1", "f8"),
         ("m2", "f8"),
         ("kind", "i8"),  # ADAPTIVE or CONTACT_FORCE: which observer the records are
-        # observer:=contact_force: the sampled model and its steady-state Kalman gain
-        ("cf_phi", "f8", (5, 5)),
-        ("cf_gamma", "f8", 5),
-        ("cf_gain", "f8", (5, 2)),
+        # observer:=contact_force (the filters' Phi, Gamma, K are its bank's arrays)
+        ("cf_forget", "f8"),  # lam = exp(-dt / frame_mass_window)
+        ("cf_inv_r2", "f8"),  # 1 / position_noise^2
     ]
 )
 #: OBSERVER_CONSTS.kind

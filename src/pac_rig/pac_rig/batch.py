@@ -32,7 +32,9 @@ TRACES = (
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _run_one(ticks, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) -> tuple[int, int, float]:
+def _run_one(
+    ticks, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+) -> tuple[int, int, float]:
     """One scenario, tick by tick by :func:`pac_rig.loop.loop_tick`, its TRACES into ``out``
     (len(TRACES) x ticks); (ticks reached, divergence code, value).
 
@@ -45,7 +47,9 @@ def _run_one(ticks, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) 
     p, s, o, q, c, d = pp[0], ps[0], oc[0], os[0], cp[0], cs[0]
     for k in range(ticks):
         j = 0 if quiet else k
-        code, value = loop_tick(k, p, s, fe_args, o, q, c, d, table, memory, noise[j, 0], noise[j, 1], rec)
+        code, value = loop_tick(
+            k, p, s, fe_args, o, q, bank, c, d, table, memory, noise[j, 0], noise[j, 1], rec
+        )
         if code:
             return k, code, value
         out[0, k], out[1, k], out[2, k] = rec.contact_force, rec.force_reference, rec.u

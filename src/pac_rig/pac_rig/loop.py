@@ -188,16 +188,16 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
 
 
 @njit(cache=True, error_model="numpy")
-def _observer_update(k, t, oc, os, y1, y2, u_applied, out) -> int:
+def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
     """The observer at tick k (eq. (17), or the contact-force filter); the estimate into ``out``."""
     if oc.kind == CONTACT_FORCE:
         if k == 0:
-            contact_force_start(os, y1, y2)
+            contact_force_start(os, bank, y1, y2)
         else:
-            status = contact_force_advance(os, y1, y2, 1, u_applied, oc)
+            status = contact_force_advance(os, oc, bank, y1, y2, 1, u_applied)
             if status:
                 return status
-        out.stiffness_hat, out.contact_force_hat = 0.0, os.cf_x[4]
+        out.stiffness_hat, out.contact_force_hat = 0.0, os.cf_force
     else:
         if k == 0:
             observer_start(os, y1, y2)
@@ -214,12 +214,13 @@ def _observer_update(k, t, oc, os, y1, y2, u_applied, out) -> int:
 
 
 @njit(cache=True, error_model="numpy")
-def loop_tick(k, pp, ps, fe_args, oc, os, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
+def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
     """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
 
     Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
     tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
     ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
+    ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
     ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``).  n1, n2: this
     tick's sensor noise.  The order of operations is that of ``closed_loop.run_cores`` and of
     the nodes.
@@ -227,7 +228,7 @@ def loop_tick(k, pp, ps, fe_args, oc, os, cp, cs, table, memory, n1, n2, out) ->
     y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
     if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
         return DISPLACEMENT, y1
-    status = _observer_update(k, out.time, oc, os, y1, y2, ps.u_applied, out)
+    status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
     if status:
         return status, np.nan
     # Controller: law and safety chain.
@@ -252,7 +253,9 @@ def loop_tick(k, pp, ps, fe_args, oc, os, cp, cs, table, memory, n1, n2, out) ->
 
 
 @njit(cache=True, error_model="numpy")
-def run_ticks(k0, k1, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) -> tuple[int, int, float]:
+def run_ticks(
+    k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+) -> tuple[int, int, float]:
     """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
 
     ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
@@ -260,7 +263,7 @@ def run_ticks(k0, k1, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out
     for k in range(k0, k1):
         i = min(k - k0, noise.shape[0] - 1)
         code, value = loop_tick(
-            k, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+            k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
         )
         if code:
             return k, code, value
@@ -268,15 +271,26 @@ def run_ticks(k0, k1, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def run_block(k0, k1, pp, ps, fe_args, oc, os, cp, cs, table, memory, noise, out) -> tuple[int, int, float]:
+def run_block(
+    k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+) -> tuple[int, int, float]:
     """:func:`run_ticks` on the records of 1-element arrays (how Python hands them over)."""
-    return run_ticks(k0, k1, pp[0], ps[0], fe_args, oc[0], os[0], cp[0], cs[0], table, memory, noise, out)
+    return run_ticks(
+        k0, k1, pp[0], ps[0], fe_args, oc[0], os[0], bank, cp[0], cs[0], table, memory, noise, out
+    )
 
 
 #: FE_ARGS of the lumped line: empty arrays of the FE line's types (one compiled loop for both).
 NO_FE = (
     np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64),
     np.zeros((0, 4), np.int64), np.zeros((0, 4, 4)), np.zeros(0),
+)  # fmt: skip
+
+
+#: The bank of the paper's observer (it has none): empty arrays of the contact-force bank's types.
+NO_BANK = (
+    np.zeros((0, 5, 5)), np.zeros((0, 5)), np.zeros((0, 5, 2)), np.zeros((0, 5)), np.zeros(0),
+    np.zeros((0, 2)),
 )  # fmt: skip
 
 
@@ -290,6 +304,7 @@ class CompiledLoop:
     fe_args: tuple
     observer_consts: np.ndarray
     observer_state: np.ndarray
+    bank: tuple
     controller_params: np.ndarray
     controller_state: np.ndarray
     table: np.ndarray
@@ -299,7 +314,7 @@ class CompiledLoop:
         """The records and arrays in the order :func:`loop_tick` takes them (after the tick)."""
         return (
             self.plant_params, self.plant_state, self.fe_args, self.observer_consts, self.observer_state,
-            self.controller_params, self.controller_state, self.table, self.memory,
+            self.bank, self.controller_params, self.controller_state, self.table, self.memory,
         )  # fmt: skip
 
     def run(self, k0: int, k1: int, noise: np.ndarray, out: np.ndarray) -> tuple[int, int, float]:
@@ -353,8 +368,12 @@ def compile_loop(
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
     memory = law.memory.copy()
+    if isinstance(observer, ContactForceObserver):
+        bank = tuple(np.ascontiguousarray(a).copy() for a in observer.bank)
+    else:
+        bank = NO_BANK
     return CompiledLoop(
-        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), cp, cs, law.table, memory
+        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), bank, cp, cs, law.table, memory
     )
 
 
