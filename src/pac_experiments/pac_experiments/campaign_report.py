@@ -17,15 +17,15 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import LogNorm
 
-from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria  # noqa: E402
+from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria
 
-from .campaign_run import STATUS_OK  # noqa: E402
-from .campaign_spec import Spec, grid_keys  # noqa: E402
-from .campaign_spec import same_value as _same  # noqa: E402
+from .campaign_run import STATUS_OK
+from .campaign_spec import Spec, grid_keys
+from .campaign_spec import same_value as _same
 
 SPEED = "speed_kmh"
 #: (mean, sigma, Fm - 3 sigma, contact loss) columns of the rows, by the SPEC's ``statistics``.

@@ -23,16 +23,16 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from pac_common import jsonio  # noqa: E402
-from pac_common.contact_statistics import lowpass  # noqa: E402
+from pac_common import jsonio
+from pac_common.contact_statistics import lowpass
 
-from .campaign_results import read_done  # noqa: E402
-from .campaign_run import en50318_measures  # noqa: E402
-from .campaign_spec import Point, expand, load_spec  # noqa: E402
-from .fe_experiment import OUT, SIGMA, SPEC, case_of, passive_for  # noqa: E402
+from .campaign_results import read_done
+from .campaign_run import en50318_measures
+from .campaign_spec import Point, expand, load_spec
+from .fe_experiment import OUT, SIGMA, SPEC, case_of, passive_for
 
 LIVE_OUT = Path("reports/catenary/live")
 #: The goal: live sigma within this fraction of the offline sigma.
