@@ -26,7 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -205,6 +205,15 @@ def batch_speed(runs: int, threads: int) -> tuple[float, float]:
     return result.simulated_seconds / result.wall_seconds, result.wall_seconds
 
 
+def _note_first_arrival(first: dict[str, float], topic: str) -> Callable[[Any], None]:
+    """A subscription callback: the monotonic time of ``topic``'s first message into ``first``."""
+
+    def note(_msg: Any) -> None:
+        first.setdefault(topic, time.monotonic())
+
+    return note
+
+
 def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """Seconds from ``Popen`` of each loop node to the first message it publishes.
 
@@ -234,9 +243,7 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
         pubs = {}
         for topic, typename in types.items():
             cls = getattr(pac_msg, typename)
-            node.create_subscription(
-                cls, topic, lambda _m, t=topic: first.setdefault(t, time.monotonic()), LOOP_QOS
-            )
+            node.create_subscription(cls, topic, _note_first_arrival(first, topic), LOOP_QOS)
             pubs[topic] = node.create_publisher(cls, topic, PUBLISH_QOS)
         try:
             for _ in range(repeats):
@@ -289,6 +296,8 @@ def lumped_tick(repeats: int) -> tuple[float, float]:
     for _ in range(repeats):
         s = scenario_from_flat({"duration": 10.0})
         loop = compile_loop(*build_cores(s), s.loop.command_delay_ticks)
+        if loop is None:
+            raise RuntimeError("the default scenario has no compiled loop")
         out = np.empty(s.loop.ticks, TICK)
         noise = np.zeros((1, 2))
         loop.run(0, 10, noise, out)  # loads the compiled code
@@ -325,6 +334,8 @@ def count_allocations() -> None:
         s = scenario_from_flat(values)
         plant, observer, controller = build_cores(s)
         loop = compile_loop(plant, observer, controller, 2)
+        if loop is None:
+            raise RuntimeError(f"law {law}: no compiled loop (not a kernel law?)")
         noise = plant.noise_rows(0, s.loop.ticks)
         out = np.empty(s.loop.ticks, TICK)
         loop.run(0, 10, noise, out)  # compiles or loads, outside the count

@@ -89,6 +89,11 @@ class FEPlant(Plant):
             datum, rate = self.datum, 0.0
         return np.array([p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate])
 
+    @z.setter
+    def z(self, value: np.ndarray) -> None:
+        # Plant.z is a plain attribute; here it follows from the FE state and cannot be set.
+        raise AttributeError("FEPlant.z follows from the FE state: it cannot be set")
+
     def stiffness_at(self, t: float | None = None) -> float:
         """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""
         return float(self._readings[kernels.STATIC_STIFFNESS])
