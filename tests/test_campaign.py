@@ -158,6 +158,25 @@ def test_resume_runs_only_what_is_not_done(tmp_path, client, monkeypatch):
     assert len(read_rows(out)) == 6
 
 
+@pytest.mark.unit
+def test_runs_jsonl_is_strict_json_and_a_nan_measure_reads_back_as_nan(tmp_path):
+    row = {"key": "k1", "status": "ok", "reason": "", "law": "passive", "du_dt_max_abs": float("nan")}
+    row["contact_force_std"] = 3.5
+    line = campaign_results.runs_line(row)
+    assert line.endswith("\n") and line.count("\n") == 1
+
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"not strict JSON: {constant}")
+
+    assert json.loads(line, parse_constant=refuse)["du_dt_max_abs"] is None
+    (tmp_path / campaign_results.RUNS_FILE).write_text(line)
+    back = campaign_results.read_done(tmp_path)["k1"]
+    assert np.isnan(back["du_dt_max_abs"]) and back["contact_force_std"] == 3.5
+    assert {k: v for k, v in back.items() if k != "du_dt_max_abs"} == {
+        k: v for k, v in row.items() if k != "du_dt_max_abs"
+    }
+
+
 def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     """The compiled batch serves every lumped run of a law with a kernel; every row equals the row of the
     same point stepped tick by tick through the core objects (no compiled loop at all)."""

@@ -26,7 +26,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from pac_common import jsonio
+from pac_common import jsonio, markdown
 from pac_common.contact_statistics import lowpass
 
 from .campaign_results import read_done
@@ -217,6 +217,25 @@ def write_up(
         "timing": timing.as_dict(),
     }
     jsonio.write(args.out / "live.json", result)
+    offline_mean = float(offline["en50318_contact_force_mean"]) if offline else math.nan
+    met = "met" if result["sigma_within_10_percent"] else "not met"
+    rows = [
+        ["Fm [N]", f"{live['en50318_contact_force_mean']:.2f}", f"{offline_mean:.2f}"],
+        ["σ [N] (20 Hz)", f"{sigma_live:.2f}", f"{sigma_off:.2f}"],
+        ["σ live vs offline", f"{100 * deviation:+.1f} % (goal: within ±10 %: {met})", ""],
+        [
+            f"σ vs the offline passive run ({sigma_passive:.2f} N)",
+            f"{100 * (sigma_live - sigma_passive) / sigma_passive:+.1f} %",
+            f"{100 * (sigma_off - sigma_passive) / sigma_passive:+.1f} %",
+        ],
+        ["contact loss [%]", f"{live['en50318_contact_loss_percent']:.2f}", ""],
+        ["max |u| [N]", f"{np.nanmax(np.abs(s['u'])):.0f}", ""],
+        [
+            "plant ticks in the bag",
+            f"{raw.ticks_recorded} of {expected} ({'every tick' if every_tick else 'NOT every tick'})",
+            "",
+        ],
+    ]
     text = "\n".join(
         [
             f"# Live: the four-process rig in real time on the FE line, `{args.law}` at {args.speed:g} km/h",
@@ -226,20 +245,7 @@ def write_up(
             f"{duration:g} s, statistics over the same whole spans as offline, t in "
             f"[{point.window[0]:.3f}, {point.window[1]:.3f}] s.",
             "",
-            "| | live | offline (campaign) |",
-            "|---|---:|---:|",
-            f"| Fm [N] | {live['en50318_contact_force_mean']:.2f} | "
-            f"{float(offline['en50318_contact_force_mean']) if offline else math.nan:.2f} |",
-            f"| σ [N] (20 Hz) | {sigma_live:.2f} | {sigma_off:.2f} |",
-            f"| σ live vs offline | {100 * deviation:+.1f} % (goal: within ±10 %: "
-            f"{'met' if result['sigma_within_10_percent'] else 'not met'}) | |",
-            f"| σ vs the offline passive run ({sigma_passive:.2f} N) | "
-            f"{100 * (sigma_live - sigma_passive) / sigma_passive:+.1f} % | "
-            f"{100 * (sigma_off - sigma_passive) / sigma_passive:+.1f} % |",
-            f"| contact loss [%] | {live['en50318_contact_loss_percent']:.2f} | |",
-            f"| max \\|u\\| [N] | {np.nanmax(np.abs(s['u'])):.0f} | |",
-            f"| plant ticks in the bag | {raw.ticks_recorded} of {expected} "
-            f"({'every tick' if every_tick else 'NOT every tick'}) | |",
+            markdown.table(["", "live", "offline (campaign)"], rows, ["l", "r", "r"]),
             "",
             "## Loop timing (from the bag)",
             "",
