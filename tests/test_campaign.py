@@ -288,6 +288,41 @@ def test_bad_spec_fails_before_any_run_with_one_line(tmp_path, text, expected):
     assert not out.exists()  # nothing ran, nothing was written
 
 
+def test_a_spec_with_several_errors_names_each_once_before_any_run(tmp_path):
+    """Every error in one go, one line each (key, value, what is allowed): an unknown key, a bad
+    'statistics', a fixed value out of range (refused at every point: said once) and a grid value
+    out of range in a point that has the fixed error too."""
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(
+        yaml.safe_dump(
+            {
+                **GOOD,
+                "grid": {"speed_kmh": [300.0, 900.0]},
+                "fixed": {"duration": 0.5, "c1": -1.0},
+                "statistics": "median",
+                "colour": "red",
+            }
+        )
+    )
+    out = tmp_path / "out"
+    result = _cli(str(spec), "--out", str(out), "--workers", "0")
+    assert result.returncode == 2, result.stderr
+    assert result.stdout == ""
+    lines = result.stderr.strip().splitlines()
+    expected = [
+        "invalid option '--workers' = 0: allowed an integer >= 1",
+        "unknown key 'colour' = 'red' (allowed: ",
+        "'statistics' = 'median': allowed raw, en50318",
+        "invalid parameter 'c1' = -1.0: allowed",
+        "invalid parameter 'speed_kmh' = 900.0: allowed",
+    ]
+    assert len(lines) == len(expected), result.stderr
+    assert all(line.startswith("campaign: ") for line in lines), result.stderr
+    for text in expected:
+        assert sum(text in line for line in lines) == 1, (text, result.stderr)
+    assert not out.exists()  # nothing ran, nothing was written
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -452,7 +452,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         print(write(args.spec, args.out, args.law, traces_runs=not args.no_traces))
     except SpecError as exc:
-        print(f"fe_experiment: {exc}", file=sys.stderr)
+        for line in exc.errors:
+            print(f"fe_experiment: {line}", file=sys.stderr)
         return 2
     return 0
 
