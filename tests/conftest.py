@@ -4,8 +4,10 @@ Every test that touches DDS gets its own ROS domain and cleans up its processes.
 has a kind (pytest.ini): ``unit``, ``offline`` or ``live``, set per module with
 ``pytestmark = pytest.mark.<kind>`` (or on a test); a test that uses a fixture that starts ROS
 processes (``domain_id``, ``rigs``, test_cli's ``live``: LIVE_FIXTURES) is ``live`` whatever its
-module says.  ``make test-fast`` runs
-``unit or offline`` without ``live``; ``make test`` runs them all.
+module says.  ``slow`` (beside the kind) marks a unit or offline test that takes seconds: a tool
+started as a process, a Dask cluster, a long simulation.  ``make test-fast`` runs
+``unit or offline`` without ``live`` and without ``slow`` (under a minute); ``make test`` runs
+them all.
 """
 
 import contextlib
@@ -83,6 +85,23 @@ def pytest_collection_modifyitems(config, items):
 
 
 # -- helpers shared by several test modules ------------------------------------------------------
+#: The repository's root (the tests' parent folder).
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def repository_files(*patterns: str) -> list[Path]:
+    """The repository's files matching git pathspecs ``patterns``, tracked or new, not ignored
+    (build outputs and bags are not the project's text)."""
+    out = subprocess.run(
+        ["git", "ls-files", "--cached", "--others", "--exclude-standard", *patterns],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    return [ROOT / f for f in out if (ROOT / f).is_file()]
+
+
 #: The physics fields of each loop topic (what a lock-step run and the offline simulator share).
 PHYSICS = {
     "measurement": ["z1", "z2", "actuator_force"],

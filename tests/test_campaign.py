@@ -68,6 +68,7 @@ def client():
     cluster.close()
 
 
+@pytest.mark.slow
 def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path, client, monkeypatch):
     spec_path = write_spec(
         tmp_path / "spec.yaml",
@@ -177,6 +178,7 @@ def test_runs_jsonl_is_strict_json_and_a_nan_measure_reads_back_as_nan(tmp_path)
     }
 
 
+@pytest.mark.slow
 def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     """The compiled batch serves every lumped run of a law with a kernel; every row equals the row of the
     same point stepped tick by tick through the core objects (no compiled loop at all)."""
@@ -239,6 +241,16 @@ def _cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
     )
 
 
+def _main(capsys, *args: str) -> tuple[int, str, str]:
+    """campaign's ``main`` in this process (what ``python -m pac_experiments.campaign`` runs, without
+    a new interpreter): (exit status, stdout, stderr)."""
+    from pac_experiments.campaign import main
+
+    code = main(list(args))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
 GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WINDOW}
 
 
@@ -275,20 +287,20 @@ GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WI
         "missing",
     ],
 )
-def test_bad_spec_fails_before_any_run_with_one_line(tmp_path, text, expected):
+def test_bad_spec_fails_before_any_run_with_one_line(tmp_path, capsys, text, expected):
     spec = tmp_path / "spec.yaml"
     if text is not None:
         spec.write_text(text)
     out = tmp_path / "out"
-    result = _cli(str(spec), "--out", str(out))
-    assert result.returncode == 2, result.stderr
-    assert result.stdout == ""
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("campaign: ") and expected in lines[0], result.stderr
+    code, stdout, stderr = _main(capsys, str(spec), "--out", str(out))
+    assert code == 2, stderr
+    assert stdout == ""
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("campaign: ") and expected in lines[0], stderr
     assert not out.exists()  # nothing ran, nothing was written
 
 
-def test_a_spec_with_several_errors_names_each_once_before_any_run(tmp_path):
+def test_a_spec_with_several_errors_names_each_once_before_any_run(tmp_path, capsys):
     """Every error in one go, one line each (key, value, what is allowed): an unknown key, a bad
     'statistics', a fixed value out of range (refused at every point: said once) and a grid value
     out of range in a point that has the fixed error too."""
@@ -305,10 +317,10 @@ def test_a_spec_with_several_errors_names_each_once_before_any_run(tmp_path):
         )
     )
     out = tmp_path / "out"
-    result = _cli(str(spec), "--out", str(out), "--workers", "0")
-    assert result.returncode == 2, result.stderr
-    assert result.stdout == ""
-    lines = result.stderr.strip().splitlines()
+    code, stdout, stderr = _main(capsys, str(spec), "--out", str(out), "--workers", "0")
+    assert code == 2, stderr
+    assert stdout == ""
+    lines = stderr.strip().splitlines()
     expected = [
         "invalid option '--workers' = 0: allowed an integer >= 1",
         "unknown key 'colour' = 'red' (allowed: ",
@@ -316,10 +328,10 @@ def test_a_spec_with_several_errors_names_each_once_before_any_run(tmp_path):
         "invalid parameter 'c1' = -1.0: allowed",
         "invalid parameter 'speed_kmh' = 900.0: allowed",
     ]
-    assert len(lines) == len(expected), result.stderr
-    assert all(line.startswith("campaign: ") for line in lines), result.stderr
+    assert len(lines) == len(expected), stderr
+    assert all(line.startswith("campaign: ") for line in lines), stderr
     for text in expected:
-        assert sum(text in line for line in lines) == 1, (text, result.stderr)
+        assert sum(text in line for line in lines) == 1, (text, stderr)
     assert not out.exists()  # nothing ran, nothing was written
 
 
@@ -385,6 +397,7 @@ def dask_cluster(tmp_path):
         assert all(p.poll() is not None for p in procs)
 
 
+@pytest.mark.slow
 def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
     address, _ = dask_cluster
     spec = write_spec(
@@ -411,6 +424,7 @@ def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
     assert "5 run (1 diverged or failed), 0 lost" in remote.stdout
 
 
+@pytest.mark.slow
 def test_embedded_cluster_listens_on_loopback_only():
     import psutil
 
@@ -426,6 +440,7 @@ def test_embedded_cluster_listens_on_loopback_only():
         cluster.close()
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
     """SIGINT to the whole process group (a terminal's Ctrl-C, workers included).
 
@@ -479,6 +494,7 @@ def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
     assert len(read_rows(out)) == 48
 
 
+@pytest.mark.slow
 def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
     """One of the two workers is killed (SIGKILL, with its nanny) mid-campaign: Dask re-runs its
     tasks on the other one; every row is there once and equals a run on an intact cluster."""

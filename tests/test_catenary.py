@@ -22,6 +22,7 @@ def line10():
     return Line()
 
 
+@pytest.mark.slow
 def test_static_sag_meets_the_target_presag_at_every_dropper(line10):
     dr = line10.droppers
     achieved = -line10.w_static[dr.wc]
@@ -32,6 +33,7 @@ def test_static_sag_meets_the_target_presag_at_every_dropper(line10):
     assert np.min(line10.w_static[dr.wm]) < -0.3
 
 
+@pytest.mark.slow
 def test_transverse_wave_speed_is_sqrt_t_over_rho():
     """A pulse on the bare contact wire (no droppers, no supports) travels at sqrt(T / rho) within 2 %."""
     line = Line(n_spans=2, droppers=False, supports=False, options=NumericalOptions(element_size=0.25))
@@ -185,6 +187,7 @@ def _passive_sigma(h: float, dt: float) -> float:
     return stats.contact_force_std
 
 
+@pytest.mark.slow
 def test_mesh_and_step_convergence_of_contact_force_sigma():
     """Halving the element size and the time step together changes sigma by less than 2 %."""
     coarse = _passive_sigma(0.5, 1e-3)
@@ -193,6 +196,7 @@ def test_mesh_and_step_convergence_of_contact_force_sigma():
     assert fine > 5.0  # a real dynamic response
 
 
+@pytest.mark.slow
 def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     """FEPlant (catenary_model fe): slow run under a held u, F -> u, truth consistent with the line."""
     from pac_common import messages
@@ -226,6 +230,7 @@ def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     assert fields["contact_uplift"] == truth.contact_uplift and math.isfinite(fields["support_uplift"])
 
 
+@pytest.mark.slow
 def test_endless_window_equals_a_long_fixed_line():
     """A 6-span moving window over 5 spans (3 shifts) gives the contact force of a fixed 12-span line."""
     forces = {}
@@ -296,6 +301,7 @@ def _assert_same_state(fast, ref):
     assert fast.x == ref.x and fast.offset == ref.offset
 
 
+@pytest.mark.slow
 def test_compiled_step_equals_the_numpy_step_on_random_states():
     """Random line and pantograph states (contact on and off, droppers slack and taut, the window
     shift due): one compiled step equals one numpy step to rounding."""
@@ -370,6 +376,7 @@ def test_fast_kernels_equal_the_banded_reference():
             assert np.max(np.abs(outside)) < 1e-19 * peak
 
 
+@pytest.mark.slow
 def test_compiled_reference_run_equals_the_numpy_run():
     """The 300 km/h reference run (10-span line, 3-mass, passive): contact force, uplift and
     slack droppers of the compiled path equal the numpy path's over the whole run."""

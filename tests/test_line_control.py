@@ -79,6 +79,7 @@ def test_contact_force_observer_follows_the_lumped_lines_force():
 
 
 @pytest.mark.timeout(900)  # an FE run: minutes on a loaded machine
+@pytest.mark.slow
 def test_contact_force_estimate_error_on_the_fe_line():
     """The estimate against the FE plant's penalty force (PlantTruth.contact_force): < 10 % of sigma_F.
 
@@ -95,6 +96,7 @@ def test_contact_force_estimate_error_on_the_fe_line():
 
 
 @pytest.mark.timeout(1800)  # two 12-span FE runs
+@pytest.mark.slow
 def test_line_adaptive_lowers_sigma_against_passive_on_the_fe_line():
     """300 km/h, 12 spans: over spans 9..11 sigma at least 20 % below the passive run's (same window)."""
     spans = 12
@@ -240,6 +242,7 @@ def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_
     assert np.max(np.abs(u[1200:] - f_r[1200:])) > 1.0  # the learned feedforward did act
 
 
+@pytest.mark.slow
 def test_line_adaptive_on_the_lumped_line_with_the_papers_observer():
     """The lumped line of eq. (7) at 360 km/h, F_hat = k_hat z1 of eq. (17): F - F_r over 8..10 s
     at most half the passive pantograph's (measured 15.8 vs 52.5 N RMS)."""
