@@ -3,6 +3,7 @@ and a separate Dask cluster (scheduler + workers as processes) gives the embedde
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -440,6 +441,38 @@ def test_embedded_cluster_listens_on_loopback_only():
         cluster.close()
 
 
+@contextlib.contextmanager
+def campaign_running(spec: Path, out: Path, *extra: str):
+    """``campaign SPEC --out OUT --chunk-size 1 EXTRA`` in its own process group, given once two
+    runs are in runs.jsonl (or it ended, or 120 s passed); killed with its group on exit if still
+    running, pass or fail."""
+    args = [
+        sys.executable,
+        "-m",
+        "pac_experiments.campaign",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1",
+    ]
+    proc = subprocess.Popen(
+        [*args, *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = out / "runs.jsonl"
+            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+
+
 @pytest.mark.slow
 def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
     """SIGINT to the whole process group (a terminal's Ctrl-C, workers included).
@@ -457,32 +490,9 @@ def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
         },
     )
     out = tmp_path / "out"
-    args = [
-        sys.executable,
-        "-m",
-        "pac_experiments.campaign",
-        str(spec),
-        "--out",
-        str(out),
-        "--chunk-size",
-        "1",
-    ]
-    proc = subprocess.Popen(
-        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
-    )
-    try:
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline and proc.poll() is None:
-            runs = out / "runs.jsonl"
-            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
-                break
-            time.sleep(0.05)
+    with campaign_running(spec, out) as proc:
         os.killpg(proc.pid, signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
     assert proc.returncode == 130, stderr
     assert "interrupted; re-run the same command to resume" in stderr
     kept = len((out / "runs.jsonl").read_text().splitlines())
@@ -508,33 +518,9 @@ def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
         },
     )
     out = tmp_path / "out"
-    args = [
-        sys.executable,
-        "-m",
-        "pac_experiments.campaign",
-        str(spec),
-        "--out",
-        str(out),
-        "--chunk-size",
-        "1",
-        "--scheduler",
-        address,
-        "--no-report",
-    ]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline and proc.poll() is None:
-            runs = out / "runs.jsonl"
-            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
-                break
-            time.sleep(0.05)
+    with campaign_running(spec, out, "--scheduler", address, "--no-report") as proc:
         os.killpg(workers[0].pid, signal.SIGKILL)
         stdout, stderr = proc.communicate(timeout=180)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
     assert proc.returncode == 0, stderr
     assert "12 runs, 0 already done, 12 run (0 diverged or failed), 0 lost" in stdout
     keys = [json.loads(line)["key"] for line in (out / "runs.jsonl").read_text().splitlines()]
