@@ -117,6 +117,28 @@ def first_per_tick(topic):
     return ticks, idx
 
 
+def assert_lockstep_equals_offline(
+    bag_path: Path, values: dict, offline_path: Path, columns: dict[str, list[str]] = PHYSICS
+) -> dict:
+    """A lock-step run's bag equals the offline simulator's run of the same scenario (``values``)
+    bit for bit: every tick of the run, in order, on each topic of ``columns`` (a re-sent sample
+    is recorded twice: its first copy counts). Returns the offline bag's topics."""
+    from pac_bag.reader import read_bag
+    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+    scenario = scenario_from_flat(values)
+    simulate_to_bag(scenario, offline_path)
+    live, offline = read_bag(bag_path).topics, read_bag(offline_path).topics
+    for topic, names in columns.items():
+        ticks, idx = first_per_tick(live[topic])
+        np.testing.assert_array_equal(ticks, np.arange(scenario.loop.ticks), err_msg=topic)
+        for column in names:
+            np.testing.assert_array_equal(
+                np.asarray(live[topic][column])[idx], offline[topic][column], err_msg=f"{topic}.{column}"
+            )
+    return offline
+
+
 def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[str, str], log: Path) -> None:
     """Start ``cmd``, wait until its log shows ``ready_text``, SIGINT it: it must exit 0.
 

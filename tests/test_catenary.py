@@ -254,8 +254,7 @@ def test_endless_window_equals_a_long_fixed_line():
 
 def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path):
     """plant_node with catenary_model fe, 4 processes over DDS in lock step == pac_rig.closed_loop."""
-    from pac_bag.reader import read_bag
-    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+    from conftest import assert_lockstep_equals_offline
 
     duration = 1.0
     fe = {"catenary_model": "fe", "speed_kmh": 300.0, "span_length": 55.0}
@@ -263,17 +262,10 @@ def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path
     rig.start()
     rig.wait_finished(timeout=180)
     assert set(rig.exit_codes().values()) == {0}, {n: p.log()[-500:] for n, p in rig.processes.items()}
-    simulate_to_bag(scenario_from_flat({"duration": duration, **fe}), tmp_path / "offline")
-    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
-    for topic, column in (
-        ("plant_truth", "contact_force"),
-        ("plant_truth", "contact_uplift"),
-        ("measurement", "z1"),
-        ("command", "u"),
-    ):
-        ticks = np.asarray(live[topic]["tick"])
-        _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
-        np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
+    columns = {"plant_truth": ["contact_force", "contact_uplift"], "measurement": ["z1"], "command": ["u"]}
+    offline = assert_lockstep_equals_offline(
+        rig.bag_path, {"duration": duration, **fe}, tmp_path / "offline", columns
+    )
     assert np.max(offline["plant_truth"]["contact_force"]) > 10.0  # the run pressed on the wire
 
 

@@ -231,8 +231,7 @@ def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_
     360 km/h, run-in 2 spans: the learned feedforward acts from 1.1 s on, so the bit-for-bit
     comparison covers a learning update and the commands it gives.
     """
-    from pac_bag.reader import read_bag
-    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+    from conftest import assert_lockstep_equals_offline
 
     duration = 1.8
     params = {
@@ -247,17 +246,10 @@ def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_
     rig.start()
     rig.wait_finished(timeout=240)
     assert set(rig.exit_codes().values()) == {0}, {n: p.log()[-500:] for n, p in rig.processes.items()}
-    simulate_to_bag(scenario_from_flat({"duration": duration, **params}), tmp_path / "offline")
-    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
-    for topic, column in (
-        ("plant_truth", "contact_force"),
-        ("estimate", "contact_force_hat"),
-        ("command", "u"),
-        ("command", "mode"),
-    ):
-        ticks = np.asarray(live[topic]["tick"])
-        _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
-        np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
+    columns = {"plant_truth": ["contact_force"], "estimate": ["contact_force_hat"], "command": ["u", "mode"]}
+    offline = assert_lockstep_equals_offline(
+        rig.bag_path, {"duration": duration, **params}, tmp_path / "offline", columns
+    )
     u = np.asarray(offline["command"]["u"])
     f_r = np.asarray(offline["command"]["force_reference"])
     assert np.max(np.abs(u[1200:] - f_r[1200:])) > 1.0  # the learned feedforward did act
