@@ -113,7 +113,7 @@ class PacNode(ManagedNode, Node):
             set_realtime_priority(self, scheduling[0].realtime_priority)
         self.health = NodeHealth(self, self._health_counters, diagnostics.RULES[self.HEALTH])
         lifecycle = self._sets.get(LifecycleOptions)
-        self.start_lifecycle(bool(lifecycle is not None and lifecycle.lifecycle))  # type: ignore[attr-defined]
+        self.start_lifecycle(isinstance(lifecycle, LifecycleOptions) and lifecycle.lifecycle)
 
     def _health_counters(self) -> dict[str, Any]:
         if not self.configured:
@@ -169,7 +169,10 @@ class PacNode(ManagedNode, Node):
 
     def parameters(self, cls: type[S]) -> S:
         """The current, validated values of one of the node's parameter sets."""
-        return self._sets[cls]  # type: ignore[return-value]
+        values = self._sets[cls]
+        if not isinstance(values, cls):  # the sets are keyed by their class: cannot happen
+            raise TypeError(f"{cls.__name__}'s values are a {type(values).__name__}")
+        return values
 
     def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
         """Hook: run-time changes, validated, about to take effect (``changed``: the new sets)."""
