@@ -1,6 +1,7 @@
 """README's result tables are the committed reports' numbers, to the digits printed: every figure
 of the "Results" table equals reports/reproduce/metrics.json (written by `make reproduce`); the
-campaign tables equal reports/campaigns/{laws_speeds,robustness}/results.csv (`make campaigns`)."""
+campaign tables equal reports/campaigns/{laws_speeds,robustness}/results.csv (`make campaigns`);
+the tables of the laws on the FE line are reports/catenary/laws/laws.md's (`make fe-experiment`)."""
 
 from __future__ import annotations
 
@@ -154,3 +155,27 @@ def test_readme_robustness_table_is_the_committed_campaign():
                 checked += 1
     assert wrong == []
     assert checked >= 25  # the table was read (7 values x 4 laws when this was written)
+
+
+def markdown_tables(text: str) -> list[str]:
+    """Every Markdown table of ``text``, as its block of consecutive ``|`` lines."""
+    tables, block = [], []
+    for line in [*text.splitlines(), ""]:
+        if line.startswith("|"):
+            block.append(line.rstrip())
+        elif block:
+            tables.append("\n".join(block))
+            block = []
+    return tables
+
+
+def test_readme_fe_laws_tables_are_the_committed_report():
+    """README's tables of the laws on the FE line are copied from reports/catenary/laws/laws.md
+    (written by `make fe-experiment`): each one appears there verbatim."""
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("**The control laws on the line**", 1)[1].split("**Reading.**", 1)[0]
+    report = markdown_tables((ROOT / "reports" / "catenary" / "laws" / "laws.md").read_text())
+    tables = markdown_tables(section)
+    assert len(tables) >= 2  # the goals and every law (the section was found and read)
+    for table in tables:
+        assert table in report, table.splitlines()[0]

@@ -104,8 +104,9 @@ class ContactSimulation:
         self._ddrop = np.ascontiguousarray(self._ydrop[dr.wm, :] - self._ydrop[dr.wc, :])
         self._kdrop = dr.stiffness.copy()
         self._e0 = dr.elongation0.copy()
-        self._drop_per_span = len(line.data.dropper_positions)
-        span = line.data.span
+        # The window shifts by whole periods of the line (one span where the spans are equal).
+        self._drop_per_span = line.droppers_per_period
+        span = line.period_length
         factors, starts, bounds = kn.chunk_factor(a_line)
         self.constants = StepConstants(
             m_pad=kn.pad_band(self._m),
@@ -138,7 +139,7 @@ class ContactSimulation:
                     self.c1,
                     line.length,
                     span,
-                    (line.n_spans // 2 + 1) * span,
+                    (line.n_periods // 2 + 1) * span,
                 ]
             ),
             indices=np.array(
@@ -146,7 +147,7 @@ class ContactSimulation:
                     pantograph.head,
                     pantograph.input,
                     int(endless),
-                    DOFS_PER_NODE * line.nodes_per_span,
+                    DOFS_PER_NODE * line.nodes_per_period,
                     self._drop_per_span,
                 ],
                 dtype=np.int64,
@@ -350,7 +351,7 @@ class ContactSimulation:
         dt, c0, c1 = self.dt, self.c0, self.c1
         d, v, a = self.d, self.v, self.a
         x_new = self.x + self.speed * dt
-        if self.endless and x_new > (self.line.n_spans // 2 + 1) * self.line.data.span:
+        if self.endless and x_new > (self.line.n_periods // 2 + 1) * self.line.period_length:
             self._shift_window()
             d, v, a = self.d, self.v, self.a
             x_new = self.x + self.speed * dt
@@ -476,12 +477,12 @@ class ContactSimulation:
 
     def _shift_window(self) -> None:
         """Move the window one span forward: states shift back one span, the new span is at rest."""
-        s = DOFS_PER_NODE * self.line.nodes_per_span
+        s = DOFS_PER_NODE * self.line.nodes_per_period
         self._unit_solutions.clear()
         for vec in (self.d, self.v, self.a):
             vec[:-s] = vec[s:].copy()
             vec[-s:] = 0.0
             vec[self.line.fixed] = 0.0
         self.slack = self.slack[self.slack >= self._drop_per_span] - self._drop_per_span
-        self.x -= self.line.data.span
-        self.offset += self.line.data.span
+        self.x -= self.line.period_length
+        self.offset += self.line.period_length
