@@ -79,6 +79,7 @@ def test_contact_force_observer_follows_the_lumped_lines_force():
 
 
 @pytest.mark.parametrize("mass_scale", [0.8, 1.2])
+@pytest.mark.slow
 def test_filter_bank_finds_the_frame_mass_and_keeps_the_estimate(mass_scale):
     """The plant's masses x0.8 / x1.2 (lumped line, F = k(t) z1 known to the test): the bank selects
     the filter with the plant's m2 within one step, and its F_hat error is a fraction of the single
