@@ -137,6 +137,7 @@ class LineAdaptiveLaw:
         self.s = np.zeros(h)
         self.z = np.zeros(h, dtype=np.complex128)
         self.start_tick: int | None = None  # the tick the law's spans count from
+        self.open_span: int | None = None  # the span whose sums are accumulating
         self.passive_var = 0.0
         self.passive_spans = 0
         self.recent_var = np.zeros(GUARD_SPANS)  # band variance of F_hat over the last learning spans
@@ -178,6 +179,11 @@ class LineAdaptiveLaw:
             self.start_tick = tick
         k = tick - self.start_tick
         n = self.period_ticks
+        if self.open_span is not None and k // n != self.open_span:
+            # The open span's last tick never came (no estimate for it, live): close it now, or its
+            # sums would run on into the next span and the next step be taken on two spans' worth.
+            self._end_of_span(self.open_span)
+        self.open_span = k // n
         phase = tick % n
         e = self._pending_error
         self.e_acc += (2.0 / n) * e * np.conj(self.basis[phase])
@@ -188,6 +194,7 @@ class LineAdaptiveLaw:
         self.e_mean += e / n
         if k % n == n - 1:
             self._end_of_span(k // n)
+            self.open_span = None
 
     def _end_of_span(self, span: int) -> None:
         # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
