@@ -107,6 +107,13 @@ class ContactSimulation:
         self._drop_per_span = len(line.data.dropper_positions)
         span = line.data.span
         factors, starts, bounds = kn.chunk_factor(a_line)
+        # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
+        # is < 1e-19 of the peak), what the update adds for a slack dropper.
+        width = min(n, 4 * (2 * kn.UNIT_REACH + 1))
+        drop_patches = np.empty((nd, width))
+        for j, node in enumerate(dr.node):
+            lo = kn.unit_start(n, width, int(node))
+            drop_patches[j] = g[j, lo : lo + width]
         self.constants = StepConstants(
             m_pad=kn.pad_band(self._m),
             chol=self._chol,
@@ -116,7 +123,7 @@ class ContactSimulation:
             x_nodes=np.ascontiguousarray(line.x),
             w_static=np.ascontiguousarray(line.w_static),
             ydrop=self._ydrop,
-            ydrop_t=g,
+            ydrop_patches=drop_patches,
             ddrop=self._ddrop,
             kdrop=self._kdrop,
             e0=self._e0,
@@ -164,11 +171,11 @@ class ContactSimulation:
             scalars=np.zeros(4),
             counters=np.zeros(7, dtype=np.int64),
             slack=np.zeros(nd, dtype=np.int64),
-            unit_patches=np.zeros((line.n_nodes, 2, min(n, 4 * (2 * kn.UNIT_REACH + 1)))),
+            unit_patches=np.zeros((line.n_nodes, 2, width)),
             unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
             work=np.zeros((2, n)),
             padded=np.zeros((2, n + 2 * kn.KD)),
-            chunk_work=np.zeros((factors.shape[0], factors.shape[2])),
+            chunk_work=np.zeros((factors.shape[0] + kn.CHUNKS, factors.shape[2])),
         )
         # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
         self._cf, self._ci, self._cl, views = kn.pack(tuple(self.constants), kn.CONSTANT_KINDS)
