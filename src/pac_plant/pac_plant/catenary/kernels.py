@@ -155,6 +155,8 @@ def newmark_rhs_mass(
     # z is made LAG blocks of eight rows ahead of the product that reads it (rows i-KD .. i+7+KD):
     # read back while still in the first-level cache, but after its stores have left the store
     # buffer (an unaligned load that straddles a pending vector store stalls).
+    nz = z.shape[0]
+    zp = zc = lanes.zeros()
     vc0, vc1, vc2 = lanes.splat(c0), lanes.splat(c1), lanes.splat(c2)
     valpha, vgm, vg = lanes.splat(alpha), lanes.splat(gm), lanes.splat(g)
     for i in range(0, whole + LAG * W, W):
@@ -172,12 +174,26 @@ def newmark_rhs_mass(
                 tail[r] = g * w1
         if i < LAG * W:
             continue
-        j = KD + i - LAG * W  # the product for rows i-LAG*8 .. +7: out[r] = sum of M[r, r+k] z[r+k]
-        acc = lanes.mul(lanes.load(mp, j), lanes.load(z, j))
-        for k in range(1, KD + 1):
-            acc = lanes.fma(lanes.load(mp, k * stride + j), lanes.load(z, j + k), acc)
-            acc = lanes.fma(lanes.load(mp, k * stride + j - k), lanes.load(z, j - k), acc)
-        lanes.store(out, i - LAG * W, acc)
+        # The product for rows r = i-LAG*8 .. +7: out[r] = sum of M[r, r+k] z[r+k] over the band,
+        # z[r+k] taken from the blocks before, at and after r by a shuffle (one load per block).
+        r = i - LAG * W
+        j = KD + r
+        if r == 0:  # (z has KD, not 8, zeros in front: nothing is read before it)
+            zp, zc = lanes.load_masked(z, j - W, 0, nz), lanes.load(z, j)
+        zn = lanes.load_masked(z, j + W, 0, nz)
+        acc = lanes.mul(lanes.load(mp, j), zc)
+        acc = lanes.fma(lanes.load(mp, stride + j), lanes.window(zc, zn, 1), acc)
+        acc = lanes.fma(lanes.load(mp, stride + j - 1), lanes.window(zp, zc, 7), acc)
+        acc = lanes.fma(lanes.load(mp, 2 * stride + j), lanes.window(zc, zn, 2), acc)
+        acc = lanes.fma(lanes.load(mp, 2 * stride + j - 2), lanes.window(zp, zc, 6), acc)
+        acc = lanes.fma(lanes.load(mp, 3 * stride + j), lanes.window(zc, zn, 3), acc)
+        acc = lanes.fma(lanes.load(mp, 3 * stride + j - 3), lanes.window(zp, zc, 5), acc)
+        acc = lanes.fma(lanes.load(mp, 4 * stride + j), lanes.window(zc, zn, 4), acc)
+        acc = lanes.fma(lanes.load(mp, 4 * stride + j - 4), lanes.window(zp, zc, 4), acc)
+        acc = lanes.fma(lanes.load(mp, 5 * stride + j), lanes.window(zc, zn, 5), acc)
+        acc = lanes.fma(lanes.load(mp, 5 * stride + j - 5), lanes.window(zp, zc, 3), acc)
+        lanes.store(out, r, acc)
+        zp, zc = zc, zn
     for r in range(whole, n):  # the rows left over (M[r, r-k] = mp[k, KD+r-k])
         j = KD + r
         acc = mp[0, j] * z[j]

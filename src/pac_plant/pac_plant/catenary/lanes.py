@@ -338,3 +338,20 @@ def transpose(typingctx, rows):  # noqa: ANN001, ANN201
         return res
 
     return _ROWS(rows), codegen
+
+
+@intrinsic
+def window(typingctx, lo, hi, k):  # noqa: ANN001, ANN201
+    """Lanes k .. k+7 of the sixteen (lo, hi): eight consecutive values from two loaded blocks
+    (k a constant 0..8), one shuffle instead of an unaligned load."""
+    if not (lo == lanes8 and hi == lanes8 and isinstance(k, types.IntegerLiteral)):
+        return None
+    shift = k.literal_value
+    if not 0 <= shift <= WIDTH:
+        return None
+
+    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+        mask = ir.Constant(ir.VectorType(ir.IntType(32), WIDTH), list(range(shift, shift + WIDTH)))
+        return builder.shuffle_vector(args[0], args[1], mask)
+
+    return lanes8(lo, hi, k), codegen
