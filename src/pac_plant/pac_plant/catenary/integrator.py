@@ -26,8 +26,9 @@ with the solution it produces (a few passes at most; usually the first one).
 ``constants``/``state``); ``step_reference`` is the same algorithm in numpy, kept as the
 reference the compiled step is tested against. The compiled step's kernels differ from the
 reference's only in how they compute the same numbers (docs/numerics.md, "FE line"): the
-right-hand side with M alone, the solve as two overlapping halves, A^-1 e_i stored on the
-20 nodes around i (the rest is below 1e-19 of its peak).
+right-hand side with M alone, the solve as eight overlapping chunks side by side in vector
+lanes, A^-1 e_i and A^-1 g_j stored on the 20 nodes around i (the rest is below 1e-19 and
+1e-18 of the peak).
 """
 
 from __future__ import annotations
@@ -108,7 +109,7 @@ class ContactSimulation:
         span = line.data.span
         factors, starts, bounds = kn.chunk_factor(a_line)
         # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
-        # is < 1e-19 of the peak), what the update adds for a slack dropper.
+        # is < 1e-18 of the peak), what the update adds for a slack dropper.
         width = min(n, 4 * (2 * kn.UNIT_REACH + 1))
         drop_patches = np.empty((nd, width))
         for j, node in enumerate(dr.node):

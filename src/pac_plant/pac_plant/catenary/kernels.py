@@ -319,7 +319,7 @@ class StepConstants(NamedTuple):
     ``m_pad`` = ``pad_band(M)`` (the step needs no K, see ``newmark_rhs_mass``);
     ``ydrop[:, j]`` is A^-1 g_j for dropper j (its rows at the contact DOFs are read),
     ``ydrop_patches[j]`` the same column on the rows ``unit_start`` of the dropper's node +
-    0..width-1 (the update adds it for a slack dropper; outside, the column is < 1e-19 of its
+    0..width-1 (the update adds it for a slack dropper; outside, the column is < 1e-18 of its
     peak), ``ddrop`` = G^T A^-1 G.
     ``numbers`` = (dt, speed, alpha, beta, kp, c0, c1, length, span, shift_at);
     ``indices`` = (head, input, endless, shift_dofs, droppers_per_span).
