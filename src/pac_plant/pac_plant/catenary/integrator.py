@@ -176,7 +176,7 @@ class ContactSimulation:
             unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
             work=np.zeros((2, n)),
             padded=np.zeros((2, n + 2 * kn.KD)),
-            chunk_work=np.zeros((factors.shape[0] + kn.CHUNKS, factors.shape[2])),
+            chunk_work=np.zeros((factors.shape[0], factors.shape[2])),
         )
         # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
         self._cf, self._ci, self._cl, views = kn.pack(tuple(self.constants), kn.CONSTANT_KINDS)

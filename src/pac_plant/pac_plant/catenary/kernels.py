@@ -209,7 +209,8 @@ CHUNKS = lanes.WIDTH  # independent dependency chains in ``chunk_solve``, one pe
 def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """LDL^T factors of CHUNKS overlapping diagonal blocks of A for ``chunk_solve``, lane-major.
 
-    Returns (factors (lc + 2 KD, KD + 1, CHUNKS): row r + KD of chunk c holds the unit lower
+    Returns (factors (lc + 2 KD, KD + 1, CHUNKS), lc a multiple of CHUNKS: row r + KD of chunk c
+    holds the unit lower
     factor's L[r, r-k] for k = 1..KD and 1/D[r] at k = 0, zero rows around; starts (CHUNKS,):
     first row of each chunk in A; bounds (CHUNKS + 1,): chunk c delivers rows bounds[c] ..
     bounds[c+1], with at least ``overlap`` rows of its block on either side of them (where A
@@ -219,7 +220,9 @@ def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarr
 
     n, kd = ab.shape[1], KD
     bounds = np.array([round(c * n / CHUNKS) for c in range(CHUNKS + 1)], dtype=np.int64)
-    lc = min(n, int(np.max(np.diff(bounds))) + 2 * overlap)
+    lc = -(-(int(np.max(np.diff(bounds))) + 2 * overlap) // CHUNKS) * CHUNKS  # whole groups of 8 rows
+    if lc > n:
+        raise ValueError(f"chunk_factor: {n} unknowns, fewer than one chunk of {lc} rows")
     starts = np.array([min(max(bounds[c] - overlap, 0), n - lc) for c in range(CHUNKS)], dtype=np.int64)
     factors = np.zeros((lc + 2 * kd, kd + 1, CHUNKS))
     for c in range(CHUNKS):
@@ -251,8 +254,8 @@ def chunk_solve(
     (lc + 2 KD, CHUNKS). ``addend`` (length n, or empty: none) is added to the solution on
     the way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
     lc = factors.shape[0] - 2 * KD
-    if w.shape[0] < lc + KD + CHUNKS or w.shape[1] != CHUNKS:
-        raise ValueError("chunk_solve: scratch w too small (rows: factors' + CHUNKS)")
+    if w.shape[0] < lc + KD or w.shape[1] != CHUNKS:
+        raise ValueError("chunk_solve: scratch w too small (rows: at least the factors')")
     f = factors
     row = (KD + 1) * CHUNKS  # elements per row of f
     p1 = p2 = p3 = p4 = p5 = lanes.zeros()
@@ -266,38 +269,49 @@ def chunk_solve(
         y = lanes.fnma(lanes.load(f, o + CHUNKS), p1, acc)
         lanes.store(w, j * CHUNKS, y)
         p5, p4, p3, p2, p1 = p4, p3, p2, p1, y
-    p1 = p2 = p3 = p4 = p5 = lanes.zeros()
-    for j in range(KD + lc - 1, KD - 1, -1):  # backward: D L^T x = y; p1..p5 = x[j+1]..x[j+5]
-        acc = lanes.mul(lanes.load(w, j * CHUNKS), lanes.load(f, j * row))
-        acc = lanes.fnma(lanes.load(f, (j + 5) * row + 5 * CHUNKS), p5, acc)
-        acc = lanes.fnma(lanes.load(f, (j + 4) * row + 4 * CHUNKS), p4, acc)
-        acc = lanes.fnma(lanes.load(f, (j + 3) * row + 3 * CHUNKS), p3, acc)
-        acc = lanes.fnma(lanes.load(f, (j + 2) * row + 2 * CHUNKS), p2, acc)
-        x = lanes.fnma(lanes.load(f, (j + 1) * row + CHUNKS), p1, acc)
-        lanes.store(w, j * CHUNKS, x)
-        p5, p4, p3, p2, p1 = p4, p3, p2, p1, x
-    # Out: eight rows at a time turned into eight runs of the natural order (an 8 x 8 transpose),
-    # chunk c writing (plus the addend) only the rows it delivers.
+    # Backward: D L^T x = y, eight rows at a time; each group of eight solutions is turned into
+    # eight runs of the natural order (an 8 x 8 transpose) and written out at once, chunk c
+    # writing (plus the addend) only the rows it delivers.
     add = addend.shape[0] != 0
-    for j in range(KD, KD + lc, CHUNKS):
-        cols = lanes.transpose(
-            (
-                lanes.load(w, j * CHUNKS),
-                lanes.load(w, (j + 1) * CHUNKS),
-                lanes.load(w, (j + 2) * CHUNKS),
-                lanes.load(w, (j + 3) * CHUNKS),
-                lanes.load(w, (j + 4) * CHUNKS),
-                lanes.load(w, (j + 5) * CHUNKS),
-                lanes.load(w, (j + 6) * CHUNKS),
-                lanes.load(w, (j + 7) * CHUNKS),
-            )
-        )
+    p1 = p2 = p3 = p4 = p5 = lanes.zeros()
+    for j in range(KD + lc - CHUNKS, KD - 1, -CHUNKS):
+        x7 = _back_row(f, w, j + 7, p1, p2, p3, p4, p5)
+        x6 = _back_row(f, w, j + 6, x7, p1, p2, p3, p4)
+        x5 = _back_row(f, w, j + 5, x6, x7, p1, p2, p3)
+        x4 = _back_row(f, w, j + 4, x5, x6, x7, p1, p2)
+        x3 = _back_row(f, w, j + 3, x4, x5, x6, x7, p1)
+        x2 = _back_row(f, w, j + 2, x3, x4, x5, x6, x7)
+        x1 = _back_row(f, w, j + 1, x2, x3, x4, x5, x6)
+        x0 = _back_row(f, w, j, x1, x2, x3, x4, x5)
+        p1, p2, p3, p4, p5 = x0, x1, x2, x3, x4
+        cols = lanes.transpose((x0, x1, x2, x3, x4, x5, x6, x7))
         for c in range(CHUNKS):
             r, lo, hi = starts[c] + j - KD, bounds[c], bounds[c + 1]
             x = cols[c]
             if add:
                 x = lanes.add(x, lanes.load_masked(addend, r, lo, hi))
             lanes.store_masked(b, r, x, lo, hi)
+
+
+@numba.njit(cache=True, inline="always")
+def _back_row(
+    f: np.ndarray,
+    w: np.ndarray,
+    j: int,
+    p1: lanes.Lanes,
+    p2: lanes.Lanes,
+    p3: lanes.Lanes,
+    p4: lanes.Lanes,
+    p5: lanes.Lanes,
+) -> lanes.Lanes:
+    """Row j of the backward sweep of ``chunk_solve`` (p1..p5: the solution at rows j+1..j+5)."""
+    row = (KD + 1) * CHUNKS
+    acc = lanes.mul(lanes.load(w, j * CHUNKS), lanes.load(f, j * row))
+    acc = lanes.fnma(lanes.load(f, (j + 5) * row + 5 * CHUNKS), p5, acc)
+    acc = lanes.fnma(lanes.load(f, (j + 4) * row + 4 * CHUNKS), p4, acc)
+    acc = lanes.fnma(lanes.load(f, (j + 3) * row + 3 * CHUNKS), p3, acc)
+    acc = lanes.fnma(lanes.load(f, (j + 2) * row + 2 * CHUNKS), p2, acc)
+    return lanes.fnma(lanes.load(f, (j + 1) * row + CHUNKS), p1, acc)
 
 
 # -- the whole Newmark step of line + pantograph, compiled (``integrator.ContactSimulation``) ----------
