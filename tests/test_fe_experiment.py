@@ -79,3 +79,22 @@ def test_a_row_is_compared_with_the_passive_run_of_its_own_pantograph():
     noisy = next(r for r in rows if fe_experiment.case_of(r) == "noise 10 µm")
     assert fe_experiment.passive_for(rows, noisy)["en50318_contact_force_std"] == 50.0  # u = F_r: noise-free
     assert fe_experiment.case_of({"noise_std": [1e-5, 1e-5], "plant_mass_scale": 0.9}) is None
+
+
+def test_the_live_run_gives_the_loop_nodes_the_points_values():
+    """fe_live passes the campaign point to the three loop nodes: every value a node declares
+    (the law, the observer, the FE line options), nothing the nodes do not know (duration)."""
+    from pac_experiments.campaign_spec import Point
+    from pac_experiments.fe_live import loop_parameters
+
+    values = {
+        "law": "line_adaptive",
+        "observer": "contact_force",
+        "catenary_model": "fe",
+        "fe_datum": "fixed",
+        "speed_kmh": 300.0,
+        "duration": 12.2,
+        "not_a_parameter": 1.0,
+    }
+    given = loop_parameters(Point(key="k", values=values, grid=0))
+    assert given == {k: v for k, v in values.items() if k not in ("duration", "not_a_parameter")}

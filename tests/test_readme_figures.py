@@ -67,3 +67,27 @@ def test_readme_results_table_is_the_committed_report():
                 )
                 checked += 1
     assert checked >= 20  # the table was read (24 figures when this was written)
+
+
+def markdown_tables(text: str) -> list[str]:
+    """Every Markdown table of ``text``, as its block of consecutive ``|`` lines."""
+    tables, block = [], []
+    for line in [*text.splitlines(), ""]:
+        if line.startswith("|"):
+            block.append(line.rstrip())
+        elif block:
+            tables.append("\n".join(block))
+            block = []
+    return tables
+
+
+def test_readme_fe_laws_tables_are_the_committed_report():
+    """README's tables of the laws on the FE line are copied from reports/catenary/laws/laws.md
+    (written by `make fe-experiment`): each one appears there verbatim."""
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("**The control laws on the line**", 1)[1].split("**Reading.**", 1)[0]
+    report = markdown_tables((ROOT / "reports" / "catenary" / "laws" / "laws.md").read_text())
+    tables = markdown_tables(section)
+    assert len(tables) >= 2  # the goals and every law (the section was found and read)
+    for table in tables:
+        assert table in report, table.splitlines()[0]

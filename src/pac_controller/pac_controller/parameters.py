@@ -266,8 +266,8 @@ class LawParameters(ParameterSet):
     )
     line_guard_ratio: float = parameter(
         1.0,
-        "line_adaptive: fall back to passive when a span's sigma of F_hat exceeds this times the "
-        "passive spans' sigma",
+        "line_adaptive: fall back to passive when the sigma of F_hat's span-periodic part (learned "
+        "band) exceeds this times the passive spans'",
         "",
         low=0.1,
         high=10.0,
@@ -275,7 +275,7 @@ class LawParameters(ParameterSet):
     line_guard_spans: int = parameter(
         8,
         "line_adaptive: learning spans before the guard judges the RMS sigma of the last 3 spans "
-        "(one span above twice the limit trips at once)",
+        "(one span above three times the limit trips at once)",
         "spans",
         low=3,
         high=100,

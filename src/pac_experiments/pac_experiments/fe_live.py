@@ -50,13 +50,9 @@ def choose(points: list[Point], law: str, speed: float) -> Point:
 def loop_parameters(point: Point) -> dict[str, Any]:
     """The point's values the loop nodes take (``duration`` goes to the rig itself)."""
     from pac_rig.configs import parameter_sets
+    from pac_rig.nodes import LOOP_NODES
 
-    names = {
-        s.name
-        for n in ("plant_node", "observer_node", "controller_node")
-        for c in parameter_sets(n)
-        for s in c.specs()
-    }
+    names = {s.name for n in LOOP_NODES for c in parameter_sets(n) for s in c.specs()}
     return {k: v for k, v in point.values.items() if k in names and k != "duration"}
 
 
