@@ -105,28 +105,25 @@ def _fma(builder, a, b, c):  # noqa: ANN001, ANN202
     return builder.call(fn, [a, b, c])
 
 
-@intrinsic
-def mul(typingctx, a, b):  # noqa: ANN001, ANN201
-    """a * b, lane by lane."""
-    if not (a == lanes8 and b == lanes8):
-        return None
+def _binary(instruction: str, doc: str):  # noqa: ANN202
+    """The lane-wise intrinsic ``a <instruction> b`` (an IRBuilder method: fmul, fadd)."""
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-        return builder.fmul(args[0], args[1])
+    @intrinsic
+    def op(typingctx, a, b):  # noqa: ANN001, ANN202
+        if not (a == lanes8 and b == lanes8):
+            return None
 
-    return lanes8(a, b), codegen
+        def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+            return getattr(builder, instruction)(args[0], args[1])
+
+        return lanes8(a, b), codegen
+
+    op.__doc__ = doc
+    return op
 
 
-@intrinsic
-def add(typingctx, a, b):  # noqa: ANN001, ANN201
-    """a + b, lane by lane."""
-    if not (a == lanes8 and b == lanes8):
-        return None
-
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
-        return builder.fadd(args[0], args[1])
-
-    return lanes8(a, b), codegen
+mul = _binary("fmul", "a * b, lane by lane.")
+add = _binary("fadd", "a + b, lane by lane.")
 
 
 @intrinsic
