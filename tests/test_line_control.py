@@ -78,6 +78,32 @@ def test_contact_force_observer_follows_the_lumped_lines_force():
     assert math.sqrt(np.mean((f_hat - f) ** 2)) < 0.05 * np.std(f)
 
 
+@pytest.mark.parametrize("mass_scale", [0.8, 1.2])
+def test_filter_bank_finds_the_frame_mass_and_keeps_the_estimate(mass_scale):
+    """The plant's masses x0.8 / x1.2 (lumped line, F = k(t) z1 known to the test): the bank selects
+    the filter with the plant's m2 within one step, and its F_hat error is a fraction of the single
+    nominal filter's (which cannot absorb the frame's mass error: it has no unknown input there)."""
+    from pac_rig.closed_loop import build_cores, run_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    errors = {}
+    for frame_mass_range in (0.0, 0.3):
+        s = scenario_from_flat(
+            {"duration": 3.0, "law": "passive", "observer": "contact_force", "plant_mass_scale": mass_scale,
+             "frame_mass_range": frame_mass_range}
+        )  # fmt: skip
+        plant, observer, controller = build_cores(s)
+        f, f_hat = [], []
+        for rec in run_cores(s, plant, observer, controller):
+            f.append(rec.truth.contact_force)
+            f_hat.append(rec.estimate.contact_force_hat)
+        f, f_hat = np.array(f[1000:]), np.array(f_hat[1000:])
+        errors[frame_mass_range] = math.sqrt(np.mean((f_hat - f) ** 2))
+        if frame_mass_range:
+            assert abs(observer.frame_mass_scale - mass_scale) <= s.observer.frame_mass_step + 1e-12
+    assert errors[0.3] < 0.3 * errors[0.0], errors
+
+
 @pytest.mark.timeout(900)  # an FE run: minutes on a loaded machine
 def test_contact_force_estimate_error_on_the_fe_line():
     """The estimate against the FE plant's penalty force (PlantTruth.contact_force): < 10 % of sigma_F.

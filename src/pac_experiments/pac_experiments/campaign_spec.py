@@ -15,7 +15,9 @@ line (span_length at the point's speed: whole spans, so a span-periodic force ha
 mean over the window) and, unless ``duration`` is given, runs each point for b + 1/2 spans
 (the 20 Hz filter then has data on both sides of the window). ``statistics: en50318`` adds
 the EN 50318 columns (20 Hz low-pass; see ``campaign_run``); ``force_target: en50367`` sets
-each point's ``force_amplitude`` to the EN 50367 target mean force at its speed.
+each point's ``force_amplitude`` to the EN 50367 target mean force at its speed. On the FE
+line (``catenary_model: fe``) a point without ``span_length`` gets its catenary file's (mean)
+span, so a grid may vary the line (``catenary: [benchmark_55m, stitched_hs_65m]``).
 Every point is validated with ``scenario_from_flat`` before anything runs; a bad SPEC stops
 with one line (:class:`SpecError`).
 """
@@ -34,7 +36,7 @@ import yaml
 
 from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.parameters import ParameterError
-from pac_plant.catenary.data import CatenaryData
+from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig.closed_loop import Scenario
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
 
@@ -43,6 +45,16 @@ FORCE_TARGETS = ("en50367",)
 #: Spans simulated after a ``window_spans`` window (the zero-phase filter's right-hand side).
 TAIL_SPANS = 0.5
 KEYS = ("grid", "grids", "fixed", "window", "window_spans", "statistics", "force_target", "name")
+
+
+#: Parameters added after campaigns were run, and the default that reproduces those runs: at it
+#: they stay out of a point's key, so the results of earlier runs stay valid (resumable).
+KEY_NEUTRAL_DEFAULTS = {
+    "catenary": "benchmark_55m",
+    "fe_height_error": 0.0,
+    "fe_wear": 0.0,
+    "fe_imperfection_seed": 0,
+}
 
 
 class SpecError(ValueError):
@@ -187,7 +199,11 @@ def load_spec(path: Path) -> Spec:
 def point_key(scenario: Scenario, window: tuple[float, float], statistics: str = "raw") -> str:
     """A stable hash of every parameter of the scenario (validated, normalised), the window
     and (when not the default) the statistics."""
-    content: dict[str, Any] = {"parameters": scenario_to_flat(scenario), "window": list(window)}
+    parameters = scenario_to_flat(scenario)
+    for name, default in KEY_NEUTRAL_DEFAULTS.items():
+        if parameters.get(name) == default:
+            del parameters[name]
+    content: dict[str, Any] = {"parameters": parameters, "window": list(window)}
     if statistics != "raw":
         content["statistics"] = statistics
     text = json.dumps(content, sort_keys=True, default=list)
@@ -218,11 +234,16 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     scenario = _scenario(values)
     if spec.force_target == "en50367":
         values["force_amplitude"] = target_mean_force(scenario.track.speed_kmh)
+    if scenario.plant.catenary_model == "fe" and "span_length" not in values:
+        # The laws are told the span of the line the plant runs (a campaign may vary the file).
+        values["span_length"] = load_catenary(scenario.plant.catenary).data.span
+        scenario = _scenario(values)
     if spec.window_spans is not None:
-        if scenario.plant.catenary_model == "fe" and scenario.track.span_length != CatenaryData().span:
+        fe_span = load_catenary(scenario.plant.catenary).data.span
+        if scenario.plant.catenary_model == "fe" and scenario.track.span_length != fe_span:
             raise SpecError(
                 f"invalid parameter 'span_length' = {scenario.track.span_length:g}: window_spans on the "
-                f"FE line needs its span, {CatenaryData().span:g} m"
+                f"FE line needs its (mean) span, {fe_span:g} m"
             )
         if "duration" not in values:
             span_time = scenario.track.span_length / (scenario.track.speed_kmh / 3.6)

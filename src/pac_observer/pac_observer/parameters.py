@@ -35,6 +35,29 @@ class ObserverParameters(ParameterSet):
         low_open=True,
         high=0.1,
     )
+    frame_mass_range: float = parameter(
+        0.3,
+        "contact_force: the filter bank covers the frame mass m2 from (1 - this) to (1 + this) times "
+        "Table 1's (0: one filter on the nominal m2)",
+        "",
+        low=0.0,
+        high=0.9,
+    )
+    frame_mass_step: float = parameter(
+        0.025,
+        "contact_force: relative step of m2 between two filters of the bank",
+        "",
+        low=0.001,
+        high=0.9,
+    )
+    frame_mass_window: float = parameter(
+        0.5,
+        "contact_force: time constant of each filter's running innovation energy (the bank picks the "
+        "smallest)",
+        "s",
+        low=0.001,
+        high=100.0,
+    )
 
     rho_z: float = parameter(
         40.0,

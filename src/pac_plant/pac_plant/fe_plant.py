@@ -17,14 +17,18 @@ and at the nearest support.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
+from pac_common.parameters import ParameterError
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
 from .catenary import kernels
+from .catenary.catenary_file import load_catenary
 from .catenary.data import CatenaryData, NumericalOptions
+from .catenary.imperfections import apply_imperfections
 from .catenary.integrator import ContactSimulation
 from .catenary.line import Line
 from .catenary.pantographs import paper_pantograph
@@ -34,6 +38,14 @@ from .plant import Plant, Truth
 #: Spans in the moving window; the contact point stays in spans 4..6 of it (4 behind, >= 4 ahead).
 WINDOW_SPANS = 10
 START_SPAN = 4
+
+
+def window_periods(data: CatenaryData) -> tuple[int, int]:
+    """(periods in the endless window, the period the run starts at): the window shifts by whole
+    periods of the line, so it holds at least WINDOW_SPANS spans and 3 periods (one behind the
+    contact point, one it runs in, one ahead); one span per period gives 10 and 4."""
+    p = len(data.spans)
+    return max(3, math.ceil(WINDOW_SPANS / p)), max(1, START_SPAN // p)
 
 
 class FEPlant(Plant):
@@ -54,22 +66,43 @@ class FEPlant(Plant):
         self.track = track
         self.options = options
         self.sample_period = sample_period
-        self.data = CatenaryData() if data is None else data
-        numerics = NumericalOptions(element_size=options.fe_element_size)
-        self.line = Line(self.data, numerics, n_spans=WINDOW_SPANS)
+        if data is None:
+            line_file = load_catenary(options.catenary)
+            data, numerics = line_file.data, line_file.numerics
+        else:
+            numerics = NumericalOptions()
+        numerics = dataclasses.replace(numerics, element_size=options.fe_element_size)
+        data = apply_imperfections(
+            data, options.fe_height_error, options.fe_wear, options.fe_imperfection_seed
+        )
+        self.data = data
+        periods, start = window_periods(data)
+        self.line = Line(self.data, numerics, n_spans=periods * len(data.spans))
+        pushing = int(np.count_nonzero(self.line.droppers.static_tension <= 0.0))
+        if pushing:  # the static state assumes taut droppers: a dropper cannot push
+            name, value = (
+                ("fe_height_error", options.fe_height_error)
+                if options.fe_height_error > 0.0
+                else ("catenary", options.catenary)
+            )
+            raise ParameterError(
+                name,
+                value,
+                f"a line whose droppers all hang in tension at rest ({pushing} of "
+                f"{len(self.line.droppers.node)} would be compressed)",
+            )
         self._flex = self.line.element_flexibility()
         self.sim = ContactSimulation(
             self.line,
             paper_pantograph(pantograph),
             sample_period / options.fe_substeps,
             track.speed_kmh / 3.6,
-            START_SPAN * self.data.span,
+            start * data.period,
             endless=True,
         )
         # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
         # no tick pays one later.
-        span = self.data.span
-        self.sim.prepare_contact_columns(START_SPAN * span, (WINDOW_SPANS // 2 + 1) * span)
+        self.sim.prepare_contact_columns(start * data.period, (periods // 2 + 1) * data.period)
         self.datum = self.line.static_height(self.sim.x)
         self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
         self.sim.readings(self._flex, self._readings)

@@ -37,9 +37,14 @@ class PlantOptions(ParameterSet):
     catenary_model: str = parameter(
         "lumped",
         "catenary: 'lumped' k(t) = k0 (1 + alpha cos(omega t - beta)) of eq. (7); 'fe' the "
-        "finite-element simple catenary of docs/catenary.md (endless moving window, 55 m spans; "
+        "finite-element line of the file 'catenary' (docs/catenary.md; endless moving window; "
         "ignores k0/alpha/beta/span_length and contact_model: its contact is always unilateral)",
         choices=("lumped", "fe"),
+    )
+    catenary: str = parameter(
+        "benchmark_55m",
+        "fe: the line, a catenary file (a path) or a shipped preset's name (config/catenaries/: "
+        "benchmark_55m, ...); the file format is documented in docs/catenary.md, 'The catenary file'",
     )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
@@ -54,3 +59,28 @@ class PlantOptions(ParameterSet):
     fe_element_size: float = parameter(
         0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
     )
+
+    fe_height_error: float = parameter(
+        0.0,
+        "fe: standard deviation of the contact-wire height error at each dropper (0: none; seeded by "
+        "fe_imperfection_seed; drawn over 10 spans, repeating on the endless line; docs/catenary.md: "
+        "Imperfections)",
+        "m",
+        low=0.0,
+        high=0.05,
+    )
+    fe_wear: float = parameter(
+        0.0,
+        "fe: fraction of the contact wire's section worn away (mass x (1 - wear), EI x (1 - wear)^2; "
+        "0: new wire)",
+        low=0.0,
+        high=0.5,
+    )
+    fe_imperfection_seed: int = parameter(
+        0, "fe: seed of the height errors (the same seed gives the same line)", low=0
+    )
+
+    def check_consistency(self) -> None:
+        from .catenary.catenary_file import load_catenary
+
+        load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)

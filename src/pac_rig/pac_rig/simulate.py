@@ -75,9 +75,9 @@ class RunResult:
 def plant_line(scenario: Scenario) -> tuple[str, float]:
     """(catenary_model, span length) of the line the plant simulates, as run_status announces it."""
     if scenario.plant.catenary_model == "fe":
-        from pac_plant.catenary.data import CatenaryData
+        from pac_plant.catenary.catenary_file import load_catenary
 
-        return "fe", CatenaryData().span
+        return "fe", load_catenary(scenario.plant.catenary).data.span
     return scenario.plant.catenary_model, scenario.track.span_length
 
 
@@ -215,7 +215,9 @@ def main(argv: list[str] | None = None) -> int:
         description=__doc__,
         epilog="Parameters as for the nodes: -p NAME:=VALUE, --params-file FILE (a node's "
         "`ros2 param dump` too), optionally after --ros-args. Ctrl-C stops the run and closes the "
-        "bag with what was simulated (exit 130); a diverged run exits 1.",
+        "bag with what was simulated (exit 130); a diverged run exits 1. The finite-element line: "
+        "-p catenary_model:=fe -p catenary:=FILE (or a preset's name: config/catenaries/); the "
+        "catenary file's format is documented in docs/catenary.md, 'The catenary file'.",
     )
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
     add_override_arguments(parser)

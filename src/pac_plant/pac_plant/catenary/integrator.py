@@ -105,8 +105,9 @@ class ContactSimulation:
         self._ddrop = np.ascontiguousarray(self._ydrop[dr.wm, :] - self._ydrop[dr.wc, :])
         self._kdrop = dr.stiffness.copy()
         self._e0 = dr.elongation0.copy()
-        self._drop_per_span = len(line.data.dropper_positions)
-        span = line.data.span
+        # The window shifts by whole periods of the line (one span where the spans are equal).
+        self._drop_per_span = line.droppers_per_period
+        span = line.period_length
         factors, starts, bounds = kn.chunk_factor(a_line)
         # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
         # is < 1e-18 of the peak), what the update adds for a slack dropper.
@@ -146,7 +147,7 @@ class ContactSimulation:
                     self.c1,
                     line.length,
                     span,
-                    (line.n_spans // 2 + 1) * span,
+                    (line.n_periods // 2 + 1) * span,
                 ]
             ),
             indices=np.array(
@@ -154,7 +155,7 @@ class ContactSimulation:
                     pantograph.head,
                     pantograph.input,
                     int(endless),
-                    DOFS_PER_NODE * line.nodes_per_span,
+                    DOFS_PER_NODE * line.nodes_per_period,
                     self._drop_per_span,
                 ],
                 dtype=np.int64,
@@ -358,7 +359,7 @@ class ContactSimulation:
         dt, c0, c1 = self.dt, self.c0, self.c1
         d, v, a = self.d, self.v, self.a
         x_new = self.x + self.speed * dt
-        if self.endless and x_new > (self.line.n_spans // 2 + 1) * self.line.data.span:
+        if self.endless and x_new > (self.line.n_periods // 2 + 1) * self.line.period_length:
             self._shift_window()
             d, v, a = self.d, self.v, self.a
             x_new = self.x + self.speed * dt
@@ -484,12 +485,12 @@ class ContactSimulation:
 
     def _shift_window(self) -> None:
         """Move the window one span forward: states shift back one span, the new span is at rest."""
-        s = DOFS_PER_NODE * self.line.nodes_per_span
+        s = DOFS_PER_NODE * self.line.nodes_per_period
         self._unit_solutions.clear()
         for vec in (self.d, self.v, self.a):
             vec[:-s] = vec[s:].copy()
             vec[-s:] = 0.0
             vec[self.line.fixed] = 0.0
         self.slack = self.slack[self.slack >= self._drop_per_span] - self._drop_per_span
-        self.x -= self.line.data.span
-        self.offset += self.line.data.span
+        self.x -= self.line.period_length
+        self.offset += self.line.period_length

@@ -22,13 +22,14 @@ pre-sag at every dropper (``solve_dropper_lengths``).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg import cho_solve_banded, cholesky_banded
 
 from .data import CatenaryData, NumericalOptions, WireData
+from .layout import WS, build_layout, span_marks
+from .layout import span_nodes as _span_nodes
 
 DOFS_PER_NODE = 4
 BANDWIDTH = 7  # sub-diagonals: node i couples with node i+1 only
@@ -88,14 +89,16 @@ def gravity_load(w: WireData, h: float, g: float) -> np.ndarray:
     return -w.rho * g * np.array([h / 2, h * h / 12, h / 2, -h * h / 12])
 
 
+def string_matrices(w: WireData, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Element (stiffness T/h, consistent mass) of a tensioned string of length h, DOFs (w_a, w_b)."""
+    return w.tension / h * np.array([[1.0, -1.0], [-1.0, 1.0]]), w.rho * h / 6 * np.array(
+        [[2.0, 1.0], [1.0, 2.0]]
+    )
+
+
 def span_nodes(data: CatenaryData, element_size: float) -> np.ndarray:
-    """Node positions within one span [0, L): every dropper is a node, intervals split evenly."""
-    marks = [0.0, *data.dropper_positions, data.span]
-    xs: list[float] = []
-    for a, b in zip(marks[:-1], marks[1:], strict=True):
-        n = max(1, math.ceil((b - a) / element_size - 1e-9))
-        xs.extend(a + (b - a) * np.arange(n) / n)
-    return np.array(xs)
+    """Node positions within the first span [0, L): every dropper is a node, intervals split evenly."""
+    return _span_nodes(span_marks(data, 0), element_size)
 
 
 class Banded:
@@ -134,6 +137,8 @@ class Dropper:
     node: np.ndarray  # node index (contact and messenger ends share it)
     x: np.ndarray  # position along the line [m]
     target_sag: np.ndarray  # m (positive down)
+    height: np.ndarray  # system height at the dropper [m]: its unstrained length with zero pre-sag
+    upper: np.ndarray  # DOF offset of its upper end: WM (messenger) or WS (a stitch wire)
     length0: np.ndarray  # unstrained length [m]
     stiffness: np.ndarray  # EA / L0 [N/m]
     elongation0: np.ndarray  # static elongation [m] (> 0: in tension)
@@ -144,7 +149,7 @@ class Dropper:
 
     @property
     def wm(self) -> np.ndarray:
-        return DOFS_PER_NODE * self.node + WM
+        return DOFS_PER_NODE * self.node + self.upper
 
     @property
     def static_tension(self) -> np.ndarray:
@@ -171,35 +176,45 @@ class Line:
         self.data = data
         self.options = options
         self.n_spans = data.n_spans if n_spans is None else n_spans
-        xs = span_nodes(data, options.element_size)
-        self.nodes_per_span = len(xs)
-        spans = [s * data.span + xs for s in range(self.n_spans)]
-        self.x = np.concatenate([*spans, [self.n_spans * data.span]])
+        layout = build_layout(data, options.element_size, self.n_spans, droppers)
+        self.layout = layout
+        self.x = layout.x
         self.n_nodes = len(self.x)
         self.n_dof = DOFS_PER_NODE * self.n_nodes
-        self.length = self.n_spans * data.span
+        self.length = float(layout.support_x[-1])
         self.h = np.diff(self.x)
         self.has_droppers = droppers
-        # Constrained DOFs: both wires anchored at the two end supports.
+        # Periodicity (an endless window shifts by whole periods of ``data.spans``).
+        self.period_spans = layout.period_spans
+        self.period_length = layout.period_length
+        self.nodes_per_period = layout.nodes_per_period
+        self.droppers_per_period = layout.droppers_per_period
+        self.n_periods = self.n_spans // self.period_spans
+        self.nodes_per_span = self.nodes_per_period if self.period_spans == 1 else 0  # 0: spans differ
+        # Constrained DOFs: both wires anchored at the two end supports; a stitched line's stitch
+        # slot wherever no stitch wire runs.
         last = self.n_nodes - 1
-        self.fixed = np.array([WC, WM, DOFS_PER_NODE * last + WC, DOFS_PER_NODE * last + WM])
-        # Interior supports: nodes at multiples of the span.
-        self.support_nodes = np.array([s * self.nodes_per_span for s in range(1, self.n_spans)], dtype=int)
+        fixed = [WC, WM, DOFS_PER_NODE * last + WC, DOFS_PER_NODE * last + WM]
+        self.stitched = data.stitched
+        if self.stitched:
+            free = np.zeros(self.n_nodes, dtype=bool)
+            for st in layout.stitches:
+                free[st.nodes[1:-1]] = True
+            free[[0, last]] = False
+            fixed += [DOFS_PER_NODE * int(i) + WS for i in np.flatnonzero(~free)]
+        self.fixed = np.array(sorted(fixed))
+        self.support_nodes = layout.support_nodes
         self._supports = supports
-        drop_local = [int(np.argmin(np.abs(xs - p))) for p in data.dropper_positions]
-        nodes = np.array(
-            [s * self.nodes_per_span + j for s in range(self.n_spans) for j in drop_local], dtype=int
-        )
-        if not droppers:
-            nodes = nodes[:0]
+        nodes = layout.dropper_node
         nd = len(nodes)
-        sag = np.tile(np.array(data.presag), self.n_spans)[:nd]
         self.droppers = Dropper(
             node=nodes,
             x=self.x[nodes],
-            target_sag=sag,
-            length0=np.full(nd, data.system_height),
-            stiffness=np.full(nd, data.dropper_ea / data.system_height),
+            target_sag=layout.dropper_sag,
+            height=layout.dropper_height,
+            upper=layout.dropper_upper,
+            length0=layout.dropper_height.copy(),
+            stiffness=data.dropper_ea / layout.dropper_height,
             elongation0=np.zeros(nd),
         )
         self._assemble_wires()
@@ -210,18 +225,40 @@ class Line:
         d = self.data
         kw, mw = Banded(self.n_dof), Banded(self.n_dof)
         fw = np.zeros(self.n_dof)
+        # A stitched line's messenger is a string: its slope slot carries the stitch wire (layout.py).
+        beams = ((d.contact, WC),) if self.stitched else ((d.contact, WC), (d.messenger, WM))
         for e, h in enumerate(self.h):
-            for wire, off in ((d.contact, WC), (d.messenger, WM)):
+            for wire, off in beams:
                 ke, me = beam_matrices(wire, h)
                 dofs = [4 * e + off, 4 * e + off + 1, 4 * (e + 1) + off, 4 * (e + 1) + off + 1]
                 kw.add_block(dofs, ke)
                 mw.add_block(dofs, me)
                 fw[dofs] += gravity_load(wire, h, d.gravity)
+            if self.stitched:
+                self._add_string(kw, mw, fw, d.messenger, [4 * e + WM, 4 * (e + 1) + WM], h)
+        for st in self.layout.stitches:
+            wire = WireData(st.rho, st.tension, 0.0)
+            for i in range(len(st.nodes) - 1):
+                h = self.x[st.nodes[i + 1]] - self.x[st.nodes[i]]
+                self._add_string(kw, mw, fw, wire, [int(st.dofs[i]), int(st.dofs[i + 1])], h)
         if self._supports:
             for n in self.support_nodes:
                 kw.add(4 * n + WC, 4 * n + WC, d.steady_arm_stiffness)
                 kw.add(4 * n + WM, 4 * n + WM, d.messenger_support_stiffness)
+                if d.steady_arm_mass:
+                    mw.add(4 * n + WC, 4 * n + WC, d.steady_arm_mass)
+                if d.messenger_support_mass:
+                    mw.add(4 * n + WM, 4 * n + WM, d.messenger_support_mass)
         self._k_wires, self._m_wires, self._f_wires = kw.ab.copy(), mw.ab.copy(), fw
+
+    def _add_string(
+        self, kw: Banded, mw: Banded, fw: np.ndarray, wire: WireData, dofs: list[int], h: float
+    ) -> None:
+        """One string element (messenger of a stitched line, a stitch wire) with its weight."""
+        ke, me = string_matrices(wire, h)
+        kw.add_block(dofs, ke)
+        mw.add_block(dofs, me)
+        fw[dofs] -= 0.5 * wire.rho * self.data.gravity * h
 
     def _assemble(self) -> None:
         """K, M and the static load for the current dropper lengths (droppers taut)."""
@@ -236,7 +273,7 @@ class Line:
             k.add(ic, ic, kd)
             k.add(im, im, kd)
             k.add(im, ic, -kd)
-            pre = kd * (d.system_height - dr.length0[j])
+            pre = kd * (dr.height[j] - dr.length0[j])
             f[ic] += pre
             f[im] -= pre
             mc, mm = d.clamp_mass_contact + half[j], d.clamp_mass_messenger + half[j]
@@ -276,7 +313,7 @@ class Line:
             if nd == 0:
                 break
             # Load without the pre-tension terms, and one column per dropper for them.
-            pre = dr.stiffness * (d.system_height - dr.length0)
+            pre = dr.stiffness * (dr.height - dr.length0)
             f_g = self.f_static.copy()
             np.add.at(f_g, dr.wc, -pre)
             np.add.at(f_g, dr.wm, pre)
@@ -286,16 +323,24 @@ class Line:
             w_g = self.solve_static(f_g)
             w_b = self.solve_static(b)
             p = np.linalg.solve(w_b[dr.wc, :], -dr.target_sag - w_g[dr.wc])
-            length0 = d.dropper_ea * d.system_height / (d.dropper_ea + p)
+            length0 = d.dropper_ea * dr.height / (d.dropper_ea + p)
             change = float(np.max(np.abs(length0 - dr.length0)))
             dr.length0 = length0
             dr.stiffness = d.dropper_ea / dr.length0
             if change < tolerance:
                 break
+        self.set_dropper_lengths(dr.length0)
+
+    def set_dropper_lengths(self, length0: np.ndarray) -> None:
+        """Static equilibrium with the unstrained dropper lengths ``length0`` [m] (e.g. solved on
+        another mesh: what the pre-sag then is, is measured, not imposed)."""
+        d, dr = self.data, self.droppers
+        dr.length0 = np.array(length0, dtype=float)
+        dr.stiffness = d.dropper_ea / dr.length0
         self._assemble()
         self.w_static = self.solve_static(self.f_static)
         ws = self.w_static
-        dr.elongation0 = d.system_height + ws[dr.wm] - ws[dr.wc] - dr.length0
+        dr.elongation0 = dr.height + ws[dr.wm] - ws[dr.wc] - dr.length0
 
     # -- geometry of a point on the contact wire ----------------------------------------------
     def locate(self, x: float) -> tuple[int, float]:
