@@ -1,4 +1,4 @@
-"""line_adaptive as it was before it was compiled (numpy array expressions, commit eeb375e).
+"""line_adaptive as it was before it was compiled (numpy array expressions, commit 2519b0b).
 
 A test oracle only: ``tests/test_line_kernels.py`` checks the shipped law (compiled) against it,
 so a change to what the law computes shows up as a disagreement.
@@ -58,6 +58,18 @@ class LineAdaptiveLaw:
 
     # -- state -----------------------------------------------------------------------
     def restart(self, u_applied: float | None) -> None:
+        """Before the first command, or after commands that were not the law's (a fallback episode).
+
+        What was learned is the line's, not the episode's: after a fallback the law resumes with it
+        (the span the episode touched is not learned from, nor judged). The ticks tell a new run
+        (they start again): then it forgets everything and runs in again from u = F_r.
+        """
+        if u_applied is None or self.last_commit_tick is None:
+            self.forget()
+        else:
+            self.restart_pending = True
+
+    def forget(self) -> None:
         """Forget everything learned: the next span starts a new run-in (u = F_r, bumpless from rest)."""
         h = self.harmonics
         self.u_ff = np.zeros(h, dtype=np.complex128)  # U_h of the current span
@@ -73,6 +85,10 @@ class LineAdaptiveLaw:
         self.s = np.zeros(h)
         self.z = np.zeros(h, dtype=np.complex128)
         self.start_tick: int | None = None  # the tick the law's spans count from
+        self.open_span: int | None = None  # the span whose sums are accumulating
+        self.last_commit_tick: int | None = None
+        self.restart_pending = False  # restarted after a fallback: resume or, on a new run, forget
+        self.tainted_span: int | None = None  # a span a fallback episode touched: neither learned nor judged
         self.passive_var = 0.0
         self.passive_spans = 0
         self.recent_var = np.zeros(GUARD_SPANS)  # band variance of F_hat over the last learning spans
@@ -106,14 +122,29 @@ class LineAdaptiveLaw:
         # The sample commit() accumulates (output itself changes nothing).
         self._pending_error = error
         self._pending_reference = float(f_r[0])
-        u_ff = 0.0 if self.tripped else self.feedforward(tick)
+        new_run = self.restart_pending and self.last_commit_tick is not None and tick <= self.last_commit_tick
+        u_ff = 0.0 if self.tripped or new_run else self.feedforward(tick)
         return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
 
     def commit(self, tick: int, u_applied: float) -> None:
+        n = self.period_ticks
+        if self.restart_pending:
+            self.restart_pending = False
+            if self.last_commit_tick is not None and tick <= self.last_commit_tick:
+                self.forget()  # a new run
+            elif self.start_tick is not None:  # resume: the episode's spans teach nothing
+                self._clear_sums()
+                self.open_span = None
+                self.tainted_span = (tick - self.start_tick) // n
+        self.last_commit_tick = tick
         if self.start_tick is None:
             self.start_tick = tick
         k = tick - self.start_tick
-        n = self.period_ticks
+        if self.open_span is not None and k // n != self.open_span:
+            # The open span's last tick never came (no estimate for it, live): close it now, or its
+            # sums would run on into the next span and the next step be taken on two spans' worth.
+            self._end_of_span(self.open_span)
+        self.open_span = k // n
         phase = tick % n
         e = self._pending_error
         self.e_acc += (2.0 / n) * e * np.conj(self.basis[phase])
@@ -124,8 +155,19 @@ class LineAdaptiveLaw:
         self.e_mean += e / n
         if k % n == n - 1:
             self._end_of_span(k // n)
+            self.open_span = None
+
+    def _clear_sums(self) -> None:
+        self.e_acc[:] = 0.0
+        self.a_acc[:] = 0.0
+        self.a_mean = 0.0
+        self.e_mean = 0.0
 
     def _end_of_span(self, span: int) -> None:
+        if span == self.tainted_span:
+            self.tainted_span = None
+            self._clear_sums()
+            return
         # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
         # E_h), what the law acts on and the EN 50318 statistics keep. The raw variance of F_hat
         # is blind under sensor noise: 10 um on z1, z2 gave sigma(F_hat) ~210 N for sigma(F) ~35 N.
@@ -148,10 +190,7 @@ class LineAdaptiveLaw:
                 self.clip_offset = 0.0
         if span >= self.runin_spans - 1 and not self.tripped:
             self._learn()
-        self.e_acc[:] = 0.0
-        self.a_acc[:] = 0.0
-        self.a_mean = 0.0
-        self.e_mean = 0.0
+        self._clear_sums()
 
     def _learn(self) -> None:
         """One secant step per harmonic (module docstring)."""

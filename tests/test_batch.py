@@ -134,6 +134,7 @@ def test_paper_gains_diverge_in_batch_too(batch):
     assert result.ticks[i] == 234 and "exceeded" in result.diverged[i]
 
 
+@pytest.mark.slow
 def test_every_law_and_observer_is_batchable_on_both_lines():
     assert COMPILED_LAW_NAMES == LAW_NAMES
     for law in LAW_NAMES:

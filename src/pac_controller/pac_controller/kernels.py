@@ -132,6 +132,10 @@ CONTROLLER_STATE = np.dtype(
         ("line_tripped", "b1"),
         ("line_pending_error", "f8"),
         ("line_pending_reference", "f8"),
+        ("line_open_span", "i8"),  # the span whose sums are accumulating (-1: none)
+        ("line_last_commit", "i8"),  # the tick of the last commit (-1: none)
+        ("line_restart_pending", "b1"),  # restarted after a fallback: resume or, on a new run, forget
+        ("line_tainted_span", "i8"),  # a span a fallback episode touched: neither learned nor judged (-1)
         ("line_stack", "i8", (64, 3)),  # scratch of line_adaptive._pairwise: (start, length, stage)
         ("line_values", "f8", 64),
     ]
@@ -158,7 +162,7 @@ def _contact_force_estimate(t: float, omega: float, z_hat, theta_hat) -> float:
 def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
     """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
     if p.law == _LINE:
-        line_adaptive.line_restart(s, memory)
+        line_adaptive.line_restart(s, memory, has_u)
         return
     s.has_bumpless, s.bumpless_from = has_u, u_applied
     s.started = False

@@ -220,9 +220,24 @@ def _pairwise(s, row: np.ndarray, n: int, as_float: bool) -> float:
 
 # -- the law, compiled: the class below and pac_controller.kernels call these --------------------
 @njit(cache=True, error_model="numpy")
-def line_restart(s, memory) -> None:
+def line_restart(s, memory, has_u: bool) -> None:
+    """Before the first command, or after commands that were not the law's (a fallback episode).
+
+    What was learned is the line's, not the episode's: after a fallback the law resumes with it
+    (the span the episode touched is not learned from, nor judged). The ticks tell a new run
+    (they start again): then it forgets everything and runs in again from u = F_r.
+    """
+    if not has_u or s.line_last_commit < 0:
+        line_forget(s, memory)
+    else:
+        s.line_restart_pending = True
+
+
+@njit(cache=True, error_model="numpy")
+def line_forget(s, memory) -> None:
     """Forget everything learned: the next span starts a new run-in (u = F_r)."""
     memory[:, :] = 0.0
+    s.line_open_span, s.line_last_commit, s.line_restart_pending, s.line_tainted_span = -1, -1, False, -1
     s.line_u_mean, s.line_clip_offset, s.line_a_mean, s.line_e_mean = 0.0, 0.0, 0.0, 0.0
     s.line_has_prev, s.line_start_tick = False, -1
     s.line_passive_var, s.line_passive_spans = 0.0, 0
@@ -250,7 +265,8 @@ def line_output(
     """(u_law, error, u_ff, sigma ratio): F_r + the feedforward (0 once the guard has tripped)."""
     error = f_r0 - f_hat
     s.line_pending_error, s.line_pending_reference = error, f_r0  # what commit accumulates
-    u_ff = 0.0 if s.line_tripped else line_feedforward(p, s, table, memory, tick)
+    new_run = s.line_restart_pending and s.line_last_commit >= 0 and tick <= s.line_last_commit
+    u_ff = 0.0 if s.line_tripped or new_run else line_feedforward(p, s, table, memory, tick)
     return f_r0 + u_ff, error, u_ff, s.line_last_sigma_ratio
 
 
@@ -266,10 +282,24 @@ def _accumulate(table, memory, row: int, phase: int, weight: float, h: int) -> N
 @njit(cache=True, error_model="numpy")
 def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     """The force commanded for ``tick``: accumulate this span's E_h, A_h; learn at its end."""
+    n, h = p.line_period, p.line_harmonics
+    if s.line_restart_pending:
+        s.line_restart_pending = False
+        if s.line_last_commit >= 0 and tick <= s.line_last_commit:
+            line_forget(s, memory)  # a new run
+        elif s.line_start_tick >= 0:  # resume: the episode's spans teach nothing
+            _clear_sums(s, memory)
+            s.line_open_span = -1
+            s.line_tainted_span = (tick - s.line_start_tick) // n
+    s.line_last_commit = tick
     if s.line_start_tick < 0:
         s.line_start_tick = tick
     k = tick - s.line_start_tick
-    n, h = p.line_period, p.line_harmonics
+    if s.line_open_span >= 0 and k // n != s.line_open_span:
+        # The open span's last tick never came (no estimate for it, live): close it now, or its
+        # sums would run on into the next span and the next step be taken on two spans' worth.
+        _end_of_span(p, s, table, memory, s.line_open_span)
+    s.line_open_span = k // n
     e = s.line_pending_error
     _accumulate(table, memory, E_ACC, tick % n, (2.0 / n) * e, h)
     # The command as the actuator's limits let it through, on the feedforward's own phase.
@@ -279,10 +309,23 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     s.line_e_mean += e / n
     if k % n == n - 1:
         _end_of_span(p, s, table, memory, k // n)
+        s.line_open_span = -1
+
+
+@njit(cache=True, error_model="numpy")
+def _clear_sums(s, memory) -> None:
+    memory[E_ACC, :] = 0.0
+    memory[A_ACC, :] = 0.0
+    s.line_a_mean = 0.0
+    s.line_e_mean = 0.0
 
 
 @njit(cache=True, error_model="numpy")
 def _end_of_span(p, s, table, memory, span: int) -> None:
+    if span == s.line_tainted_span:
+        s.line_tainted_span = -1
+        _clear_sums(s, memory)
+        return
     # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
     # E_h), what the law acts on and the EN 50318 statistics keep. The raw variance of F_hat
     # is blind under sensor noise: 10 um on z1, z2 gave sigma(F_hat) ~210 N for sigma(F) ~35 N.
@@ -312,10 +355,7 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
             s.line_clip_offset = 0.0
     if span >= p.line_runin_spans - 1 and not s.line_tripped:
         _learn(p, s, table, memory)
-    memory[E_ACC, :] = 0.0
-    memory[A_ACC, :] = 0.0
-    s.line_a_mean = 0.0
-    s.line_e_mean = 0.0
+    _clear_sums(s, memory)
 
 
 @njit(cache=True, error_model="numpy")
@@ -415,6 +455,12 @@ class LineAdaptiveLaw(KernelLaw):
     last_sigma_ratio = property(lambda self: float(self.state[0]["line_last_sigma_ratio"]))
 
     @property
+    def start_tick(self) -> int | None:
+        """The tick the law's spans count from (None: no command yet since it forgot)."""
+        tick = int(self.state[0]["line_start_tick"])
+        return None if tick < 0 else tick
+
+    @property
     def gain(self) -> float:
         """gamma, ``line_learning_gain`` (settable: a test flips its sign to force harm)."""
         return float(self.params[0]["line_gain"])
@@ -427,6 +473,10 @@ class LineAdaptiveLaw(KernelLaw):
     def mode(self) -> str:  # type: ignore[override]
         return "passive" if self.tripped else "active"
 
+    def forget(self) -> None:
+        """Forget everything learned: the next span starts a new run-in (u = F_r, bumpless from rest)."""
+        _forget_one(self.state, self.memory)
+
     def feedforward(self, tick: int) -> float:
         """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
         return _feedforward_one(self.params, self.state, self.table, self.memory, int(tick))
@@ -435,3 +485,8 @@ class LineAdaptiveLaw(KernelLaw):
 @njit(cache=True, error_model="numpy")
 def _feedforward_one(params, states, table, memory, tick):
     return line_feedforward(params[0], states[0], table, memory, tick)
+
+
+@njit(cache=True, error_model="numpy")
+def _forget_one(states, memory) -> None:
+    line_forget(states[0], memory)

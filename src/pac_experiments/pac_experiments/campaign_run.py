@@ -196,11 +196,12 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
         mean, sigma = m.contact_force_mean, m.contact_force_std
         if point.statistics == "en50318":
             n = int(result.ticks[i])
+            names = ("contact_force", "u", "contact_force_hat")
+            traces = {name: result.traces[name][i, :n] for name in names}
             row.update(
                 en50318_measures(
-                    series.time, series.contact_force, series.u,
-                    result.traces["contact_force_hat"][i, :n], result.traces["contact_uplift"][i, :n],
-                    point.window, scenario.loop.sample_period,
+                    series.time, traces["contact_force"], traces["u"], traces["contact_force_hat"],
+                    result.traces["contact_uplift"][i, :n], point.window, scenario.loop.sample_period,
                 )
             )  # fmt: skip
             mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]

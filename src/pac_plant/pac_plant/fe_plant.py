@@ -125,32 +125,41 @@ class FEPlant(Plant):
     @property
     def z(self) -> np.ndarray:
         """(z1, z2, z1', z2') of eq. (4) from the FE state (heights above the datum, ``fe_datum``)."""
-        p, vp = self.sim.state.p, self.sim.state.vp
+        return np.array(self._heights())
+
+    @z.setter
+    def z(self, value: np.ndarray) -> None:
+        # Plant.z is a plain attribute; here it follows from the FE state and cannot be set.
+        raise AttributeError("FEPlant.z follows from the FE state: it cannot be set")
+
+    def _heights(self) -> tuple[float, float, float, float]:
+        """``z`` as Python floats (a tick reads it twice: plain lists are the cheap way out)."""
+        p, vp = self.sim.state.p.tolist(), self.sim.state.vp.tolist()
         if self.options.fe_datum == "static_wire":
             # The datum moves with the contact point along the pre-sagged static wire.
             r = self._readings
-            datum, rate = r[kernels.STATIC_HEIGHT], self.sim.speed * r[kernels.STATIC_SLOPE]
+            datum, rate = float(r[kernels.STATIC_HEIGHT]), self.sim.speed * float(r[kernels.STATIC_SLOPE])
         else:
-            datum, rate = self.datum, 0.0
-        return np.array([p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate])
+            datum, rate = float(self.datum), 0.0
+        return (p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate)
 
     def stiffness_at(self, t: float | None = None) -> float:
         """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""
         return float(self._readings[kernels.STATIC_STIFFNESS])
 
     def truth(self) -> Truth:
-        s, r = self.sim, self._readings
+        s, r = self.sim, self._readings.tolist()
         force = s.contact_force
         return Truth(
             tick=self.tick,
             time=self.time,
-            z=tuple(self.z.tolist()),
-            stiffness=float(r[kernels.STATIC_STIFFNESS]),
+            z=self._heights(),
+            stiffness=r[kernels.STATIC_STIFFNESS],
             contact_force=force,
             in_contact=force > 0.0,
             u_applied=self.u_applied,
-            contact_uplift=float(r[kernels.CONTACT_UPLIFT]),
-            support_uplift=float(r[kernels.SUPPORT_UPLIFT]),  # at the support nearest x
+            contact_uplift=r[kernels.CONTACT_UPLIFT],
+            support_uplift=r[kernels.SUPPORT_UPLIFT],  # at the support nearest x
             contact_position=s.position,
         )
 

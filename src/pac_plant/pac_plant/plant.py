@@ -179,7 +179,8 @@ class Plant:
 
     def measurement(self) -> Measurement:
         """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
-        z1, z2 = float(self.z[0]), float(self.z[1])
+        z = self.z  # once: FEPlant computes it from its state
+        z1, z2 = float(z[0]), float(z[1])
         if self._noisy:
             n1, n2 = self._noise(self.tick)
             z1, z2 = z1 + n1, z2 + n2

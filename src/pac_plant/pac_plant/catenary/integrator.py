@@ -26,8 +26,9 @@ with the solution it produces (a few passes at most; usually the first one).
 ``constants``/``state``); ``step_reference`` is the same algorithm in numpy, kept as the
 reference the compiled step is tested against. The compiled step's kernels differ from the
 reference's only in how they compute the same numbers (docs/numerics.md, "FE line"): the
-right-hand side with M alone, the solve as two overlapping halves, A^-1 e_i stored on the
-20 nodes around i (the rest is below 1e-19 of its peak).
+right-hand side with M alone, the solve as eight overlapping chunks side by side in vector
+lanes, A^-1 e_i and A^-1 g_j stored on the 20 nodes around i (the rest is below 1e-19 and
+1e-18 of the peak).
 """
 
 from __future__ import annotations
@@ -108,6 +109,13 @@ class ContactSimulation:
         self._drop_per_span = line.droppers_per_period
         span = line.period_length
         factors, starts, bounds = kn.chunk_factor(a_line)
+        # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
+        # is < 1e-18 of the peak), what the update adds for a slack dropper.
+        width = min(n, 4 * (2 * kn.UNIT_REACH + 1))
+        drop_patches = np.empty((nd, width))
+        for j, node in enumerate(dr.node):
+            lo = kn.unit_start(n, width, int(node))
+            drop_patches[j] = g[j, lo : lo + width]
         self.constants = StepConstants(
             m_pad=kn.pad_band(self._m),
             chol=self._chol,
@@ -117,7 +125,7 @@ class ContactSimulation:
             x_nodes=np.ascontiguousarray(line.x),
             w_static=np.ascontiguousarray(line.w_static),
             ydrop=self._ydrop,
-            ydrop_t=g,
+            ydrop_patches=drop_patches,
             ddrop=self._ddrop,
             kdrop=self._kdrop,
             e0=self._e0,
@@ -165,7 +173,7 @@ class ContactSimulation:
             scalars=np.zeros(4),
             counters=np.zeros(7, dtype=np.int64),
             slack=np.zeros(nd, dtype=np.int64),
-            unit_patches=np.zeros((line.n_nodes, 2, min(n, 4 * (2 * kn.UNIT_REACH + 1)))),
+            unit_patches=np.zeros((line.n_nodes, 2, width)),
             unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
             work=np.zeros((2, n)),
             padded=np.zeros((2, n + 2 * kn.KD)),
@@ -196,7 +204,7 @@ class ContactSimulation:
         return property(get, put)
 
     def _number(index: int, counter: bool = False, kind: type = float) -> property:  # type: ignore[misc]
-        def get(self: ContactSimulation):  # noqa: ANN202
+        def get(self: ContactSimulation):
             return kind((self.state.counters if counter else self.state.scalars)[index])
 
         def put(self: ContactSimulation, value: float) -> None:

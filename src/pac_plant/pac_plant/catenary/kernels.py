@@ -12,6 +12,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from . import lanes
+
 
 @numba.njit(cache=True)
 def band_matvec2(a1: np.ndarray, x1: np.ndarray, a2: np.ndarray, x2: np.ndarray, out: np.ndarray) -> None:
@@ -119,6 +121,9 @@ def pad_band(ab: np.ndarray) -> np.ndarray:
     return out
 
 
+LAG = 4  # blocks between making z and reading it (``newmark_rhs_mass``)
+
+
 @numba.njit(cache=True, fastmath={"contract"})
 def newmark_rhs_mass(
     mp: np.ndarray,
@@ -144,33 +149,80 @@ def newmark_rhs_mass(
     c0, c1, c2 = 4.0 / (dt * dt), 2.0 / dt, 4.0 / dt
     g = beta / (1.0 + c1 * beta)
     gm = g * (c0 + c1 * alpha)
-    for i in range(n):
-        w = c1 * d[i] + v[i]
-        z[KD + i] = c0 * d[i] + c2 * v[i] + a[i] + alpha * w - gm * w
-        tail[i] = g * w
-    for i in range(n):
-        j = KD + i
+    W = lanes.WIDTH
+    stride = mp.shape[1]
+    whole = n - n % W
+    # z is made LAG blocks of eight rows ahead of the product that reads it (rows i-KD .. i+7+KD):
+    # read back while still in the first-level cache, but after its stores have left the store
+    # buffer (an unaligned load that straddles a pending vector store stalls).
+    nz = z.shape[0]
+    zp = zc = lanes.zeros()
+    vc0, vc1, vc2 = lanes.splat(c0), lanes.splat(c1), lanes.splat(c2)
+    valpha, vgm, vg = lanes.splat(alpha), lanes.splat(gm), lanes.splat(g)
+    for i in range(0, whole + LAG * W, W):
+        ahead = i
+        if ahead < whole:  # z, tail of rows ahead .. ahead+7
+            dd, vv = lanes.load(d, ahead), lanes.load(v, ahead)
+            w = lanes.fma(vc1, dd, vv)
+            x1 = lanes.add(lanes.fma(vc0, dd, lanes.mul(vc2, vv)), lanes.load(a, ahead))
+            lanes.store(z, KD + ahead, lanes.fnma(vgm, w, lanes.fma(valpha, w, x1)))
+            lanes.store(tail, ahead, lanes.mul(vg, w))
+        elif ahead == whole:
+            for r in range(whole, n):  # the rows left over, the same arithmetic one at a time
+                w1 = c1 * d[r] + v[r]
+                z[KD + r] = (c0 * d[r] + c2 * v[r] + a[r]) + alpha * w1 - gm * w1
+                tail[r] = g * w1
+        if i < LAG * W:
+            continue
+        # The product for rows r = i-LAG*8 .. +7: out[r] = sum of M[r, r+k] z[r+k] over the band,
+        # z[r+k] taken from the blocks before, at and after r by a shuffle (one load per block).
+        r = i - LAG * W
+        j = KD + r
+        if r == 0:  # (z has KD, not 8, zeros in front: nothing is read before it)
+            zp, zc = lanes.load_masked(z, j - W, 0, nz), lanes.load(z, j)
+        zn = lanes.load_masked(z, j + W, 0, nz)
+        acc = lanes.mul(lanes.load(mp, j), zc)
+        acc = lanes.fma(lanes.load(mp, stride + j), lanes.window(zc, zn, 1), acc)
+        acc = lanes.fma(lanes.load(mp, stride + j - 1), lanes.window(zp, zc, 7), acc)
+        acc = lanes.fma(lanes.load(mp, 2 * stride + j), lanes.window(zc, zn, 2), acc)
+        acc = lanes.fma(lanes.load(mp, 2 * stride + j - 2), lanes.window(zp, zc, 6), acc)
+        acc = lanes.fma(lanes.load(mp, 3 * stride + j), lanes.window(zc, zn, 3), acc)
+        acc = lanes.fma(lanes.load(mp, 3 * stride + j - 3), lanes.window(zp, zc, 5), acc)
+        acc = lanes.fma(lanes.load(mp, 4 * stride + j), lanes.window(zc, zn, 4), acc)
+        acc = lanes.fma(lanes.load(mp, 4 * stride + j - 4), lanes.window(zp, zc, 4), acc)
+        acc = lanes.fma(lanes.load(mp, 5 * stride + j), lanes.window(zc, zn, 5), acc)
+        acc = lanes.fma(lanes.load(mp, 5 * stride + j - 5), lanes.window(zp, zc, 3), acc)
+        lanes.store(out, r, acc)
+        zp, zc = zc, zn
+    for r in range(whole, n):  # the rows left over (M[r, r-k] = mp[k, KD+r-k])
+        j = KD + r
         acc = mp[0, j] * z[j]
         for k in range(1, KD + 1):
-            acc += mp[k, j] * z[j + k] + mp[k, j - k] * z[j - k]
-        out[i] = acc
+            acc = mp[k, j] * z[j + k] + acc
+            acc = mp[k, j - k] * z[j - k] + acc
+        out[r] = acc
 
 
-CHUNKS = 4  # independent dependency chains in ``chunk_solve``
+CHUNKS = lanes.WIDTH  # independent dependency chains in ``chunk_solve``, one per vector lane
 
 
 def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Banded Cholesky factors of CHUNKS overlapping diagonal blocks of A for ``chunk_solve``.
+    """LDL^T factors of CHUNKS overlapping diagonal blocks of A for ``chunk_solve``, lane-major.
 
-    Returns (factors (lc + 2 KD, KD + 1, CHUNKS): row r + KD of chunk c holds L[r, r-k] for
-    k = 1..KD and 1/L[r, r] at k = 0, zero rows around; starts (CHUNKS,): first row of each
-    chunk in A; bounds (CHUNKS + 1,): chunk c delivers rows bounds[c] .. bounds[c+1], with at
-    least ``overlap`` rows of its block on either side of them (where A goes on))."""
+    Returns (factors (lc + 2 KD, KD + 1, CHUNKS), lc a multiple of CHUNKS: row r + KD of chunk c
+    holds the unit lower
+    factor's L[r, r-k] for k = 1..KD and 1/D[r] at k = 0, zero rows around; starts (CHUNKS,):
+    first row of each chunk in A; bounds (CHUNKS + 1,): chunk c delivers rows bounds[c] ..
+    bounds[c+1], with at least ``overlap`` rows of its block on either side of them (where A
+    goes on)). LDL^T rather than L L^T: each row of either sweep then waits on one fused
+    multiply-add of the previous row, not on a multiply-add and a scaling."""
     from scipy.linalg import cholesky_banded
 
     n, kd = ab.shape[1], KD
     bounds = np.array([round(c * n / CHUNKS) for c in range(CHUNKS + 1)], dtype=np.int64)
-    lc = min(n, int(np.max(np.diff(bounds))) + 2 * overlap)
+    lc = -(-(int(np.max(np.diff(bounds))) + 2 * overlap) // CHUNKS) * CHUNKS  # whole groups of 8 rows
+    if lc > n:
+        raise ValueError(f"chunk_factor: {n} unknowns, fewer than one chunk of {lc} rows")
     starts = np.array([min(max(bounds[c] - overlap, 0), n - lc) for c in range(CHUNKS)], dtype=np.int64)
     factors = np.zeros((lc + 2 * kd, kd + 1, CHUNKS))
     for c in range(CHUNKS):
@@ -178,13 +230,14 @@ def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarr
         for k in range(1, sub.shape[0]):
             sub[k, lc - k :] = 0.0  # couplings that leave the block
         low = narrow_band(cholesky_banded(sub, lower=True))  # low[k, j] = L[j+k, j]
-        for k in range(kd + 1):
-            factors[kd + k : kd + lc, k, c] = low[k, : lc - k]
-        factors[kd : kd + lc, 0, c] = 1.0 / factors[kd : kd + lc, 0, c]
+        diag = low[0].copy()
+        for k in range(1, kd + 1):
+            factors[kd + k : kd + lc, k, c] = low[k, : lc - k] / diag[: lc - k]
+        factors[kd : kd + lc, 0, c] = 1.0 / (diag * diag)
     return factors, starts, bounds
 
 
-@numba.njit(cache=True, fastmath={"contract"})
+@numba.njit(cache=True)
 def chunk_solve(
     factors: np.ndarray,
     starts: np.ndarray,
@@ -193,68 +246,72 @@ def chunk_solve(
     w: np.ndarray,
     addend: np.ndarray,
 ) -> None:
-    """Solve A x = b in place (b of shape (n,)) as CHUNKS independent banded Cholesky solves of
-    overlapping diagonal blocks of A (``chunk_factor``), interleaved so that their dependency
-    chains overlap in the CPU (one chain is latency-bound: each row waits for the previous
-    one); rows kept in registers, the newest term last (shortest chain). ``w``: scratch
-    (lc + 2 KD, CHUNKS). ``addend`` (length n, or empty: none) is added to the solution on the
-    way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
+    """Solve A x = b in place (b of shape (n,)) as CHUNKS independent banded LDL^T solves of
+    overlapping diagonal blocks of A (``chunk_factor``), one block per vector lane: one
+    banded solve is a chain (each row waits for the previous one), eight of them side by
+    side fill the vector unit. The five previous rows stay in registers; the newest term is
+    subtracted last (the chain per row is one fused multiply-add). ``w``: scratch
+    (lc + 2 KD, CHUNKS). ``addend`` (length n, or empty: none) is added to the solution on
+    the way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
     lc = factors.shape[0] - 2 * KD
+    if w.shape[0] < lc + KD or w.shape[1] != CHUNKS:
+        raise ValueError("chunk_solve: scratch w too small (rows: at least the factors')")
     f = factors
-    for c in range(CHUNKS):
-        s = starts[c]
-        for j in range(lc):
-            w[KD + j, c] = b[s + j]
-    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    r1, r2, r3, r4, r5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    t1, t2, t3, t4, t5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    for j in range(KD, KD + lc):  # forward: L y = b; p1..p5 = y[j-1]..y[j-5] of chunk 0, q.. of 1, ...
-        p0 = w[j, 0] - f[j, 5, 0] * p5 - f[j, 4, 0] * p4 - f[j, 3, 0] * p3 - f[j, 2, 0] * p2
-        q0 = w[j, 1] - f[j, 5, 1] * q5 - f[j, 4, 1] * q4 - f[j, 3, 1] * q3 - f[j, 2, 1] * q2
-        r0 = w[j, 2] - f[j, 5, 2] * r5 - f[j, 4, 2] * r4 - f[j, 3, 2] * r3 - f[j, 2, 2] * r2
-        t0 = w[j, 3] - f[j, 5, 3] * t5 - f[j, 4, 3] * t4 - f[j, 3, 3] * t3 - f[j, 2, 3] * t2
-        p0 = (p0 - f[j, 1, 0] * p1) * f[j, 0, 0]
-        q0 = (q0 - f[j, 1, 1] * q1) * f[j, 0, 1]
-        r0 = (r0 - f[j, 1, 2] * r1) * f[j, 0, 2]
-        t0 = (t0 - f[j, 1, 3] * t1) * f[j, 0, 3]
-        w[j, 0] = p0
-        w[j, 1] = q0
-        w[j, 2] = r0
-        w[j, 3] = t0
-        p5, p4, p3, p2, p1 = p4, p3, p2, p1, p0
-        q5, q4, q3, q2, q1 = q4, q3, q2, q1, q0
-        r5, r4, r3, r2, r1 = r4, r3, r2, r1, r0
-        t5, t4, t3, t2, t1 = t4, t3, t2, t1, t0
-    p1, p2, p3, p4, p5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    q1, q2, q3, q4, q5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    r1, r2, r3, r4, r5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    t1, t2, t3, t4, t5 = 0.0, 0.0, 0.0, 0.0, 0.0
-    for j in range(KD + lc - 1, KD - 1, -1):  # backward: L^T x = y; p1..p5 = x[j+1]..x[j+5]
-        p0 = w[j, 0] - f[j + 5, 5, 0] * p5 - f[j + 4, 4, 0] * p4 - f[j + 3, 3, 0] * p3 - f[j + 2, 2, 0] * p2
-        q0 = w[j, 1] - f[j + 5, 5, 1] * q5 - f[j + 4, 4, 1] * q4 - f[j + 3, 3, 1] * q3 - f[j + 2, 2, 1] * q2
-        r0 = w[j, 2] - f[j + 5, 5, 2] * r5 - f[j + 4, 4, 2] * r4 - f[j + 3, 3, 2] * r3 - f[j + 2, 2, 2] * r2
-        t0 = w[j, 3] - f[j + 5, 5, 3] * t5 - f[j + 4, 4, 3] * t4 - f[j + 3, 3, 3] * t3 - f[j + 2, 2, 3] * t2
-        p0 = (p0 - f[j + 1, 1, 0] * p1) * f[j, 0, 0]
-        q0 = (q0 - f[j + 1, 1, 1] * q1) * f[j, 0, 1]
-        r0 = (r0 - f[j + 1, 1, 2] * r1) * f[j, 0, 2]
-        t0 = (t0 - f[j + 1, 1, 3] * t1) * f[j, 0, 3]
-        w[j, 0] = p0
-        w[j, 1] = q0
-        w[j, 2] = r0
-        w[j, 3] = t0
-        p5, p4, p3, p2, p1 = p4, p3, p2, p1, p0
-        q5, q4, q3, q2, q1 = q4, q3, q2, q1, q0
-        r5, r4, r3, r2, r1 = r4, r3, r2, r1, r0
-        t5, t4, t3, t2, t1 = t4, t3, t2, t1, t0
-    for c in range(CHUNKS):
-        s = starts[c]
-        if addend.shape[0]:
-            for i in range(bounds[c], bounds[c + 1]):
-                b[i] = w[KD + i - s, c] + addend[i]
-        else:
-            for i in range(bounds[c], bounds[c + 1]):
-                b[i] = w[KD + i - s, c]
+    row = (KD + 1) * CHUNKS  # elements per row of f
+    p1 = p2 = p3 = p4 = p5 = lanes.zeros()
+    for j in range(KD, KD + lc):  # forward: L y = b; p1..p5 = y[j-1]..y[j-5], lane c = chunk c
+        o = j * row
+        acc = lanes.gather(b, starts, j - KD)  # b[starts[c] + j - KD]
+        acc = lanes.fnma(lanes.load(f, o + 5 * CHUNKS), p5, acc)
+        acc = lanes.fnma(lanes.load(f, o + 4 * CHUNKS), p4, acc)
+        acc = lanes.fnma(lanes.load(f, o + 3 * CHUNKS), p3, acc)
+        acc = lanes.fnma(lanes.load(f, o + 2 * CHUNKS), p2, acc)
+        y = lanes.fnma(lanes.load(f, o + CHUNKS), p1, acc)
+        lanes.store(w, j * CHUNKS, y)
+        p5, p4, p3, p2, p1 = p4, p3, p2, p1, y
+    # Backward: D L^T x = y, eight rows at a time; each group of eight solutions is turned into
+    # eight runs of the natural order (an 8 x 8 transpose) and written out at once, chunk c
+    # writing (plus the addend) only the rows it delivers.
+    add = addend.shape[0] != 0
+    p1 = p2 = p3 = p4 = p5 = lanes.zeros()
+    for j in range(KD + lc - CHUNKS, KD - 1, -CHUNKS):
+        x7 = _back_row(f, w, j + 7, p1, p2, p3, p4, p5)
+        x6 = _back_row(f, w, j + 6, x7, p1, p2, p3, p4)
+        x5 = _back_row(f, w, j + 5, x6, x7, p1, p2, p3)
+        x4 = _back_row(f, w, j + 4, x5, x6, x7, p1, p2)
+        x3 = _back_row(f, w, j + 3, x4, x5, x6, x7, p1)
+        x2 = _back_row(f, w, j + 2, x3, x4, x5, x6, x7)
+        x1 = _back_row(f, w, j + 1, x2, x3, x4, x5, x6)
+        x0 = _back_row(f, w, j, x1, x2, x3, x4, x5)
+        p1, p2, p3, p4, p5 = x0, x1, x2, x3, x4
+        cols = lanes.transpose((x0, x1, x2, x3, x4, x5, x6, x7))
+        for c in range(CHUNKS):
+            r, lo, hi = starts[c] + j - KD, bounds[c], bounds[c + 1]
+            x = cols[c]
+            if add:
+                x = lanes.add(x, lanes.load_masked(addend, r, lo, hi))
+            lanes.store_masked(b, r, x, lo, hi)
+
+
+@numba.njit(cache=True, inline="always")
+def _back_row(
+    f: np.ndarray,
+    w: np.ndarray,
+    j: int,
+    p1: lanes.Lanes,
+    p2: lanes.Lanes,
+    p3: lanes.Lanes,
+    p4: lanes.Lanes,
+    p5: lanes.Lanes,
+) -> lanes.Lanes:
+    """Row j of the backward sweep of ``chunk_solve`` (p1..p5: the solution at rows j+1..j+5)."""
+    row = (KD + 1) * CHUNKS
+    acc = lanes.mul(lanes.load(w, j * CHUNKS), lanes.load(f, j * row))
+    acc = lanes.fnma(lanes.load(f, (j + 5) * row + 5 * CHUNKS), p5, acc)
+    acc = lanes.fnma(lanes.load(f, (j + 4) * row + 4 * CHUNKS), p4, acc)
+    acc = lanes.fnma(lanes.load(f, (j + 3) * row + 3 * CHUNKS), p3, acc)
+    acc = lanes.fnma(lanes.load(f, (j + 2) * row + 2 * CHUNKS), p2, acc)
+    return lanes.fnma(lanes.load(f, (j + 1) * row + CHUNKS), p1, acc)
 
 
 # -- the whole Newmark step of line + pantograph, compiled (``integrator.ContactSimulation``) ----------
@@ -274,8 +331,10 @@ class StepConstants(NamedTuple):
     """What does not change during a run: line matrices, factor, droppers, pantograph, numbers.
 
     ``m_pad`` = ``pad_band(M)`` (the step needs no K, see ``newmark_rhs_mass``);
-    ``ydrop[:, j]`` = ``ydrop_t[j]`` is A^-1 g_j for dropper j (both layouts: rows of the first at
-    the contact DOFs, contiguous columns of the second for the update), ``ddrop`` = G^T A^-1 G.
+    ``ydrop[:, j]`` is A^-1 g_j for dropper j (its rows at the contact DOFs are read),
+    ``ydrop_patches[j]`` the same column on the rows ``unit_start`` of the dropper's node +
+    0..width-1 (the update adds it for a slack dropper; outside, the column is < 1e-18 of its
+    peak), ``ddrop`` = G^T A^-1 G.
     ``numbers`` = (dt, speed, alpha, beta, kp, c0, c1, length, span, shift_at);
     ``indices`` = (head, input, endless, shift_dofs, droppers_per_span).
     """
@@ -288,7 +347,7 @@ class StepConstants(NamedTuple):
     x_nodes: np.ndarray
     w_static: np.ndarray
     ydrop: np.ndarray
-    ydrop_t: np.ndarray
+    ydrop_patches: np.ndarray
     ddrop: np.ndarray
     kdrop: np.ndarray
     e0: np.ndarray
@@ -568,11 +627,13 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     ns = slack.shape[0]
     d_new = y_l  # scratch, consumed by newmark_update below
     p_new = y_p.copy()
+    width = c.ydrop_patches.shape[1]
     for q in range(ns):
         cq = coef[q]
-        yq = c.ydrop_t[slack[q]]
-        for k in range(d_new.shape[0]):
-            d_new[k] += yq[k] * cq
+        yq = c.ydrop_patches[slack[q]]
+        lo = unit_start(n, width, c.dwc[slack[q]] // 4)
+        for k in range(width):
+            d_new[lo + k] += yq[k] * cq
     if contact:
         cc = coef[ns]
         for k in range(yc_lo, yc_hi):
