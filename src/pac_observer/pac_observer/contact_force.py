@@ -42,6 +42,7 @@ observer; ``line_adaptive`` and ``passive`` run on this one.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -90,10 +91,12 @@ def contact_force_model(pantograph: PantographParameters) -> tuple[np.ndarray, n
     return a_aug, b_aug
 
 
+@functools.lru_cache(maxsize=256)  # pure; a bank's 25 designs are most of an FE run's set-up (campaigns)
 def kalman_design(
     pantograph: PantographParameters, force_process_noise: float, position_noise: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(Phi, Gamma, K) of the sampled model and its steady-state Kalman gain (module docstring)."""
+    """(Phi, Gamma, K) of the sampled model and its steady-state Kalman gain (module docstring);
+    cached and shared, hence read only."""
     import scipy.linalg  # here, not at import: a node starts without loading scipy
 
     a_aug, b_aug = contact_force_model(pantograph)
@@ -114,6 +117,8 @@ def kalman_design(
     r = position_noise**2 * np.eye(2)
     p = scipy.linalg.solve_discrete_are(phi.T, c.T, q_d, r)
     gain = p @ c.T @ np.linalg.inv(c @ p @ c.T + r)
+    for shared in (phi, gamma, gain):
+        shared.setflags(write=False)
     return phi, gamma, gain
 
 
