@@ -1,0 +1,59 @@
+"""make catenary's write-up of the reference runs on every catenary preset (synthetic rows, no FE runs)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from pac_experiments.fe_line_report import lines_reference_section
+from pac_experiments.fe_line_runs import EN50318_BANDS, reference_lines
+from pac_plant.catenary.catenary_file import DEFAULT, presets
+
+
+def _row(name: str, speed: int, mean: float, stitched: bool, spans: list[float]) -> dict[str, Any]:
+    row: dict[str, Any] = dict.fromkeys(EN50318_BANDS, 1.0)
+    row.update(
+        catenary=name,
+        speed_kmh=speed,
+        span_lengths_m=spans,
+        stitched=stitched,
+        contact_tension_N=27000.0,
+        messenger_tension_N=21000.0,
+        contact_force_mean=mean,
+        max_slack_droppers=3 if speed == 300 else 0,
+    )
+    return row
+
+
+@pytest.mark.unit
+def test_every_line_gets_its_band_table_with_distances():
+    a_spans, b_spans = [55.0], [60.0, 65.0]
+    refs = {
+        "line_a": {
+            250: _row("line_a", 250, 130.8, False, a_spans),
+            300: _row("line_a", 300, 115.0, False, a_spans),
+        },
+        "line_b": {
+            250: _row("line_b", 250, 100.0, True, b_spans),
+            300: _row("line_b", 300, 121.5, True, b_spans),
+        },
+    }
+    text = lines_reference_section(refs)
+    assert "### line_a" in text and "### line_b" in text
+    assert text.index("### line_a") < text.index("### line_b")
+    a, b = text.split("### line_b")
+    # The mean's row: ours, the 110-120 band and the distance to its nearest edge, per speed.
+    assert "| contact_force_mean | 130.8 | 110–120 | +10.8 | 115.0 | 110–120 | +0.0 |" in a
+    assert "| contact_force_mean | 100.0 | 110–120 | -10.0 | 121.5 | 110–120 | +1.5 |" in b
+    assert "no stitch wire" in a and "stitch wire at the supports" in b
+    assert "Spans 55 m" in a and "Spans 60/65 m" in b
+    assert "250 km/h 0, 300 km/h 3" in b
+    assert "not its own" in text and "EN 50318:2002 reference model" in text
+
+
+@pytest.mark.offline
+def test_reference_runs_cover_every_preset_default_first():
+    lines = reference_lines()
+    assert lines[0] == DEFAULT
+    assert sorted(lines) == sorted(presets()) and len(lines) == len(set(lines)) >= 3
