@@ -7,7 +7,7 @@ ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs.
-CAMPAIGNS ?= laws_speeds robustness
+CAMPAIGNS ?= laws_speeds robustness lines_speeds
 
 # Test kinds: pytest.ini (unit, offline, live); `make test-fast` = unit + offline, no DDS processes.
 FAST_TESTS := (unit or offline) and not live
