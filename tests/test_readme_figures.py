@@ -91,3 +91,36 @@ def test_readme_fe_laws_tables_are_the_committed_report():
     assert len(tables) >= 2  # the goals and every law (the section was found and read)
     for table in tables:
         assert table in report, table.splitlines()[0]
+
+
+def test_readme_lines_speeds_table_is_the_committed_campaign():
+    """README's lines-against-speed table (σ passive / line_adaptive, contact loss) is
+    reports/campaigns/lines_speeds/results.csv (written by the campaign) to the digits printed."""
+    import csv
+
+    section = (ROOT / "README.md").read_text().split("The lines against speed, on the FE line", 1)[1]
+    rows = [
+        line
+        for line in section.split("\n\n", 2)[1].splitlines()
+        if line.startswith("| ") and "km/h" not in line
+    ]
+    with (ROOT / "reports" / "campaigns" / "lines_speeds" / "results.csv").open() as f:
+        runs = {(r["law"], r["catenary"], float(r["speed_kmh"])): r for r in csv.DictReader(f)}
+    lines = ("benchmark_55m", "stitched_hs_65m", "re200_like_65m")
+    cell = re.compile(r"^([\d.]+)(?: \(([\d.]+) %\))?$")
+    checked = 0
+    for row in rows:
+        speed, *cells = (c.strip() for c in row.strip("|").split("|"))
+        for line, pair in zip(lines, cells, strict=True):
+            for law, text in zip(("passive", "line_adaptive"), pair.split(" / "), strict=True):
+                m = cell.match(text)
+                assert m, text
+                run = runs[(law, line, float(speed))]
+                assert m[1] == f"{float(run['en50318_contact_force_std']):.1f}", (law, line, speed)
+                loss = float(run["en50318_contact_loss_percent"])
+                assert (m[2] is None) == (loss == 0.0), (law, line, speed)
+                if m[2] is not None:  # to the digits printed
+                    digits = len(m[2].partition(".")[2])
+                    assert m[2] == f"{loss:.{digits}f}", (law, line, speed)
+                checked += 1
+    assert checked == 18  # the table was read: 3 speeds x 3 lines x 2 laws
