@@ -57,3 +57,33 @@ def test_reference_runs_cover_every_preset_default_first():
     lines = reference_lines()
     assert lines[0] == DEFAULT
     assert sorted(lines) == sorted(presets()) and len(lines) == len(set(lines)) >= 3
+
+
+@pytest.mark.unit
+def test_docs_per_preset_table_is_the_committed_report():
+    """docs/catenary.md's per-preset reference-run table is reports/catenary/metrics.json (written by
+    `make catenary`) to the digits printed, one row per line and speed."""
+    import json
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    runs = json.loads((root / "reports" / "catenary" / "metrics.json").read_text())["reference_runs_by_line"]
+    section = (root / "docs" / "catenary.md").read_text().split("### Reference runs on every preset", 1)[1]
+    rows = [r for r in section.split("\n\n", 3)[2].splitlines() if r.startswith("| ") and "km/h" not in r]
+    keys = (
+        "contact_force_mean",
+        "contact_force_std",
+        "statistical_max",
+        "statistical_min",
+        "contact_force_max",
+        "contact_force_min",
+        "support_uplift_mm",
+        "contact_loss_percent",
+    )
+    seen = set()
+    for row in rows:
+        line, speed, *cells = (c.strip() for c in row.strip("|").split("|"))
+        run = runs[line][speed]
+        assert cells == [f"{run[k]:.1f}" for k in keys], (line, speed)
+        seen.add((line, speed))
+    assert seen == {(line, speed) for line, by_speed in runs.items() for speed in by_speed}
