@@ -9,8 +9,9 @@ BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs.
 CAMPAIGNS ?= laws_speeds robustness lines_speeds
 
-# Test kinds: pytest.ini (unit, offline, live); `make test-fast` = unit + offline, no DDS processes.
-FAST_TESTS := (unit or offline) and not live
+# Test kinds: pytest.ini (unit, offline, live; slow marks the costly ones); `make test-fast` = unit +
+# offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
+FAST_TESTS := (unit or offline) and not live and not slow
 
 .PHONY: setup test test-fast lint typecheck clean demo reproduce catenary fe-experiment fe-live bench soak report info replay re-estimate recover sweep campaigns
 
@@ -24,7 +25,7 @@ test: setup
 	scripts/with_env.sh mypy
 	bash scripts/run_tests.sh
 
-# The fast kinds only (cores, offline tools): no node process, no DDS.
+# The fast kinds only (cores, offline tools in process), not the slow ones: no node process, no DDS.
 test-fast: setup
 	bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from websockets.sync.client import connect
 
+from pac_common import markdown
 from pac_rig.launcher import Rig, node_env
 
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
@@ -125,10 +126,12 @@ def main() -> int:
         finally:
             rig.stop(grace=5.0)
     print(f"\nlive_view over a 1 kHz real-time rig ({args.seconds:g} s per row)\n")
-    print("| rate_hz | client subscribed | live_view CPU [%] | messages/s to the client (4 topics) |")
-    print("|---:|---|---:|---:|")
-    for rate_hz, with_client, cpu, rate in rows:
-        print(f"| {rate_hz:g} | {'yes' if with_client else 'no'} | {cpu:.1f} | {rate:.0f} |")
+    header = ["rate_hz", "client subscribed", "live_view CPU [%]", "messages/s to the client (4 topics)"]
+    cells = [
+        [f"{rate_hz:g}", "yes" if with_client else "no", f"{cpu:.1f}", f"{rate:.0f}"]
+        for rate_hz, with_client, cpu, rate in rows
+    ]
+    print(markdown.table(header, cells, ["r", "l", "r", "r"]))
     return 0
 
 

@@ -4,8 +4,10 @@ Every test that touches DDS gets its own ROS domain and cleans up its processes.
 has a kind (pytest.ini): ``unit``, ``offline`` or ``live``, set per module with
 ``pytestmark = pytest.mark.<kind>`` (or on a test); a test that uses a fixture that starts ROS
 processes (``domain_id``, ``rigs``, test_cli's ``live``: LIVE_FIXTURES) is ``live`` whatever its
-module says.  ``make test-fast`` runs
-``unit or offline`` without ``live``; ``make test`` runs them all.
+module says.  ``slow`` (beside the kind) marks a unit or offline test that takes seconds: a tool
+started as a process, a Dask cluster, a long simulation.  ``make test-fast`` runs
+``unit or offline`` without ``live`` and without ``slow`` (under a minute); ``make test`` runs
+them all.
 """
 
 import contextlib
@@ -83,6 +85,23 @@ def pytest_collection_modifyitems(config, items):
 
 
 # -- helpers shared by several test modules ------------------------------------------------------
+#: The repository's root (the tests' parent folder).
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def repository_files(*patterns: str) -> list[Path]:
+    """The repository's files matching git pathspecs ``patterns``, tracked or new, not ignored
+    (build outputs and bags are not the project's text)."""
+    out = subprocess.run(
+        ["git", "ls-files", "--cached", "--others", "--exclude-standard", *patterns],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    return [ROOT / f for f in out if (ROOT / f).is_file()]
+
+
 #: The physics fields of each loop topic (what a lock-step run and the offline simulator share).
 PHYSICS = {
     "measurement": ["z1", "z2", "actuator_force"],
@@ -96,6 +115,28 @@ def first_per_tick(topic):
     """(ticks, index of each tick's first message) of a topic read from a bag."""
     ticks, idx = np.unique(topic["tick"], return_index=True)
     return ticks, idx
+
+
+def assert_lockstep_equals_offline(
+    bag_path: Path, values: dict, offline_path: Path, columns: dict[str, list[str]] = PHYSICS
+) -> dict:
+    """A lock-step run's bag equals the offline simulator's run of the same scenario (``values``)
+    bit for bit: every tick of the run, in order, on each topic of ``columns`` (a re-sent sample
+    is recorded twice: its first copy counts). Returns the offline bag's topics."""
+    from pac_bag.reader import read_bag
+    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+    scenario = scenario_from_flat(values)
+    simulate_to_bag(scenario, offline_path)
+    live, offline = read_bag(bag_path).topics, read_bag(offline_path).topics
+    for topic, names in columns.items():
+        ticks, idx = first_per_tick(live[topic])
+        np.testing.assert_array_equal(ticks, np.arange(scenario.loop.ticks), err_msg=topic)
+        for column in names:
+            np.testing.assert_array_equal(
+                np.asarray(live[topic][column])[idx], offline[topic][column], err_msg=f"{topic}.{column}"
+            )
+    return offline
 
 
 def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[str, str], log: Path) -> None:

@@ -48,6 +48,7 @@ def independent_contact_force(bag_dir, t_from):
     return np.array(forces)
 
 
+@pytest.mark.slow
 def test_report_agrees_with_an_independent_computation(offline_bags, tmp_path):
     out = tmp_path / "report"
     results, problems = report([offline_bags / "passive", offline_bags / "active"], out, 3.0, None)
@@ -74,6 +75,7 @@ def test_report_agrees_with_an_independent_computation(offline_bags, tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_report_window_options(offline_bags, tmp_path):
     report([offline_bags / "active"], tmp_path / "w", 1.0, 2.0)
     m = json.loads((tmp_path / "w" / "metrics.json").read_text())["runs"]["active"]["metrics"]
@@ -82,6 +84,7 @@ def test_report_window_options(offline_bags, tmp_path):
     assert m["contact_force_mean"] == pytest.approx(force.mean(), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_info_shows_topics_counts_and_ticks(offline_bags):
     text, warnings = describe(offline_bags / "active")
     assert not warnings
@@ -90,12 +93,14 @@ def test_info_shows_topics_counts_and_ticks(offline_bags):
     assert text.count(" 5000 ") >= 4 and "0..4999" in text and "1000.0" in text
 
 
+@pytest.mark.slow
 def test_re_estimate_on_offline_bag_is_exact(offline_bags):
     result = re_estimate(offline_bags / "active", {})
     assert result["compared"] == 5000
     assert all(f["identical"] for f in result["fields"].values())
 
 
+@pytest.mark.slow
 def test_re_estimate_detects_different_tuning(offline_bags):
     result = re_estimate(offline_bags / "active", {"rho_theta": 10.0})
     assert not result["fields"]["theta_hat"]["identical"]
@@ -187,6 +192,7 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
 # -- bad bags ---------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_truncated_mcap_without_metadata_gives_partial_results(offline_bags, tmp_path):
     crashed = tmp_path / "crashed"
     shutil.copytree(offline_bags / "active", crashed)
@@ -208,6 +214,7 @@ def test_truncated_mcap_without_metadata_gives_partial_results(offline_bags, tmp
     assert read_bag(tmp_path / "recovered").warnings == []
 
 
+@pytest.mark.slow
 def test_missing_topics_are_named_and_the_rest_is_reported(offline_bags, tmp_path):
     partial = tmp_path / "partial"
     full = read_bag(offline_bags / "active")
@@ -276,6 +283,7 @@ def test_a_bag_of_unknown_types_only_is_refused_naming_the_type(tmp_path):
         read_bag(_foreign_bag(tmp_path / "foreign", with_pac_topic=False))
 
 
+@pytest.mark.slow
 def test_empty_bag_and_no_bag(tmp_path):
     empty = tmp_path / "empty"
     BagWriter(empty).close()

@@ -176,6 +176,7 @@ def bags_by_compression(tmp_path_factory):
 
 
 @pytest.mark.parametrize("compression", COMPRESSIONS)
+@pytest.mark.slow
 def test_bags_read_by_rosbags_mcap_and_stream_readers_alike(bags_by_compression, compression):
     bag = bags_by_compression / compression
     (file,) = bag.glob("*.mcap")
@@ -219,6 +220,7 @@ def test_bags_read_by_rosbags_mcap_and_stream_readers_alike(bags_by_compression,
     )
 
 
+@pytest.mark.slow
 def test_compression_makes_bags_smaller_and_reads_the_same(bags_by_compression):
     sizes = {c: next((bags_by_compression / c).glob("*.mcap")).stat().st_size for c in COMPRESSIONS}
     print(f"\n3 s offline bag: {sizes}")
@@ -300,6 +302,7 @@ def good_bag(tmp_path_factory):
 
 
 @pytest.mark.parametrize("fraction", [0.0005, 0.4, 0.75, 0.9999])
+@pytest.mark.slow
 def test_truncated_bag_with_metadata_gives_partial_results_and_exit_1(good_bag, tmp_path, fraction):
     """A truncated bag that still has its metadata.yaml (the old traceback: 'File end magic is
     invalid'): every tool reports one line per problem, what is readable, and exits 1."""
@@ -339,6 +342,7 @@ def test_truncated_bag_with_metadata_gives_partial_results_and_exit_1(good_bag, 
     assert again.returncode == 0 and again.stderr == ""
 
 
+@pytest.mark.slow
 def test_truncated_bag_without_metadata_and_missing_topics_via_the_tools(good_bag, tmp_path):
     bag = tmp_path / "crashed"
     shutil.copytree(good_bag, bag)
@@ -356,6 +360,7 @@ def test_truncated_bag_without_metadata_and_missing_topics_via_the_tools(good_ba
     assert "plant_truth" in run_tool("info", tmp_path / "rec").stdout
 
 
+@pytest.mark.slow
 def test_unknown_types_and_empty_bags_via_the_tools(tmp_path):
     store = get_typestore(Stores.ROS2_JAZZY)
     store.register(get_types_from_msg("float64 x", "other_pkg/msg/Thing"))

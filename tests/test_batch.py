@@ -132,6 +132,7 @@ def test_paper_gains_diverge_in_batch_too(batch):
     assert result.ticks[i] == 234 and "exceeded" in result.diverged[i]
 
 
+@pytest.mark.slow
 def test_every_law_is_batchable_on_the_lumped_line_only():
     for law in LAW_NAMES:
         for line, expected in (("lumped", law in COMPILED_LAW_NAMES), ("fe", False)):

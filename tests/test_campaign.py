@@ -3,6 +3,7 @@ and a separate Dask cluster (scheduler + workers as processes) gives the embedde
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import os
@@ -68,6 +69,7 @@ def client():
     cluster.close()
 
 
+@pytest.mark.slow
 def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path, client, monkeypatch):
     spec_path = write_spec(
         tmp_path / "spec.yaml",
@@ -158,6 +160,26 @@ def test_resume_runs_only_what_is_not_done(tmp_path, client, monkeypatch):
     assert len(read_rows(out)) == 6
 
 
+@pytest.mark.unit
+def test_runs_jsonl_is_strict_json_and_a_nan_measure_reads_back_as_nan(tmp_path):
+    row = {"key": "k1", "status": "ok", "reason": "", "law": "passive", "du_dt_max_abs": float("nan")}
+    row["contact_force_std"] = 3.5
+    line = campaign_results.runs_line(row)
+    assert line.endswith("\n") and line.count("\n") == 1
+
+    def refuse(constant: str) -> None:
+        raise AssertionError(f"not strict JSON: {constant}")
+
+    assert json.loads(line, parse_constant=refuse)["du_dt_max_abs"] is None
+    (tmp_path / campaign_results.RUNS_FILE).write_text(line)
+    back = campaign_results.read_done(tmp_path)["k1"]
+    assert np.isnan(back["du_dt_max_abs"]) and back["contact_force_std"] == 3.5
+    assert {k: v for k, v in back.items() if k != "du_dt_max_abs"} == {
+        k: v for k, v in row.items() if k != "du_dt_max_abs"
+    }
+
+
+@pytest.mark.slow
 def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch):
     """The compiled batch serves every lumped run of a law with a kernel; every row equals the row of the
     same point stepped tick by tick through the core objects (no compiled loop at all)."""
@@ -220,6 +242,16 @@ def _cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
     )
 
 
+def _main(capsys, *args: str) -> tuple[int, str, str]:
+    """campaign's ``main`` in this process (what ``python -m pac_experiments.campaign`` runs, without
+    a new interpreter): (exit status, stdout, stderr)."""
+    from pac_experiments.campaign import main
+
+    code = main(list(args))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
 GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WINDOW}
 
 
@@ -256,16 +288,51 @@ GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WI
         "missing",
     ],
 )
-def test_bad_spec_fails_before_any_run_with_one_line(tmp_path, text, expected):
+def test_bad_spec_fails_before_any_run_with_one_line(tmp_path, capsys, text, expected):
     spec = tmp_path / "spec.yaml"
     if text is not None:
         spec.write_text(text)
     out = tmp_path / "out"
-    result = _cli(str(spec), "--out", str(out))
-    assert result.returncode == 2, result.stderr
-    assert result.stdout == ""
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("campaign: ") and expected in lines[0], result.stderr
+    code, stdout, stderr = _main(capsys, str(spec), "--out", str(out))
+    assert code == 2, stderr
+    assert stdout == ""
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("campaign: ") and expected in lines[0], stderr
+    assert not out.exists()  # nothing ran, nothing was written
+
+
+def test_a_spec_with_several_errors_names_each_once_before_any_run(tmp_path, capsys):
+    """Every error in one go, one line each (key, value, what is allowed): an unknown key, a bad
+    'statistics', a fixed value out of range (refused at every point: said once) and a grid value
+    out of range in a point that has the fixed error too."""
+    spec = tmp_path / "spec.yaml"
+    spec.write_text(
+        yaml.safe_dump(
+            {
+                **GOOD,
+                "grid": {"speed_kmh": [300.0, 900.0]},
+                "fixed": {"duration": 0.5, "c1": -1.0},
+                "statistics": "median",
+                "colour": "red",
+            }
+        )
+    )
+    out = tmp_path / "out"
+    code, stdout, stderr = _main(capsys, str(spec), "--out", str(out), "--workers", "0")
+    assert code == 2, stderr
+    assert stdout == ""
+    lines = stderr.strip().splitlines()
+    expected = [
+        "invalid option '--workers' = 0: allowed an integer >= 1",
+        "unknown key 'colour' = 'red' (allowed: ",
+        "'statistics' = 'median': allowed raw, en50318",
+        "invalid parameter 'c1' = -1.0: allowed",
+        "invalid parameter 'speed_kmh' = 900.0: allowed",
+    ]
+    assert len(lines) == len(expected), stderr
+    assert all(line.startswith("campaign: ") for line in lines), stderr
+    for text in expected:
+        assert sum(text in line for line in lines) == 1, (text, stderr)
     assert not out.exists()  # nothing ran, nothing was written
 
 
@@ -331,6 +398,7 @@ def dask_cluster(tmp_path):
         assert all(p.poll() is not None for p in procs)
 
 
+@pytest.mark.slow
 def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
     address, _ = dask_cluster
     spec = write_spec(
@@ -357,6 +425,7 @@ def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
     assert "5 run (1 diverged or failed), 0 lost" in remote.stdout
 
 
+@pytest.mark.slow
 def test_embedded_cluster_listens_on_loopback_only():
     import psutil
 
@@ -372,6 +441,39 @@ def test_embedded_cluster_listens_on_loopback_only():
         cluster.close()
 
 
+@contextlib.contextmanager
+def campaign_running(spec: Path, out: Path, *extra: str):
+    """``campaign SPEC --out OUT --chunk-size 1 EXTRA`` in its own process group, given once two
+    runs are in runs.jsonl (or it ended, or 120 s passed); killed with its group on exit if still
+    running, pass or fail."""
+    args = [
+        sys.executable,
+        "-m",
+        "pac_experiments.campaign",
+        str(spec),
+        "--out",
+        str(out),
+        "--chunk-size",
+        "1",
+    ]
+    proc = subprocess.Popen(
+        [*args, *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
+    )
+    try:
+        deadline = time.monotonic() + 120.0
+        while time.monotonic() < deadline and proc.poll() is None:
+            runs = out / "runs.jsonl"
+            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
+                break
+            time.sleep(0.05)
+        yield proc
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(timeout=10)
+
+
+@pytest.mark.slow
 def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
     """SIGINT to the whole process group (a terminal's Ctrl-C, workers included).
 
@@ -388,32 +490,9 @@ def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
         },
     )
     out = tmp_path / "out"
-    args = [
-        sys.executable,
-        "-m",
-        "pac_experiments.campaign",
-        str(spec),
-        "--out",
-        str(out),
-        "--chunk-size",
-        "1",
-    ]
-    proc = subprocess.Popen(
-        args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
-    )
-    try:
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline and proc.poll() is None:
-            runs = out / "runs.jsonl"
-            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
-                break
-            time.sleep(0.05)
+    with campaign_running(spec, out) as proc:
         os.killpg(proc.pid, signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait(timeout=10)
     assert proc.returncode == 130, stderr
     assert "interrupted; re-run the same command to resume" in stderr
     kept = len((out / "runs.jsonl").read_text().splitlines())
@@ -425,6 +504,7 @@ def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
     assert len(read_rows(out)) == 48
 
 
+@pytest.mark.slow
 def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
     """One of the two workers is killed (SIGKILL, with its nanny) mid-campaign: Dask re-runs its
     tasks on the other one; every row is there once and equals a run on an intact cluster."""
@@ -438,33 +518,9 @@ def test_a_lost_worker_loses_no_run(tmp_path, dask_cluster):
         },
     )
     out = tmp_path / "out"
-    args = [
-        sys.executable,
-        "-m",
-        "pac_experiments.campaign",
-        str(spec),
-        "--out",
-        str(out),
-        "--chunk-size",
-        "1",
-        "--scheduler",
-        address,
-        "--no-report",
-    ]
-    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        deadline = time.monotonic() + 120.0
-        while time.monotonic() < deadline and proc.poll() is None:
-            runs = out / "runs.jsonl"
-            if runs.exists() and len(runs.read_text().splitlines()) >= 2:
-                break
-            time.sleep(0.05)
+    with campaign_running(spec, out, "--scheduler", address, "--no-report") as proc:
         os.killpg(workers[0].pid, signal.SIGKILL)
         stdout, stderr = proc.communicate(timeout=180)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(timeout=10)
     assert proc.returncode == 0, stderr
     assert "12 runs, 0 already done, 12 run (0 diverged or failed), 0 lost" in stdout
     keys = [json.loads(line)["key"] for line in (out / "runs.jsonl").read_text().splitlines()]

@@ -22,6 +22,7 @@ def line10():
     return Line()
 
 
+@pytest.mark.slow
 def test_static_sag_meets_the_target_presag_at_every_dropper(line10):
     dr = line10.droppers
     achieved = -line10.w_static[dr.wc]
@@ -32,6 +33,7 @@ def test_static_sag_meets_the_target_presag_at_every_dropper(line10):
     assert np.min(line10.w_static[dr.wm]) < -0.3
 
 
+@pytest.mark.slow
 def test_transverse_wave_speed_is_sqrt_t_over_rho():
     """A pulse on the bare contact wire (no droppers, no supports) travels at sqrt(T / rho) within 2 %."""
     line = Line(n_spans=2, droppers=False, supports=False, options=NumericalOptions(element_size=0.25))
@@ -185,6 +187,7 @@ def _passive_sigma(h: float, dt: float) -> float:
     return stats.contact_force_std
 
 
+@pytest.mark.slow
 def test_mesh_and_step_convergence_of_contact_force_sigma():
     """Halving the element size and the time step together changes sigma by less than 2 %."""
     coarse = _passive_sigma(0.5, 1e-3)
@@ -193,6 +196,7 @@ def test_mesh_and_step_convergence_of_contact_force_sigma():
     assert fine > 5.0  # a real dynamic response
 
 
+@pytest.mark.slow
 def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     """FEPlant (catenary_model fe): slow run under a held u, F -> u, truth consistent with the line."""
     from pac_common import messages
@@ -226,6 +230,7 @@ def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     assert fields["contact_uplift"] == truth.contact_uplift and math.isfinite(fields["support_uplift"])
 
 
+@pytest.mark.slow
 def test_endless_window_equals_a_long_fixed_line():
     """A 6-span moving window over 5 spans (3 shifts) gives the contact force of a fixed 12-span line."""
     forces = {}
@@ -249,8 +254,7 @@ def test_endless_window_equals_a_long_fixed_line():
 
 def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path):
     """plant_node with catenary_model fe, 4 processes over DDS in lock step == pac_rig.closed_loop."""
-    from pac_bag.reader import read_bag
-    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+    from conftest import assert_lockstep_equals_offline
 
     duration = 1.0
     fe = {"catenary_model": "fe", "speed_kmh": 300.0, "span_length": 55.0}
@@ -258,17 +262,10 @@ def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path
     rig.start()
     rig.wait_finished(timeout=180)
     assert set(rig.exit_codes().values()) == {0}, {n: p.log()[-500:] for n, p in rig.processes.items()}
-    simulate_to_bag(scenario_from_flat({"duration": duration, **fe}), tmp_path / "offline")
-    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
-    for topic, column in (
-        ("plant_truth", "contact_force"),
-        ("plant_truth", "contact_uplift"),
-        ("measurement", "z1"),
-        ("command", "u"),
-    ):
-        ticks = np.asarray(live[topic]["tick"])
-        _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
-        np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
+    columns = {"plant_truth": ["contact_force", "contact_uplift"], "measurement": ["z1"], "command": ["u"]}
+    offline = assert_lockstep_equals_offline(
+        rig.bag_path, {"duration": duration, **fe}, tmp_path / "offline", columns
+    )
     assert np.max(offline["plant_truth"]["contact_force"]) > 10.0  # the run pressed on the wire
 
 
@@ -296,6 +293,7 @@ def _assert_same_state(fast, ref):
     assert fast.x == ref.x and fast.offset == ref.offset
 
 
+@pytest.mark.slow
 def test_compiled_step_equals_the_numpy_step_on_random_states():
     """Random line and pantograph states (contact on and off, droppers slack and taut, the window
     shift due): one compiled step equals one numpy step to rounding."""
@@ -382,6 +380,7 @@ def test_fast_kernels_equal_the_banded_reference():
             assert np.max(np.abs(outside)) < 1e-19 * peak
 
 
+@pytest.mark.slow
 def test_compiled_reference_run_equals_the_numpy_run():
     """The 300 km/h reference run (10-span line, 3-mass, passive): contact force, uplift and
     slack droppers of the compiled path equal the numpy path's over the whole run."""

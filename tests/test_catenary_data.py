@@ -307,6 +307,7 @@ def test_a_missing_file_or_preset_is_refused_by_name():
         load_catenary("/nonexistent/line.yaml")
 
 
+@pytest.mark.slow
 def test_simulate_refuses_a_bad_catenary_file_with_one_line_exit_2_and_runs_nothing(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text(GOOD.replace("tension: 16000.0", "tension: 0.0"))
@@ -328,6 +329,7 @@ def test_simulate_refuses_a_bad_catenary_file_with_one_line_exit_2_and_runs_noth
 
 # -- physics, per line ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", PRESETS)
+@pytest.mark.slow
 def test_static_stiffness_at_a_support_and_mid_span_is_the_taut_string_value_of_the_stated_data(name):
     line = built(name)
     support, mid = middle_points(line)
@@ -361,6 +363,7 @@ def test_static_stiffness_of_the_unequal_stitched_line_is_the_taut_string_value(
         ("stitch", None),
     ],
 )
+@pytest.mark.slow
 def test_mutation_a_tension_or_a_stiffness_off_by_10_percent_fails_the_stiffness_check(change):
     """The check above must catch a wrong line: each value x 1.1 in the FE line (what a misread file
     or a wrong assembly would do) moves a support or mid-span stiffness out of the 1.5 % band; so
@@ -450,6 +453,7 @@ def test_a_pulse_on_the_bare_contact_wire_travels_at_the_dispersive_beam_speed(n
 
 
 @pytest.mark.parametrize("name", LINES)
+@pytest.mark.slow
 def test_the_presag_solved_on_one_mesh_is_there_on_a_finer_mesh(name):
     """Dropper lengths solved on the file's mesh (0.5 m), then used as they are on a mesh of half
     the element size: the contact-wire height measured at each dropper is the design pre-sag."""
@@ -476,6 +480,7 @@ def test_equal_spans_give_a_span_periodic_stiffness(name):
     assert np.abs(k / k_before - 1.0).max() < 0.005
 
 
+@pytest.mark.slow
 def test_the_endless_window_on_unequal_stitched_spans_equals_a_long_fixed_line():
     """The plant's window shifts by whole periods (three unequal spans here, stitch droppers among
     them): over two shifts the contact force equals that of a fixed line long enough, within 1 mN."""
@@ -497,6 +502,7 @@ def test_the_endless_window_on_unequal_stitched_spans_equals_a_long_fixed_line()
     assert forces[False].std() > 5.0  # the run does see the line
 
 
+@pytest.mark.slow
 def test_the_plant_runs_on_a_catenary_file():
     """FEPlant from ``catenary:=FILE``: the line of the file (period, stitch droppers), a finite
     contact force once the uplift acts, truth at the contact point."""
@@ -602,6 +608,7 @@ def test_a_worn_contact_wire_has_the_tensioned_beam_frequencies_of_its_reduced_s
     assert _pinned_frequencies(line, (WC, RC), 10) == pytest.approx(analytic, rel=1e-7)
 
 
+@pytest.mark.slow
 def test_the_plant_runs_on_a_line_with_height_errors():
     from pac_model.parameters import PantographParameters, TrackParameters
     from pac_plant.fe_plant import FEPlant

@@ -17,14 +17,14 @@ W = lanes.WIDTH
 
 
 @numba.njit(cache=True)
-def _arithmetic(x, y, z, out):  # noqa: ANN001, ANN202
+def _arithmetic(x, y, z, out):
     lanes.lanes_check(x, y, z, out)
     lanes.store(out, 32, lanes.splat(x[3]))
     lanes.store(out, 40, lanes.zeros())
 
 
 @numba.njit(cache=True)
-def _moves(m, idx, bounds, j, b, out):  # noqa: ANN001, ANN202
+def _moves(m, idx, bounds, j, b, out):
     rows = (
         lanes.load(m, 0),
         lanes.load(m, 8),
@@ -46,7 +46,7 @@ def _moves(m, idx, bounds, j, b, out):  # noqa: ANN001, ANN202
 
 
 @numba.njit(cache=True)
-def _masked(src, offset, lo, hi, dst, out):  # noqa: ANN001, ANN202
+def _masked(src, offset, lo, hi, dst, out):
     v = lanes.load_masked(src, offset, lo, hi)
     lanes.store(out, 0, v)
     lanes.store_masked(dst, offset, lanes.load(out, 8), lo, hi)

@@ -261,6 +261,7 @@ def test_unknown_verbs_and_subcommands_say_so_in_one_line():
 NODE_EXECUTABLES = {"plant_node", "observer_node", "controller_node", "recorder", "live_view"}
 
 
+@pytest.mark.slow
 def test_every_pac_tool_answers_help_with_its_usage():
     env = node_env()
     listed = ros2(env, "pkg", "executables").stdout.split("\n")
@@ -272,6 +273,7 @@ def test_every_pac_tool_answers_help_with_its_usage():
         assert out.returncode == 0 and out.stdout.startswith(f"usage: {exe}"), (pkg, exe, out.stderr[-300:])
 
 
+@pytest.mark.slow
 def test_simulate_shows_progress_on_a_terminal_only(tmp_path):
     env = node_env()
     cmd = [ROS2, "run", "pac_rig", "simulate", "-p", "duration:=1.0"]

@@ -27,6 +27,7 @@ def rel_error(got: np.ndarray, want: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize("shape", ["constant", "square"])
+@pytest.mark.slow
 def test_closed_loop_agrees_with_numpy_oracle(shape):
     """10 s closed loop (plant, observer, controller): every trace within 1e-9 relative of the oracle."""
     scenario = scenario_from_flat({**COMMON, "shape": shape})
@@ -86,6 +87,7 @@ def test_reference_agrees_with_numpy_oracle(shape):
         assert ref.steps_before(t) == oracle.reference_steps_before(params, t)
 
 
+@pytest.mark.slow
 def test_compiled_tick_allocates_nothing():
     """numba's own allocation counter (NRT statistics): a call of 9980 ticks allocates what a call of
     10 ticks does (the arrays handed over by Python, adopted once per call), for every law: 0 per tick."""

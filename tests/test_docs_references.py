@@ -4,29 +4,17 @@ relative link in a Markdown file names a file that exists."""
 from __future__ import annotations
 
 import re
-import subprocess
 from pathlib import Path
 
 import pytest
+from conftest import ROOT, repository_files
 
 pytestmark = pytest.mark.unit
 
-ROOT = Path(__file__).resolve().parents[1]
 #: "issue #12", "issue 12", "(#12)", "#10/#9": pointers into a tracker the reader does not have.
 ISSUE = re.compile(r"(?i)\bissues? ?#?\d+\b|\(#\d+\b|(?<![\w&/])#\d+/#\d+")
 OUTSIDE = re.compile(r"\.\./shared/|/work/shared|CATENARY_DATA")
 LINK = re.compile(r"\]\(([^)#\s]+)(?:#[^)]*)?\)")
-
-
-def tracked(*patterns: str) -> list[Path]:
-    out = subprocess.run(
-        ["git", "ls-files", "--cached", "--others", "--exclude-standard", *patterns],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split()
-    return [ROOT / f for f in out if (ROOT / f).is_file()]
 
 
 def test_the_patterns_see_what_they_should():
@@ -38,7 +26,7 @@ def test_the_patterns_see_what_they_should():
 def test_no_issue_numbers_and_no_paths_outside_the_repository():
     this = Path(__file__).resolve()
     problems = []
-    for path in tracked("*.md", "*.py", "*.yaml", "*.msg", "Makefile", "*.sh", "scripts/bin/*"):
+    for path in repository_files("*.md", "*.py", "*.yaml", "*.msg", "Makefile", "*.sh", "scripts/bin/*"):
         if path.resolve() == this:
             continue
         for n, line in enumerate(path.read_text(errors="replace").splitlines(), start=1):
@@ -49,7 +37,7 @@ def test_no_issue_numbers_and_no_paths_outside_the_repository():
 
 def test_relative_links_in_markdown_point_at_files_that_exist():
     missing = []
-    for path in tracked("*.md"):
+    for path in repository_files("*.md"):
         for target in LINK.findall(path.read_text()):
             if re.match(r"^[a-z]+:", target):  # http:, https:, mailto:
                 continue

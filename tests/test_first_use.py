@@ -70,6 +70,7 @@ def test_a_waiting_plant_names_what_is_missing_and_gives_up(domain_id):
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_simulate_into_an_existing_or_read_only_folder_is_one_line(tmp_path):
     env = node_env()
     existing = tmp_path / "run"
@@ -79,6 +80,7 @@ def test_simulate_into_an_existing_or_read_only_folder_is_one_line(tmp_path):
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_campaign_out_on_a_read_only_path_is_one_line(tmp_path):
     spec = tmp_path / "spec.yaml"
     spec.write_text("grid: {speed_kmh: [300.0]}\nfixed: {duration: 0.1}\nwindow: [0.0, 0.1]\n")
@@ -89,6 +91,7 @@ def test_campaign_out_on_a_read_only_path_is_one_line(tmp_path):
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_report_from_a_read_only_working_directory_is_one_line(tmp_path):
     env = node_env()
     bag = tmp_path / "bag"
@@ -179,6 +182,7 @@ def test_a_dump_loads_with_params_file_and_shared_files_follow_ros(domain_id, tm
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_ctrl_c_during_simulate_closes_the_bag_with_what_was_simulated(tmp_path):
     bag = tmp_path / "long"
     proc = subprocess.Popen(
@@ -215,6 +219,7 @@ def test_ctrl_c_during_simulate_closes_the_bag_with_what_was_simulated(tmp_path)
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_simulate_announces_the_line_warns_on_a_span_mismatch_and_a_diverged_run_fails(tmp_path):
     env = node_env()
     fe = simulate(str(tmp_path / "fe"), "-p", "catenary_model:=fe", "-p", "duration:=0.02", env=env)
@@ -271,6 +276,7 @@ def test_make_demo_uses_an_exported_domain_id(monkeypatch):
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_tools_describe_a_directory_that_is_not_a_bag_the_same_way(tmp_path):
     env = node_env()
     folder = tmp_path / "notabag"
@@ -294,6 +300,7 @@ def test_tools_describe_a_directory_that_is_not_a_bag_the_same_way(tmp_path):
 
 
 @pytest.mark.offline
+@pytest.mark.slow
 def test_bag_info_counts_missing_ticks_only_on_per_tick_topics(tmp_path):
     env = node_env()
     bag = tmp_path / "bag"

@@ -117,22 +117,14 @@ def test_refused_realtime_priority_warns_once_and_runs(rigs):
 def test_composed_lockstep_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
     """The three loop nodes in one process (one executor) are the same nodes: a lock-step run
     equals the offline simulator bit for bit, every tick on every topic."""
-    from conftest import PHYSICS, first_per_tick
-
-    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+    from conftest import assert_lockstep_equals_offline
 
     duration = 2.0
     rig = rigs("composed", duration=duration, timing_mode="lockstep", composed=True)
     rig.start()
     rig.wait_finished(timeout=120)
     assert rig.exit_codes() == {"recorder": 0, "loop": 0}, logs(rig)
-    simulate_to_bag(scenario_from_flat({"duration": duration}), tmp_path / "offline")
-    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
-    for topic, columns in PHYSICS.items():
-        ticks, idx = first_per_tick(live[topic])
-        np.testing.assert_array_equal(ticks, np.arange(2000), err_msg=topic)
-        for column in columns:
-            np.testing.assert_array_equal(live[topic][column][idx], offline[topic][column], err_msg=column)
+    assert_lockstep_equals_offline(rig.bag_path, {"duration": duration}, tmp_path / "offline")
 
 
 def test_composed_realtime_records_every_tick(rigs):

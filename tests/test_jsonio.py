@@ -40,6 +40,7 @@ def test_non_finite_values_become_null_everywhere():
         strict_loads(json.dumps(value["nan"]))
 
 
+@pytest.mark.slow
 def test_report_json_of_a_run_with_undefined_measures_is_strict(offline_bags_for_json, tmp_path):
     from pac_analysis.report import report
 

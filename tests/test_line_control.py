@@ -79,6 +79,7 @@ def test_contact_force_observer_follows_the_lumped_lines_force():
 
 
 @pytest.mark.parametrize("mass_scale", [0.8, 1.2])
+@pytest.mark.slow
 def test_filter_bank_finds_the_frame_mass_and_keeps_the_estimate(mass_scale):
     """The plant's masses x0.8 / x1.2 (lumped line, F = k(t) z1 known to the test): the bank selects
     the filter with the plant's m2 within one step, and its F_hat error is a fraction of the single
@@ -105,6 +106,7 @@ def test_filter_bank_finds_the_frame_mass_and_keeps_the_estimate(mass_scale):
 
 
 @pytest.mark.timeout(900)  # an FE run: minutes on a loaded machine
+@pytest.mark.slow
 def test_contact_force_estimate_error_on_the_fe_line():
     """The estimate against the FE plant's penalty force (PlantTruth.contact_force): < 10 % of sigma_F.
 
@@ -121,6 +123,7 @@ def test_contact_force_estimate_error_on_the_fe_line():
 
 
 @pytest.mark.timeout(1800)  # two 12-span FE runs
+@pytest.mark.slow
 def test_line_adaptive_lowers_sigma_against_passive_on_the_fe_line():
     """300 km/h, 12 spans: over spans 9..11 sigma at least 20 % below the passive run's (same window)."""
     spans = 12
@@ -316,8 +319,7 @@ def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_
     360 km/h, run-in 2 spans: the learned feedforward acts from 1.1 s on, so the bit-for-bit
     comparison covers a learning update and the commands it gives.
     """
-    from pac_bag.reader import read_bag
-    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+    from conftest import assert_lockstep_equals_offline
 
     duration = 1.8
     params = {
@@ -332,22 +334,16 @@ def test_live_lockstep_rig_with_line_adaptive_equals_the_offline_loop(rigs, tmp_
     rig.start()
     rig.wait_finished(timeout=240)
     assert set(rig.exit_codes().values()) == {0}, {n: p.log()[-500:] for n, p in rig.processes.items()}
-    simulate_to_bag(scenario_from_flat({"duration": duration, **params}), tmp_path / "offline")
-    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
-    for topic, column in (
-        ("plant_truth", "contact_force"),
-        ("estimate", "contact_force_hat"),
-        ("command", "u"),
-        ("command", "mode"),
-    ):
-        ticks = np.asarray(live[topic]["tick"])
-        _, first = np.unique(ticks, return_index=True)  # a re-sent sample is recorded twice
-        np.testing.assert_array_equal(np.asarray(live[topic][column])[first], offline[topic][column])
+    columns = {"plant_truth": ["contact_force"], "estimate": ["contact_force_hat"], "command": ["u", "mode"]}
+    offline = assert_lockstep_equals_offline(
+        rig.bag_path, {"duration": duration, **params}, tmp_path / "offline", columns
+    )
     u = np.asarray(offline["command"]["u"])
     f_r = np.asarray(offline["command"]["force_reference"])
     assert np.max(np.abs(u[1200:] - f_r[1200:])) > 1.0  # the learned feedforward did act
 
 
+@pytest.mark.slow
 def test_line_adaptive_on_the_lumped_line_with_the_papers_observer():
     """The lumped line of eq. (7) at 360 km/h, F_hat = k_hat z1 of eq. (17): F - F_r over 8..10 s
     at most half the passive pantograph's (measured 15.8 vs 52.5 N RMS)."""

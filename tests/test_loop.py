@@ -33,6 +33,7 @@ def messages_of(bag: Path) -> list[tuple[str, int, bytes]]:
     ],
     ids=["noisy-pid", "blocks", "diverges"],
 )
+@pytest.mark.slow
 def test_compiled_bag_equals_the_per_record_bag(tmp_path, values):
     """Every message of every topic, byte for byte: columns from TICK blocks == one dict per message."""
     s = scenario_from_flat(values)

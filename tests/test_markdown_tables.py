@@ -5,29 +5,15 @@ and the one table writer escapes what would break a row."""
 from __future__ import annotations
 
 import re
-import subprocess
-from pathlib import Path
 
 import pytest
+from conftest import ROOT, repository_files
 
 from pac_common import markdown
 
 pytestmark = pytest.mark.unit
 
-ROOT = Path(__file__).resolve().parents[1]
 DELIMITER = re.compile(r"^\s*\|?\s*:?-{3,}:?\s*(\|\s*:?-{3,}:?\s*)*\|?\s*$")
-
-
-def markdown_files() -> list[Path]:
-    """The repository's Markdown files (tracked or new, not ignored: build outputs are not ours)."""
-    out = subprocess.run(
-        ["git", "ls-files", "--cached", "--others", "--exclude-standard", "*.md"],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.split()
-    return [ROOT / f for f in out if (ROOT / f).is_file()]
 
 
 def table_problems(text: str) -> list[str]:
@@ -70,7 +56,7 @@ def test_the_checker_sees_a_broken_row():
 
 
 def test_every_markdown_file_renders_its_tables():
-    files = markdown_files()
+    files = repository_files("*.md")
     assert any(f.name == "README.md" for f in files)
     problems = [f"{f.relative_to(ROOT)} {p}" for f in files for p in table_problems(f.read_text())]
     assert problems == []

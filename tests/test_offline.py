@@ -23,6 +23,7 @@ def adaptive_bag(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow
 def test_constant_adaptive_meets_targets(adaptive_bag):
     m = compute_metrics(read_bag(adaptive_bag), 3.0, 10.0)
     assert m.contact_force_std <= 0.1
@@ -32,6 +33,7 @@ def test_constant_adaptive_meets_targets(adaptive_bag):
     assert (m.ticks_expected, m.ticks_recorded, m.ticks_missing) == (10000, 10000, 0)
 
 
+@pytest.mark.slow
 def test_bag_is_readable_by_mcap_reader(adaptive_bag):
     """The same numbers through the mcap library's own ROS 2 decoder (schemas from the file)."""
     (mcap_file,) = adaptive_bag.glob("*.mcap")
@@ -44,6 +46,7 @@ def test_bag_is_readable_by_mcap_reader(adaptive_bag):
     np.testing.assert_array_equal(np.array(forces), ours["contact_force"])
 
 
+@pytest.mark.slow
 def test_passive_pantograph_is_much_worse_and_loses_contact(tmp_path):
     path = tmp_path / "passive"
     simulate_to_bag(scenario_from_flat({**COMMON, "mode": "passive"}), path)
@@ -53,6 +56,7 @@ def test_passive_pantograph_is_much_worse_and_loses_contact(tmp_path):
     assert m.contact_force_min < 0.0
 
 
+@pytest.mark.slow
 def test_observer_without_adaptation_cannot_pass(tmp_path):
     """Margin check: with theta frozen (rho_theta tiny -> S_theta never forgets I), the targets fail."""
     path = tmp_path / "frozen"
@@ -71,6 +75,7 @@ def test_paper_gains_diverge_with_one_step_delay_and_stop_cleanly(tmp_path):
     assert len(bag.topics["command"]) == result.ticks  # every tick up to divergence, readable
 
 
+@pytest.mark.slow
 def test_paper_gains_without_delay_track(tmp_path):
     path = tmp_path / "paper_gains_nodelay"
     result = simulate_to_bag(
@@ -121,6 +126,7 @@ def test_restart_transient_and_rate_limit():
     assert min(slow[2:]) > 10.0
 
 
+@pytest.mark.slow
 def test_loop_with_a_realistic_sensor(tmp_path):
     """10 um of noise per channel and 1 um resolution: the loop still holds 100 N to 0.1 N."""
     path = tmp_path / "noisy"

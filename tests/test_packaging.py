@@ -129,6 +129,7 @@ def test_no_import_cycle_between_packages():
             visit(name, [])
 
 
+@pytest.mark.slow
 def test_design_doc_maps_every_package():
     """docs/design.md's package map has one row per package, none that does not exist, and each
     row names exactly the pac packages its package imports."""

@@ -1,8 +1,11 @@
-"""README's result table is the committed report's numbers: every figure of the "Results" table
-equals reports/reproduce/metrics.json (written by `make reproduce`) to the digits printed."""
+"""README's result tables are the committed reports' numbers, to the digits printed: every figure
+of the "Results" table equals reports/reproduce/metrics.json (written by `make reproduce`); the
+campaign tables equal reports/campaigns/{laws_speeds,robustness}/results.csv (`make campaigns`);
+the tables of the laws on the FE line are reports/catenary/laws/laws.md's (`make fe-experiment`)."""
 
 from __future__ import annotations
 
+import csv
 import json
 import re
 from pathlib import Path
@@ -67,6 +70,91 @@ def test_readme_results_table_is_the_committed_report():
                 )
                 checked += 1
     assert checked >= 20  # the table was read (24 figures when this was written)
+
+
+# -- the campaign tables (reports/campaigns/*/results.csv, written by `make campaigns`) ------------
+CELL = re.compile(r"^(?P<sigma>[\d.]+)(?: \((?P<loss>[\d.]+) %\))?$")
+
+
+def readme_table(first_header_cell: str) -> list[list[str]]:
+    """The README table whose header row starts with ``first_header_cell``: header, then rows."""
+    lines = (ROOT / "README.md").read_text().splitlines()
+    start = next(i for i, line in enumerate(lines) if markdown.split_row(line)[0] == first_header_cell)
+    rows = []
+    for line in lines[start:]:
+        if not line.startswith("|"):
+            break
+        if not set(line) <= set("|-: "):
+            rows.append(markdown.split_row(line))
+    return rows
+
+
+def results(campaign: str) -> list[dict[str, str]]:
+    with (ROOT / "reports" / "campaigns" / campaign / "results.csv").open() as f:
+        return list(csv.DictReader(f))
+
+
+def agrees(printed_text: str, value: float) -> bool:
+    """``value`` rounds to ``printed_text`` (the digits the README prints)."""
+    decimals = len(printed_text.partition(".")[2])
+    return abs(value - float(printed_text)) <= 0.5 * 10**-decimals + 1e-12
+
+
+def test_readme_laws_table_is_the_committed_campaign():
+    """σ [N] (contact loss %, shown when not 0) of each law at each speed, as laws_speeds' results.csv."""
+    header, *rows = readme_table("km/h")
+    by_point = {(r["law"], float(r["speed_kmh"])): r for r in results("laws_speeds")}
+    checked, wrong = 0, []
+    for row in rows:
+        for law, cell in zip(header[1:], row[1:], strict=True):
+            measured = by_point[(law, float(row[0]))]
+            sigma, loss = float(measured["contact_force_std"]), float(measured["contact_loss_percent"])
+            match = CELL.match(cell)
+            assert match, (law, row[0], cell)
+            if not agrees(match["sigma"], sigma) or not (
+                agrees(match["loss"], loss) if match["loss"] else loss == 0
+            ):
+                wrong.append(f"{law} at {row[0]} km/h: README {cell}, results.csv {sigma:.4g} ({loss:.3g} %)")
+            checked += 1
+    assert wrong == []
+    assert checked >= 30  # the table was read (5 speeds x 6 laws when this was written)
+
+
+#: The robustness table's rows: the parameter a row varies; every other one at the SPEC's value.
+ROBUSTNESS_ROWS = {"plant masses": "plant_mass_scale", "α": "alpha"}
+ROBUSTNESS_DEFAULTS = {
+    "plant_mass_scale": 1.0,
+    "alpha": 0.5,
+    "k0": 4000.0,
+    "command_delay_ticks": 1.0,
+    "speed_kmh": 360.0,
+}
+
+
+def test_readme_robustness_table_is_the_committed_campaign():
+    """σ [N] of each law under each mismatch (``a / b / c`` for the values the row names), as
+    robustness's results.csv (noise-free points)."""
+    header, *rows = readme_table("mismatch")
+    points = [r for r in results("robustness") if r["noise_std"] == "[0.0, 0.0]"]
+    checked, wrong = 0, []
+    for row in rows:
+        name = next(n for prefix, n in ROBUSTNESS_ROWS.items() if row[0].startswith(prefix))
+        values = [float(v) for v in re.findall(r"[\d.]+", row[0].split("×" if "×" in row[0] else "=")[1])]
+        for law, cell in zip(header[1:], row[1:], strict=True):
+            shown = cell.split(" / ")
+            assert len(shown) == len(values), (row[0], law, cell)
+            for value, text in zip(values, shown, strict=True):
+                want = {**ROBUSTNESS_DEFAULTS, name: value}
+                match = [
+                    r for r in points if r["law"] == law and all(float(r[k]) == v for k, v in want.items())
+                ]
+                assert len(match) == 1, (row[0], law, value)
+                sigma = float(match[0]["contact_force_std"])
+                if not agrees(text, sigma):
+                    wrong.append(f"{law}, {name} = {value:g}: README {text}, results.csv {sigma:.4g}")
+                checked += 1
+    assert wrong == []
+    assert checked >= 25  # the table was read (7 values x 4 laws when this was written)
 
 
 def markdown_tables(text: str) -> list[str]:

@@ -7,7 +7,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PHYSICS, assert_starts_and_stops_cleanly, first_per_tick, node_stats
+from conftest import (
+    assert_lockstep_equals_offline,
+    assert_starts_and_stops_cleanly,
+    first_per_tick,
+    node_stats,
+)
 from mcap.reader import make_reader
 
 from pac_analysis.metrics import compute_metrics
@@ -15,7 +20,6 @@ from pac_analysis.re_estimate import re_estimate
 from pac_bag.reader import read_bag
 from pac_rig.configs import config_path, defaults_yaml, installed_config_path
 from pac_rig.launcher import NODES, node_env, ros_args
-from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 pytestmark = pytest.mark.live
 
@@ -26,13 +30,7 @@ def test_lockstep_run_equals_offline_simulation_bit_for_bit(rigs, tmp_path):
     rig.start()
     rig.wait_finished(timeout=120)
     assert rig.exit_codes() == dict.fromkeys(NODES, 0), {n: p.log()[-500:] for n, p in rig.processes.items()}
-    simulate_to_bag(scenario_from_flat({"duration": duration}), tmp_path / "offline")
-    live, offline = read_bag(rig.bag_path).topics, read_bag(tmp_path / "offline").topics
-    for topic, columns in PHYSICS.items():
-        ticks, idx = first_per_tick(live[topic])
-        np.testing.assert_array_equal(ticks, np.arange(2000), err_msg=topic)
-        for column in columns:
-            np.testing.assert_array_equal(live[topic][column][idx], offline[topic][column], err_msg=column)
+    assert_lockstep_equals_offline(rig.bag_path, {"duration": duration}, tmp_path / "offline")
     # re-estimation from the live bag's measurements is exact
     result = re_estimate(rig.bag_path, {})
     assert result["compared"] == 2000 and all(f["identical"] for f in result["fields"].values())

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -293,7 +294,9 @@ def loop_timing(bag: BagData) -> LoopTiming:
     )
 
 
-def timing_table(runs: dict[str, LoopTiming]) -> str:
+def timing_table(runs: dict[str, LoopTiming], extra_rows: Sequence[Sequence[str]] = ()) -> str:
+    """The loop timing of each run, one column per run; ``extra_rows`` (label, one cell per run)
+    follow the measures (e.g. ``make bench``'s CPU shares)."""
     names = list(runs)
     rows = [
         ("steps_per_second", "steps/s", "{:.0f}"),
@@ -312,4 +315,5 @@ def timing_table(runs: dict[str, LoopTiming]) -> str:
     table = [[label, *(fmt.format(getattr(runs[n], key)) for n in names)] for key, label, fmt in rows]
     for topic in runs[names[0]].messages_lost:
         table.append([f"ticks without {topic}", *(str(runs[n].messages_lost.get(topic, "")) for n in names)])
+    table += [list(r) for r in extra_rows]
     return markdown.table(["measure", *names], table, [markdown.LEFT] + [markdown.RIGHT] * len(names)) + "\n"

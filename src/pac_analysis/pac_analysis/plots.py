@@ -7,12 +7,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from pac_bag.reader import BagData  # noqa: E402
+from pac_bag.reader import BagData
 
-from .metrics import stamp_seconds  # noqa: E402
+from .metrics import stamp_seconds
 
 
 def run_figure(bag: BagData, title: str, path: Path) -> Path:

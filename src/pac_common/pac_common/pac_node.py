@@ -107,13 +107,13 @@ class PacNode(ManagedNode, Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.factory = messages.RclpyFactory()
         options = self._sets.get(NodeOptions)
-        self.node_options: NodeOptions | None = options  # type: ignore[assignment]
+        self.node_options = options if isinstance(options, NodeOptions) else None
         scheduling = [p for p in self._sets.values() if isinstance(p, SchedulingOptions)]
         if scheduling:
             set_realtime_priority(self, scheduling[0].realtime_priority)
         self.health = NodeHealth(self, self._health_counters, diagnostics.RULES[self.HEALTH])
         lifecycle = self._sets.get(LifecycleOptions)
-        self.start_lifecycle(bool(lifecycle is not None and lifecycle.lifecycle))  # type: ignore[attr-defined]
+        self.start_lifecycle(isinstance(lifecycle, LifecycleOptions) and lifecycle.lifecycle)
 
     def _health_counters(self) -> dict[str, Any]:
         if not self.configured:
@@ -169,10 +169,22 @@ class PacNode(ManagedNode, Node):
 
     def parameters(self, cls: type[S]) -> S:
         """The current, validated values of one of the node's parameter sets."""
-        return self._sets[cls]  # type: ignore[return-value]
+        values = self._sets[cls]
+        if not isinstance(values, cls):  # the sets are keyed by their class: cannot happen
+            raise TypeError(f"{cls.__name__}'s values are a {type(values).__name__}")
+        return values
 
     def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
         """Hook: run-time changes, validated, about to take effect (``changed``: the new sets)."""
+
+    @staticmethod
+    def changed_or(changed: Mapping[type[ParameterSet], ParameterSet], cls: type[S], current: S) -> S:
+        """In :meth:`apply_parameters`: the new values of ``cls`` if ``changed`` has them, else
+        ``current`` (typed, where ``changed.get(cls)`` is only a ParameterSet)."""
+        new = changed.get(cls, current)
+        if not isinstance(new, cls):
+            raise TypeError(f"the change of {cls.__name__} is a {type(new).__name__}")
+        return new
 
     # -- run-time changes: pac's checks first, then rclpy's descriptors ------------------------------
     def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
@@ -230,10 +242,16 @@ class PacNode(ManagedNode, Node):
     #: Seconds between two "still waiting for ..." lines.
     WAIT_REPORT_PERIOD = 5.0
 
+    @property
+    def waits_for_recorder(self) -> bool:
+        """``wait_for_recorder`` (NodeOptions; False for a node without them): the loop starts only
+        once a recorder is subscribed to this node's outputs too."""
+        return self.node_options is not None and self.node_options.wait_for_recorder
+
     def readers_missing(self, publisher: Any, topic: str, peer: str) -> list[str]:
         """What ``publisher`` still waits for: its ``peer`` reader and, with wait_for_recorder, a
         recorder; one line naming them (empty: both there)."""
-        recorder = int(self.node_options is not None and self.node_options.wait_for_recorder)
+        recorder = int(self.waits_for_recorder)
         readers = publisher.get_subscription_count()
         if readers >= 1 + recorder:
             return []
@@ -292,6 +310,11 @@ class PacNode(ManagedNode, Node):
     @property
     def run_ended(self) -> bool:
         return self.run_last_tick is not None
+
+    def past_run_end(self, tick: int) -> bool:
+        """``tick`` comes after the ended run's last tick: nothing to answer (idle until a new run,
+        which starts again at tick 0)."""
+        return self.run_last_tick is not None and tick > self.run_last_tick
 
     def _on_run_status(self, msg: Any) -> None:
         self._check_line(msg)

@@ -7,7 +7,7 @@ cost a few nanoseconds.  Results are the textbook sums in index order.
 from __future__ import annotations
 
 import numpy as np
-from llvmlite import ir  # type: ignore[import-untyped]
+from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
@@ -61,4 +61,4 @@ def fma(a: float, b: float, c: float) -> float:
     ``s += a[i] x[i]`` compiled with FMA contraction: ``s = fma(a[i], x[i], s)`` in index order
     reproduces it bit for bit (the lqr law's feedback, computed so before it was compiled).
     """
-    return _fma(float(a), float(b), float(c))  # type: ignore[call-arg]  # numba's intrinsic call
+    return _fma(float(a), float(b), float(c))

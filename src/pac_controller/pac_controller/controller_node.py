@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +29,7 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .controller import Controller
+from .controller import Command, Controller
 from .laws import NEEDS_CATENARY, make_controller
 from .parameters import ControllerParameters, LawParameters, ReferenceParameters
 
@@ -127,7 +127,7 @@ class ControllerNode(PacNode):
         self.last_estimate_tick = -1
         self.last_estimate_wall: float | None = None
         self.last_accepted_wall: float | None = None  # when the last accepted estimate arrived
-        self.last_answer = None  # the command that answered the last fresh estimate
+        self.last_answer: Command | None = None  # the command that answered the last fresh estimate
         self.in_fallback = False
         self.sent = 0
         self.skipped = 0  # estimates that never arrived (tick gaps)
@@ -138,10 +138,10 @@ class ControllerNode(PacNode):
         period = self.loop.sample_period * max(1, self.core.params.watchdog_ticks // 4)
         self.create_timer(period, self.on_watchdog)
 
-    def apply_parameters(self, changed: dict) -> None:
-        params = changed.get(ControllerParameters, self.core.params)
-        reference = changed.get(ReferenceParameters, self.core.reference.params)
-        self.limits = changed.get(EstimateLimits, self.limits)
+    def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
+        params = self.changed_or(changed, ControllerParameters, self.core.params)
+        reference = self.changed_or(changed, ReferenceParameters, self.core.reference.params)
+        self.limits = self.changed_or(changed, EstimateLimits, self.limits)
         state = (self.core.last_u, self.core.last_tick)
         self.core = self.CORE(
             self.pantograph, self.track, params, reference, self.loop.sample_period, self.laws, self.catenary
@@ -158,9 +158,7 @@ class ControllerNode(PacNode):
         return self.readers_missing(self.command_pub, "command", "a plant")
 
     def ready(self) -> bool:
-        return self.active and self.command_pub.get_subscription_count() >= 1 + int(
-            self.node_options.wait_for_recorder
-        )
+        return self.active and self.command_pub.get_subscription_count() >= 1 + int(self.waits_for_recorder)
 
     def publish(self, cmd, estimate_age_ticks: int) -> None:
         stamp = messages.tick_stamp_ns(cmd.tick, self.loop.rate_hz)
@@ -212,7 +210,7 @@ class ControllerNode(PacNode):
             self.get_logger().warning(f"estimate tick went back from {self.last_estimate_tick} to 0: new run")
             self.last_estimate_tick, self.last_answer = -1, None
             self.run_new()
-        if self.run_ended and tick > self.run_last_tick:
+        if self.past_run_end(tick):
             return  # idle: the run is over (a new run starts again at tick 0)
         if tick <= self.last_estimate_tick:
             if tick == self.last_estimate_tick and self.last_answer is not None:

@@ -26,7 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -35,7 +35,7 @@ import numpy as np
 
 from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
 from pac_bag.reader import read_bag
-from pac_common import messages
+from pac_common import markdown, messages
 from pac_rig.batch import run_batch
 from pac_rig.closed_loop import Scenario, run
 from pac_rig.launcher import Rig
@@ -126,17 +126,15 @@ def number(value: float, fmt: str) -> str:
 
 def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
     """pac / floor for each (pac column, floor column) measured in the same bench run."""
-    lines = [
-        "| pac / floor | " + " | ".join(p for p, _ in pairs) + " |",
-        "|---|" + "---:|" * len(pairs),
-    ]
+    rows = []
     for key, label in FLOOR_RATIOS:
         cells = [getattr(runs[p], key) / getattr(runs[f], key) for p, f in pairs]
-        lines.append(f"| {label} | " + " | ".join(f"{c:.2f}" for c in cells) + " |")
+        rows.append([label, *(f"{c:.2f}" for c in cells)])
     for node in ("plant", "observer", "controller", "loop", "recorder"):
         cells = [cpus[p].get(node, math.nan) / cpus[f].get(node, math.nan) for p, f in pairs]
-        lines.append(f"| CPU {node} | " + " | ".join(number(c, "{:.2f}") for c in cells) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append([f"CPU {node}", *(number(c, "{:.2f}") for c in cells)])
+    header = ["pac / floor", *(p for p, _ in pairs)]
+    return markdown.table(header, rows, ["l"] + ["r"] * len(pairs)) + "\n"
 
 
 def offline_speed(with_bag: bool, workdir: Path) -> float:
@@ -205,6 +203,15 @@ def batch_speed(runs: int, threads: int) -> tuple[float, float]:
     return result.simulated_seconds / result.wall_seconds, result.wall_seconds
 
 
+def _note_first_arrival(first: dict[str, float], topic: str) -> Callable[[Any], None]:
+    """A subscription callback: the monotonic time of ``topic``'s first message into ``first``."""
+
+    def note(_msg: Any) -> None:
+        first.setdefault(topic, time.monotonic())
+
+    return note
+
+
 def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """Seconds from ``Popen`` of each loop node to the first message it publishes.
 
@@ -234,9 +241,7 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
         pubs = {}
         for topic, typename in types.items():
             cls = getattr(pac_msg, typename)
-            node.create_subscription(
-                cls, topic, lambda _m, t=topic: first.setdefault(t, time.monotonic()), LOOP_QOS
-            )
+            node.create_subscription(cls, topic, _note_first_arrival(first, topic), LOOP_QOS)
             pubs[topic] = node.create_publisher(cls, topic, PUBLISH_QOS)
         try:
             for _ in range(repeats):
@@ -289,6 +294,8 @@ def lumped_tick(repeats: int) -> tuple[float, float]:
     for _ in range(repeats):
         s = scenario_from_flat({"duration": 10.0})
         loop = compile_loop(*build_cores(s), s.loop.command_delay_ticks)
+        if loop is None:
+            raise RuntimeError("the default scenario has no compiled loop")
         out = np.empty(s.loop.ticks, TICK)
         noise = np.zeros((1, 2))
         loop.run(0, 10, noise, out)  # loads the compiled code
@@ -325,6 +332,8 @@ def count_allocations() -> None:
         s = scenario_from_flat(values)
         plant, observer, controller = build_cores(s)
         loop = compile_loop(plant, observer, controller, 2)
+        if loop is None:
+            raise RuntimeError(f"law {law}: no compiled loop (not a kernel law?)")
         noise = plant.noise_rows(0, s.loop.ticks)
         out = np.empty(s.loop.ticks, TICK)
         loop.run(0, 10, noise, out)  # compiles or loads, outside the count
@@ -634,32 +643,32 @@ def main(argv: list[str] | None = None) -> int:
         f"{'launcher default' if args.realtime_priority is None else args.realtime_priority}\n"
     )
     if runs:
-        print(timing_table(runs), end="")
-    names = list(runs)
-    for node in ("plant", "observer", "controller", "loop", "recorder") if runs else ():
-        print(
-            f"| CPU {node} [%] | "
-            + " | ".join(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)
-            + " |"
+        names = list(runs)
+        extra = [
+            [f"CPU {node} [%]", *(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)]
+            for node in ("plant", "observer", "controller", "loop", "recorder")
+        ]
+        extra.append(
+            [
+                "contact-force std [N]",
+                *(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names),
+            ]
         )
-    if runs:
-        print(
-            "| contact-force std [N] | "
-            + " | ".join(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names)
-            + " |"
-        )
+        print(timing_table(runs, extra), end="")
         print("\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n")
         print(floor_table(runs, cpus, pairs), end="")
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
         f"{speed_bag:.1f}x with bag writing"
     )
-    print(
-        "\n| bag writing, 10 s offline run | wall ms per simulated s | CPU ms per simulated s "
-        "| bag size [MB] |\n|---|---|---|---|"
-    )
-    for name, wall, cpu, size in writing:
-        print(f"| {name} | {wall:.1f} | {cpu:.1f} | {size / 1e6:.2f} |")
+    header = [
+        "bag writing, 10 s offline run",
+        "wall ms per simulated s",
+        "CPU ms per simulated s",
+        "bag size [MB]",
+    ]
+    cells = [[name, f"{wall:.1f}", f"{cpu:.1f}", f"{size / 1e6:.2f}"] for name, wall, cpu, size in writing]
+    print("\n" + markdown.table(header, cells))
     print(
         f"\nBatch (compiled closed loop): {args.batch_runs} x 10 s scenarios in {batch_wall:.2f} s = "
         f"{speed_batch:.0f} scenario-s per wall-s ({args.batch_threads} threads)"

@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from pac_common import markdown
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_plant.catenary import kernels as kn
 from pac_plant.fe_plant import FEPlant
@@ -219,10 +220,8 @@ def table(f: dict[str, float]) -> str:
         f"FE line, 10-span window, {int(f['n_dof'])} DOFs, 300 km/h; CPU us per step, median (minimum) "
         f"of the batches (load average {f['load_average_1min']:.1f})",
         "",
-        "| what | us | note |",
-        "|---|---:|---|",
+        markdown.table(["what", "us", "note"], rows, ["l", "r", "l"]),
     ]
-    lines += [f"| {a} | {b} | {c} |" for a, b, c in rows]
     return "\n".join(lines)
 
 

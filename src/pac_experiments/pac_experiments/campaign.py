@@ -3,7 +3,7 @@
 The SPEC (YAML) is described in ``campaign_spec``: ``grid`` (or ``grids``), ``fixed``,
 ``window`` (seconds) or ``window_spans`` (whole spans of the line), ``statistics``
 (``raw`` | ``en50318``), ``force_target`` (``en50367``). Every grid point is validated
-before anything runs; a bad SPEC stops with one line, exit 2.
+before anything runs; a bad SPEC stops with exit 2 and one line per error, all of them at once.
 
 By default the runs go to a Dask ``LocalCluster`` on this machine (one single-threaded
 worker process per core, bound to 127.0.0.1, no dashboard); ``--scheduler tcp://HOST:PORT``
@@ -31,7 +31,7 @@ from pac_common.parameters import ParameterError, check_output_folder
 from .campaign_dask import Outcome, embedded_cluster, execute
 from .campaign_report import write_report
 from .campaign_results import RESULTS_FILE, read_done, write_results
-from .campaign_spec import Point, Spec, SpecError, expand, load_spec
+from .campaign_spec import Point, Spec, SpecError, load_points
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -50,18 +50,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bags", action="store_true", help="keep each run's bag in DIR/bags/<key>")
     parser.add_argument("--no-report", action="store_true", help="results.csv only")
     args = parser.parse_args(argv)
+    # Every error of the command line and the SPEC at once, one line each; nothing runs.
+    errors = [
+        f"invalid option '--{name.replace('_', '-')}' = {value}: allowed an integer >= 1"
+        for name, value in (("workers", args.workers), ("chunk_size", args.chunk_size))
+        if value is not None and value < 1
+    ]
     try:
-        for name in ("workers", "chunk_size"):
-            value = getattr(args, name)
-            if value is not None and value < 1:
-                raise SpecError(
-                    f"invalid option '--{name.replace('_', '-')}' = {value}: allowed an integer >= 1"
-                )
         check_output_folder("--out", args.out)
-        spec = load_spec(args.spec)
-        points = expand(spec)
-    except (SpecError, ParameterError) as exc:
-        print(f"campaign: {exc}", file=sys.stderr)
+    except ParameterError as exc:
+        errors.append(str(exc))
+    try:
+        spec, points = load_points(args.spec)
+    except SpecError as exc:
+        errors += exc.errors
+    if errors:
+        for line in errors:
+            print(f"campaign: {line}", file=sys.stderr)
         return 2
 
     from distributed import Client

@@ -13,6 +13,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from pac_common import markdown
+
 from .campaign_dask import auto_chunk_size, embedded_cluster, execute
 from .campaign_run import run_chunk
 from .campaign_spec import Spec, expand
@@ -58,9 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         client.close()
         cluster.close()
     print(f"Campaign engine on {workers} local Dask workers (1 thread each)\n")
-    print("| measure | what | result |\n|---|---|---:|")
-    for row in rows:
-        print("| " + " | ".join(row) + " |")
+    print(markdown.table(["measure", "what", "result"], rows, ["l", "l", "r"]))
     return 0
 
 

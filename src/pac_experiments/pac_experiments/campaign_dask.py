@@ -7,7 +7,6 @@ at the end.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -21,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .campaign_results import RUNS_FILE, read_done, write_results
+from .campaign_results import RUNS_FILE, read_done, runs_line, write_results
 from .campaign_run import STATUS_OK, run_chunk
 from .campaign_spec import Point, Spec
 
@@ -118,7 +117,7 @@ def execute(
                                 f"campaign: the compiled batch failed ({row['batch_error']}); "
                                 "its runs ran tick by tick"
                             )
-                        log.write(json.dumps(row) + "\n")
+                        log.write(runs_line(row))
                         done[row["key"]] = row
                         outcome.ran += 1
                         outcome.failed += row["status"] != STATUS_OK

@@ -17,15 +17,16 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.colors import LogNorm  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.colors import LogNorm
 
-from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria  # noqa: E402
+from pac_common import markdown
+from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria
 
-from .campaign_run import STATUS_OK  # noqa: E402
-from .campaign_spec import Spec, grid_keys  # noqa: E402
-from .campaign_spec import same_value as _same  # noqa: E402
+from .campaign_run import STATUS_OK
+from .campaign_spec import Spec, grid_keys
+from .campaign_spec import same_value as _same
 
 SPEED = "speed_kmh"
 #: (mean, sigma, Fm - 3 sigma, contact loss) columns of the rows, by the SPEC's ``statistics``.
@@ -291,20 +292,13 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
             ("uplift_max_mm", "max uplift [mm]"),
             ("force_hat_error_percent", "F_hat err [% of sigma_F]"),
         ]
-    lines += [
-        "## All runs",
-        "",
-        "| " + " | ".join(cols) + " | status | " + " | ".join(m[1] for m in measures) + " |",
-        "|" + "---|" * (len(cols) + 1) + "---:|" * len(measures),
-    ]
+    table = []
     for r in rows:
         status = r["status"] if _ok(r) else f"{r['status']}: {r.get('reason', '')}"
-        cells = (
-            [_fmt(r.get(c)) for c in cols]
-            + [status.replace("|", "/")]
-            + [_fmt(r.get(m)) for m, _ in measures]
-        )
-        lines.append("| " + " | ".join(cells) + " |")
+        table.append([_fmt(r.get(c)) for c in cols] + [status] + [_fmt(r.get(m)) for m, _ in measures])
+    header = [*cols, "status", *(m[1] for m in measures)]
+    align = [markdown.LEFT] * (len(cols) + 1) + [markdown.RIGHT] * len(measures)
+    lines += ["## All runs", "", markdown.table(header, table, align)]
     path = out / "report.md"
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -5,8 +5,11 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 from typing import Any
+
+from pac_common import jsonio
 
 from .campaign_run import EN50318_COLUMNS, EN50367_COLUMNS, METRIC_COLUMNS
 from .campaign_spec import Point, Spec
@@ -15,6 +18,13 @@ from .campaign_spec import Point, Spec
 ALWAYS = ("law", "speed_kmh")
 RUNS_FILE = "runs.jsonl"
 RESULTS_FILE = "results.csv"
+#: The measures of a row: numbers, NaN where not measured (``null`` in runs.jsonl, strict JSON).
+MEASURE_COLUMNS = frozenset(METRIC_COLUMNS) | frozenset(EN50318_COLUMNS)
+
+
+def runs_line(row: dict[str, Any]) -> str:
+    """One line of ``runs.jsonl``: the row as strict JSON (a NaN measure as ``null``)."""
+    return jsonio.dumps(row) + "\n"
 
 
 def read_done(out: Path) -> dict[str, dict[str, Any]]:
@@ -29,7 +39,10 @@ def read_done(out: Path) -> dict[str, dict[str, Any]]:
         except json.JSONDecodeError:
             continue
         if isinstance(row, dict) and "key" in row:
-            done[row["key"]] = row
+            # A measure written as null (not a number) is NaN again, as the run returned it.
+            done[row["key"]] = {
+                k: math.nan if v is None and k in MEASURE_COLUMNS else v for k, v in row.items()
+            }
     return done
 
 

@@ -19,7 +19,7 @@ each point's ``force_amplitude`` to the EN 50367 target mean force at its speed.
 line (``catenary_model: fe``) a point without ``span_length`` gets its catenary file's (mean)
 span, so a grid may vary the line (``catenary: [benchmark_55m, stitched_hs_65m]``).
 Every point is validated with ``scenario_from_flat`` before anything runs; a bad SPEC stops
-with one line (:class:`SpecError`).
+with every error found, one line each (:class:`SpecError`).
 """
 
 from __future__ import annotations
@@ -58,7 +58,11 @@ KEY_NEUTRAL_DEFAULTS = {
 
 
 class SpecError(ValueError):
-    """A campaign SPEC that cannot run; the message is one line."""
+    """A campaign SPEC that cannot run: every error found, one line each (``errors``)."""
+
+    def __init__(self, errors: str | list[str]) -> None:
+        self.errors = [errors] if isinstance(errors, str) else list(dict.fromkeys(errors))
+        super().__init__("; ".join(self.errors))
 
 
 @dataclass(frozen=True)
@@ -118,74 +122,114 @@ def _number_pair(value: Any) -> bool:
 
 
 def load_spec(path: Path) -> Spec:
-    """Read and check the SPEC's shape (not yet its values: see :func:`expand`)."""
+    """Read and check the SPEC's shape (not yet its values: see :func:`expand`).
+
+    Raises SpecError with every shape error found (one line each)."""
+    spec, errors = _read_spec(path)
+    if errors or spec is None:
+        raise SpecError(errors)
+    return spec
+
+
+def load_points(path: Path) -> tuple[Spec, list[Point]]:
+    """The SPEC and its points (:func:`expand`), every error of both in one SpecError.
+
+    The points are checked even when the SPEC has shape errors elsewhere, as long as its grids
+    and fixed values could be read, so one run names everything to fix."""
+    spec, errors = _read_spec(path)
+    points: list[Point] = []
+    if spec is not None:
+        try:
+            points = expand(spec)
+        except SpecError as exc:
+            errors += exc.errors
+    if errors or spec is None:
+        raise SpecError(errors)
+    return spec, points
+
+
+def _read_spec(path: Path) -> tuple[Spec | None, list[str]]:
+    """The SPEC and every shape error found. Where a field is wrong the spec holds its default
+    (its points can still be checked); it is None when the grids or fixed values cannot be read."""
     try:
         data = yaml.safe_load(Path(path).read_text())
     except OSError as exc:
-        raise SpecError(f"cannot read spec {path}: {exc.strerror or exc}") from None
+        return None, [f"cannot read spec {path}: {exc.strerror or exc}"]
     except yaml.YAMLError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         mark = getattr(exc, "problem_mark", None)  # where the parser stopped (0-based)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        raise SpecError(f"spec {path} is not valid YAML{where} ({first})") from None
+        return None, [f"spec {path} is not valid YAML{where} ({first})"]
     if not isinstance(data, dict):
-        raise SpecError(f"spec {path} must be a mapping with 'grid' (or 'grids'), 'fixed', 'window'")
-    unknown = sorted(set(data) - set(KEYS))
-    if unknown:
-        raise SpecError(f"spec {path}: unknown key '{unknown[0]}' (allowed: {', '.join(KEYS)})")
+        return None, [f"spec {path} must be a mapping with 'grid' (or 'grids'), 'fixed', 'window'"]
+    errors: list[str] = []
+
+    def error(text: str) -> None:
+        errors.append(f"spec {path}: {text}")
+
+    for key in sorted(set(data) - set(KEYS), key=str):
+        error(f"unknown key '{key}' = {data[key]!r} (allowed: {', '.join(KEYS)})")
+    readable = True  # grids and fixed usable: the points can be checked
     if ("grid" in data) == ("grids" in data):
-        raise SpecError(
-            f"spec {path}: give exactly one of 'grid' (a mapping) or 'grids' (a list of mappings)"
-        )
-    raw_grids = [data["grid"]] if "grid" in data else data["grids"]
-    if not isinstance(raw_grids, list) or not raw_grids:
-        raise SpecError(f"spec {path}: 'grids' must be a non-empty list of mappings")
+        error("give exactly one of 'grid' (a mapping) or 'grids' (a list of mappings)")
+        readable = False
+    given = ([data["grid"]] if "grid" in data else data.get("grids")) if readable else []
+    raw_grids: list[Any] = given if isinstance(given, list) else []
+    if readable and not raw_grids:
+        error(f"'grids' = {given!r}: allowed a non-empty list of mappings")
+        readable = False
     fixed = data.get("fixed") or {}
     if not isinstance(fixed, dict):
-        raise SpecError(f"spec {path}: 'fixed' must be a mapping of parameter: value")
+        error(f"'fixed' = {fixed!r}: allowed a mapping of parameter: value")
+        readable, fixed = False, {}
     grids = []
     for i, grid in enumerate(raw_grids):
         where = "grid" if "grid" in data else f"grids[{i}]"
         if not isinstance(grid, dict) or not grid:
-            raise SpecError(f"spec {path}: '{where}' is empty or not a mapping (parameter: [values, ...])")
+            error(f"'{where}' is empty or not a mapping (parameter: [values, ...]), got {grid!r}")
+            readable = False
+            continue
         for name, values in grid.items():
             if not isinstance(values, list) or not values:
-                raise SpecError(
-                    f"spec {path}: {where}.{name} must be a non-empty list of values, got {values!r}"
-                )
+                error(f"{where}.{name} must be a non-empty list of values, got {values!r}")
+                readable = False
             if name in fixed:
                 # The grid's values would run while the report claims the fixed one.
-                raise SpecError(
-                    f"spec {path}: parameter '{name}' is both in 'fixed' and in '{where}': "
-                    "give it in one place"
-                )
-        grids.append({str(k): list(v) for k, v in grid.items()})
-    if "window" in data and "window_spans" in data:
-        raise SpecError(f"spec {path}: give one of 'window' (seconds) or 'window_spans' (spans)")
+                error(f"parameter '{name}' is both in 'fixed' and in '{where}': give it in one place")
+                readable = False
+        grids.append({str(k): list(v) if isinstance(v, list) else [v] for k, v in grid.items()})
     window_spans = None
-    if "window_spans" in data:
+    window = data.get("window", [3.0, None])
+    #: The points' windows are not checked where the window itself is wrong (the whole run).
+    unchecked_window = [0.0, None]
+    if "window" in data and "window_spans" in data:
+        error("give one of 'window' (seconds) or 'window_spans' (spans)")
+        window = unchecked_window
+    elif "window_spans" in data:
         ws = data["window_spans"]
         if not _number_pair(ws) or ws[1] is None or not 0.0 <= ws[0] < ws[1]:
-            raise SpecError(
-                f"spec {path}: 'window_spans' must be [from, to] spans, 0 <= from < to, got {ws!r}"
-            )
-        window_spans = (float(ws[0]), float(ws[1]))
-    window = data.get("window", [3.0, None])
+            error(f"'window_spans' must be [from, to] spans, 0 <= from < to, got {ws!r}")
+            window = unchecked_window
+        else:
+            window_spans = (float(ws[0]), float(ws[1]))
     if not _number_pair(window):
-        raise SpecError(f"spec {path}: 'window' must be [from, to] in seconds, got {window!r}")
+        error(f"'window' must be [from, to] in seconds, got {window!r}")
+        window = unchecked_window
     statistics = data.get("statistics", "raw")
     if statistics not in STATISTICS:
-        raise SpecError(f"spec {path}: 'statistics' = {statistics!r}: allowed {', '.join(STATISTICS)}")
+        error(f"'statistics' = {statistics!r}: allowed {', '.join(STATISTICS)}")
+        statistics = "raw"
     force_target = data.get("force_target")
     if force_target is not None:
         if force_target not in FORCE_TARGETS:
-            raise SpecError(
-                f"spec {path}: 'force_target' = {force_target!r}: allowed {', '.join(FORCE_TARGETS)}"
-            )
-        if "force_amplitude" in fixed or any("force_amplitude" in g for g in grids):
-            raise SpecError(f"spec {path}: 'force_target' sets force_amplitude: do not give it too")
+            error(f"'force_target' = {force_target!r}: allowed {', '.join(FORCE_TARGETS)}")
+            force_target = None
+        elif "force_amplitude" in fixed or any("force_amplitude" in g for g in grids):
+            error("'force_target' sets force_amplitude: do not give it too")
+    if not readable:
+        return None, errors
     name = str(data.get("name") or Path(path).stem)
-    return Spec(
+    spec = Spec(
         name,
         tuple(grids),
         dict(fixed),
@@ -194,6 +238,7 @@ def load_spec(path: Path) -> Spec:
         statistics,
         force_target,
     )
+    return spec, errors
 
 
 def point_key(scenario: Scenario, window: tuple[float, float], statistics: str = "raw") -> str:
@@ -211,12 +256,26 @@ def point_key(scenario: Scenario, window: tuple[float, float], statistics: str =
 
 
 def _scenario(values: dict[str, Any]) -> Scenario:
-    try:
-        return scenario_from_flat(values)
-    except ParameterError as exc:
-        raise SpecError(str(exc)) from None
-    except (TypeError, ValueError) as exc:
-        raise SpecError(f"invalid point {values}: {exc}") from None
+    """The point's scenario; SpecError with every refused value of the point (a parameter set
+    stops at its first error, so each refused value is dropped and the rest checked again)."""
+    errors: list[str] = []
+    rest = dict(values)
+    while True:
+        try:
+            scenario = scenario_from_flat(rest)
+        except ParameterError as exc:
+            errors.append(str(exc))
+            if exc.name not in rest:
+                break  # refused for a value the point does not give: nothing more to drop
+            del rest[exc.name]
+        except (TypeError, ValueError) as exc:
+            errors.append(f"invalid point {values}: {exc}")
+            break
+        else:
+            if not errors:
+                return scenario
+            break
+    raise SpecError(errors)
 
 
 def span_window(scenario: Scenario, spans: tuple[float, float]) -> tuple[float, float]:
@@ -263,26 +322,40 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     return scenario, values, (w_from, w_to)
 
 
-def _grid_points(spec: Spec) -> Iterator[Point]:
-    """Every point of every grid, validated, in grid order (a point two grids share comes twice)."""
+def _grid_points(spec: Spec, errors: list[str] | None = None) -> Iterator[Point]:
+    """Every point of every grid, validated, in grid order (a point two grids share comes twice).
+
+    With ``errors``, an invalid point's errors go there and the next point is checked; without,
+    the first invalid point raises SpecError."""
     for gi, grid in enumerate(spec.grids):
         names = list(grid)
         for combo in itertools.product(*grid.values()):
-            scenario, values, window = resolve(spec, {**spec.fixed, **dict(zip(names, combo, strict=True))})
+            try:
+                scenario, values, window = resolve(
+                    spec, {**spec.fixed, **dict(zip(names, combo, strict=True))}
+                )
+            except SpecError as exc:
+                if errors is None:
+                    raise
+                errors += exc.errors
+                continue
             yield Point(point_key(scenario, window, spec.statistics), values, gi, window, spec.statistics)
 
 
 def expand(spec: Spec) -> list[Point]:
     """Every grid point, validated, in grid order; a point several grids share runs once.
 
-    Raises SpecError (one line) on the first invalid point, before anything runs.
+    Raises SpecError with every distinct error of every point (one line each), before anything runs.
     """
     points: list[Point] = []
     seen: set[str] = set()
-    for point in _grid_points(spec):
+    errors: list[str] = []
+    for point in _grid_points(spec, errors):
         if point.key not in seen:
             seen.add(point.key)
             points.append(point)
+    if errors:
+        raise SpecError(errors)
     return points
 
 

@@ -27,16 +27,16 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from pac_common import jsonio, markdown  # noqa: E402
-from pac_common.contact_statistics import lowpass  # noqa: E402
+from pac_common import jsonio, markdown
+from pac_common.contact_statistics import lowpass
 
-from .campaign_results import read_done  # noqa: E402
-from .campaign_run import STATUS_OK  # noqa: E402
-from .campaign_spec import Point, SpecError, expand, load_spec, span_window  # noqa: E402
-from .campaign_spec import same_value as _same  # noqa: E402
+from .campaign_results import read_done
+from .campaign_run import STATUS_OK
+from .campaign_spec import Point, SpecError, expand, load_spec, span_window
+from .campaign_spec import same_value as _same
 
 SPEC = Path("config/campaigns/fe_laws.yaml")
 OUT = Path("reports/catenary/laws")
@@ -452,7 +452,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         print(write(args.spec, args.out, args.law, traces_runs=not args.no_traces))
     except SpecError as exc:
-        print(f"fe_experiment: {exc}", file=sys.stderr)
+        for line in exc.errors:
+            print(f"fe_experiment: {line}", file=sys.stderr)
         return 2
     return 0
 

@@ -8,13 +8,13 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from pac_common import jsonio, markdown  # noqa: E402
-from pac_common.contact_statistics import lowpass, target_mean_force  # noqa: E402
-from pac_plant.catenary.catenary_file import DEFAULT  # noqa: E402
+from pac_common import jsonio, markdown
+from pac_common.contact_statistics import lowpass, target_mean_force
+from pac_plant.catenary.catenary_file import DEFAULT
 
-from .fe_line_runs import (  # noqa: E402
+from .fe_line_runs import (
     EN50318_BANDS,
     EXPERIMENT_DURATION,
     EXPERIMENT_SPEEDS,

@@ -23,16 +23,16 @@ from typing import Any
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from pac_common import jsonio  # noqa: E402
-from pac_common.contact_statistics import lowpass  # noqa: E402
+from pac_common import jsonio, markdown
+from pac_common.contact_statistics import lowpass
 
-from .campaign_results import read_done  # noqa: E402
-from .campaign_run import en50318_measures  # noqa: E402
-from .campaign_spec import Point, expand, load_spec  # noqa: E402
-from .fe_experiment import OUT, SIGMA, SPEC, case_of, passive_for  # noqa: E402
+from .campaign_results import read_done
+from .campaign_run import en50318_measures
+from .campaign_spec import Point, expand, load_spec
+from .fe_experiment import OUT, SIGMA, SPEC, case_of, passive_for
 
 LIVE_OUT = Path("reports/catenary/live")
 #: The goal: live sigma within this fraction of the offline sigma.
@@ -213,6 +213,25 @@ def write_up(
         "timing": timing.as_dict(),
     }
     jsonio.write(args.out / "live.json", result)
+    offline_mean = float(offline["en50318_contact_force_mean"]) if offline else math.nan
+    met = "met" if result["sigma_within_10_percent"] else "not met"
+    rows = [
+        ["Fm [N]", f"{live['en50318_contact_force_mean']:.2f}", f"{offline_mean:.2f}"],
+        ["σ [N] (20 Hz)", f"{sigma_live:.2f}", f"{sigma_off:.2f}"],
+        ["σ live vs offline", f"{100 * deviation:+.1f} % (goal: within ±10 %: {met})", ""],
+        [
+            f"σ vs the offline passive run ({sigma_passive:.2f} N)",
+            f"{100 * (sigma_live - sigma_passive) / sigma_passive:+.1f} %",
+            f"{100 * (sigma_off - sigma_passive) / sigma_passive:+.1f} %",
+        ],
+        ["contact loss [%]", f"{live['en50318_contact_loss_percent']:.2f}", ""],
+        ["max |u| [N]", f"{np.nanmax(np.abs(s['u'])):.0f}", ""],
+        [
+            "plant ticks in the bag",
+            f"{raw.ticks_recorded} of {expected} ({'every tick' if every_tick else 'NOT every tick'})",
+            "",
+        ],
+    ]
     text = "\n".join(
         [
             f"# Live: the four-process rig in real time on the FE line, `{args.law}` at {args.speed:g} km/h",
@@ -222,20 +241,7 @@ def write_up(
             f"{duration:g} s, statistics over the same whole spans as offline, t in "
             f"[{point.window[0]:.3f}, {point.window[1]:.3f}] s.",
             "",
-            "| | live | offline (campaign) |",
-            "|---|---:|---:|",
-            f"| Fm [N] | {live['en50318_contact_force_mean']:.2f} | "
-            f"{float(offline['en50318_contact_force_mean']) if offline else math.nan:.2f} |",
-            f"| σ [N] (20 Hz) | {sigma_live:.2f} | {sigma_off:.2f} |",
-            f"| σ live vs offline | {100 * deviation:+.1f} % (goal: within ±10 %: "
-            f"{'met' if result['sigma_within_10_percent'] else 'not met'}) | |",
-            f"| σ vs the offline passive run ({sigma_passive:.2f} N) | "
-            f"{100 * (sigma_live - sigma_passive) / sigma_passive:+.1f} % | "
-            f"{100 * (sigma_off - sigma_passive) / sigma_passive:+.1f} % |",
-            f"| contact loss [%] | {live['en50318_contact_loss_percent']:.2f} | |",
-            f"| max \\|u\\| [N] | {np.nanmax(np.abs(s['u'])):.0f} | |",
-            f"| plant ticks in the bag | {raw.ticks_recorded} of {expected} "
-            f"({'every tick' if every_tick else 'NOT every tick'}) | |",
+            markdown.table(["", "live", "offline (campaign)"], rows, ["l", "r", "r"]),
             "",
             "## Loop timing (from the bag)",
             "",

@@ -34,6 +34,7 @@ import copy
 import functools
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import scipy.linalg
@@ -409,6 +410,12 @@ def _s_z_maps(
     return half_map, limit, half_input
 
 
+class SampleUpdater(Protocol):
+    """What the nodes call on an observer core each sample (AdaptiveObserver, ContactForceObserver)."""
+
+    def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate: ...
+
+
 class AdaptiveObserver:
     """Eq. (17) with explicit state; call :meth:`update` once per tick, in tick order."""
 
@@ -480,9 +487,9 @@ class AdaptiveObserver:
     s_theta = property(lambda self: self._st["s_theta"][0])
     theta_hat = property(lambda self: self._st["theta_hat"][0])
 
-    def warm_up(self) -> None:
+    def warm_up(self: SampleUpdater) -> None:
         """Updates on a copy (first sample, a tick, a gap): numba loads the compiled code now, not at
-        the loop's first tick."""
+        the loop's first tick. Any observer with ``update`` may share it (the contact-force one does)."""
         twin = copy.deepcopy(self)
         twin.update(0, (0.0, 0.0), 0.0)
         twin.update(1, (0.0, 0.0), 0.0)

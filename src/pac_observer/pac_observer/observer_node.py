@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from pac_common import diagnostics, messages
@@ -26,7 +26,7 @@ from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, Run
 from pac_model.parameters import PantographParameters, TrackParameters
 
 from .contact_force import ContactForceObserver, make_observer
-from .observer import AdaptiveObserver, ObserverDivergedError
+from .observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from .parameters import ObserverParameters
 
 
@@ -98,7 +98,8 @@ class ObserverNode(PacNode):
         )
         self.follow_run()
         self.watch_start(self.missing)
-        self.last_estimate = None  # (estimate, status, rejected, reinitialisations) last published
+        # (estimate, status, rejected, reinitialisations) last published
+        self.last_estimate: tuple[Estimate, int, int, int] | None = None
         self.last_seen_tick = -1
         self.reinitialisations = 0
         self.rejected = 0
@@ -108,17 +109,15 @@ class ObserverNode(PacNode):
         self.bridged = 0  # samples never received (or refused), bridged by the core
         self.timing = diagnostics.LoopTiming()  # measurement arrivals and handling times
 
-    def apply_parameters(self, changed: dict) -> None:
-        self.limits = changed.get(MeasurementLimits, self.limits)
+    def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
+        self.limits = self.changed_or(changed, MeasurementLimits, self.limits)
 
     def missing(self) -> list[str]:
         """The peers this node's output still waits for, by name (empty: ready)."""
         return self.readers_missing(self.estimate_pub, "estimate", "a controller")
 
     def ready(self) -> bool:
-        return self.active and self.estimate_pub.get_subscription_count() >= 1 + int(
-            self.node_options.wait_for_recorder
-        )
+        return self.active and self.estimate_pub.get_subscription_count() >= 1 + int(self.waits_for_recorder)
 
     def acceptable(self, z1: float, z2: float, force: float) -> bool:
         finite = math.isfinite(z1) and math.isfinite(z2) and math.isfinite(force)
@@ -152,7 +151,7 @@ class ObserverNode(PacNode):
             self.reinitialisations += 1
             self.last_seen_tick, self.last_estimate = -1, None
             self.run_new()
-        if self.run_ended and tick > self.run_last_tick:
+        if self.past_run_end(tick):
             return  # idle: the run is over (a new run starts again at tick 0)
         if tick <= self.last_seen_tick:
             if tick == self.core.tick and self.last_estimate is not None:

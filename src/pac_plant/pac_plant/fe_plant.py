@@ -115,6 +115,11 @@ class FEPlant(Plant):
         """(z1, z2, z1', z2') of eq. (4) from the FE state (heights above the datum, ``fe_datum``)."""
         return np.array(self._heights())
 
+    @z.setter
+    def z(self, value: np.ndarray) -> None:
+        # Plant.z is a plain attribute; here it follows from the FE state and cannot be set.
+        raise AttributeError("FEPlant.z follows from the FE state: it cannot be set")
+
     def _heights(self) -> tuple[float, float, float, float]:
         """``z`` as Python floats (a tick reads it twice: plain lists are the cheap way out)."""
         p, vp = self.sim.state.p.tolist(), self.sim.state.vp.tolist()

@@ -22,8 +22,10 @@ import math
 import sys
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+
+from rclpy.timer import Timer
 
 from pac_common import diagnostics, messages
 from pac_common.lifecycle import LifecycleOptions
@@ -114,6 +116,7 @@ class PlantNode(PacNode):
         )
         self.run_announced_end = False
         self.closing = False  # the last tick is out (real time: waiting for its command)
+        self.closing_deadline = math.inf  # monotonic time after which closing gives up
         self.ticks_total = loop.ticks if loop.duration > 0 else math.inf
         # Command bookkeeping.
         self.latest: tuple[int, float] | None = None  # (tick, u) of the command received last
@@ -127,7 +130,7 @@ class PlantNode(PacNode):
         self.latency: dict[int, float] = {}  # command tick -> round trip [s]
         self.last_sent = 0.0
         self.resends = 0
-        self.tick_timer = None
+        self.tick_timer: Timer | None = None  # the real-time loop's (from tick 0's command)
         self.start_wall, self.start_tick = 0.0, 0
         self.late_ticks = 0  # ticks taken late, in a catch-up burst
         self.slips = 0  # times the schedule was reset because the loop fell too far behind
@@ -144,8 +147,8 @@ class PlantNode(PacNode):
             # Re-activated mid-run: the schedule restarts now (no burst of the paused ticks).
             self.start_wall, self.start_tick = time.monotonic(), self.plant.tick
 
-    def apply_parameters(self, changed: dict) -> None:
-        self.options = changed.get(PlantNodeOptions, self.options)
+    def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
+        self.options = self.changed_or(changed, PlantNodeOptions, self.options)
         self.get_logger().info(
             f"command timeout {self.options.command_timeout_ticks} ticks, "
             f"passive uplift {self.options.passive_uplift:g} N"
@@ -154,7 +157,7 @@ class PlantNode(PacNode):
     # -- start-up: wait for the loop (and the recorder) to be matched, never a blind sleep ----------
     def missing(self) -> list[str]:
         """The peers the run still waits for, by name (empty: ready)."""
-        recorder = int(self.node_options.wait_for_recorder)
+        recorder = int(self.waits_for_recorder)
         out = self.readers_missing(self.measurement_pub, "measurement", "an observer")
         if self.truth_pub.get_subscription_count() < recorder:
             out.append("a recorder subscribed to plant_truth (wait_for_recorder)")
@@ -362,7 +365,7 @@ class PlantNode(PacNode):
         return {
             "state": state,
             "waiting_for": "command subscribers and publishers"
-            + (" and the recorder" if self.node_options.wait_for_recorder else ""),
+            + (" and the recorder" if self.waits_for_recorder else ""),
             "last_tick": self.plant.tick,
             "timing_mode": self.options.timing_mode,
             "resends": self.resends,

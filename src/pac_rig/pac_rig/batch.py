@@ -123,10 +123,10 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
     groups = [np.arange(g, n, threads, dtype=np.int64) for g in range(min(threads, n))]
     start = time.perf_counter()
     with ThreadPoolExecutor(max_workers=len(groups)) as pool:
-        done = [
-            pool.submit(_run_rows, rows, *args, out, result_tick, result_code, result_value)
-            for rows in groups
-        ]
+        # One tuple of arguments per group (mypy cannot check a star-argument followed by more
+        # positional ones against submit's signature).
+        calls = [(rows, *args, out, result_tick, result_code, result_value) for rows in groups]
+        done = [pool.submit(_run_rows, *call) for call in calls]
         for future in done:
             future.result()
     wall = time.perf_counter() - start

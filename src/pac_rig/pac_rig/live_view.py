@@ -26,6 +26,7 @@ import time
 from dataclasses import dataclass
 
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.subscription import Subscription
 
 from pac_bag.typestore import typestore
 from pac_common import messages
@@ -96,7 +97,7 @@ class LiveViewNode(PacNode):
             self.channels[topic] = foxglove.Channel(
                 f"/{topic}", schema=schema, message_encoding="cdr", context=self.fox_context
             )
-        self.subscriptions_by_topic: dict[str, object] = {}
+        self.subscriptions_by_topic: dict[str, Subscription] = {}
         self.create_timer(self.FOLLOW_PERIOD, self._follow_clients)
         self.url = f"ws://{params.host}:{self.server.port}"
         # One line a user (and the tests) can read the actual port from.

@@ -18,6 +18,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
@@ -109,7 +110,7 @@ class RecorderNode(PacNode):
         self.failure = ""
         # The recorded tick of each loop topic (run end, stop_after_tick); /diagnostics has none.
         self.last_tick = {t: -1 for t in topics if t in messages.TOPICS}
-        self.last_message_wall = None
+        self.last_message_wall: float | None = None
         self.factory = messages.RclpyFactory()
         self.unsubscribed = dict(topics)
         self.subscribe_timer = self.create_timer(0.01, self._subscribe_when_published)
@@ -230,8 +231,8 @@ class RecorderNode(PacNode):
             self.get_logger().info(f"no message for {self.params.idle_timeout:g} s: closing")
             self.finished = True
 
-    def apply_parameters(self, changed: dict) -> None:
-        self.params = changed.get(RecorderParameters, self.params)
+    def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
+        self.params = self.changed_or(changed, RecorderParameters, self.params)
 
     def health_counters(self) -> dict:
         try:

@@ -14,6 +14,7 @@ import argparse
 import importlib
 import sys
 import time
+from typing import Any
 
 import numpy as np
 from numba.core.registry import CPUDispatcher
@@ -49,12 +50,13 @@ def compiled_functions() -> dict[str, CPUDispatcher]:
 
 def exercise() -> None:
     """Call the cores with the argument types production code uses (nodes, simulate, replay, batch)."""
+    from pac_controller.backstepping import BacksteppingController
     from pac_rig.batch import batchable, run_batch
     from pac_rig.closed_loop import build_cores, run, run_cores
     from pac_rig.simulate import scenario_from_flat
 
     short = {"duration": 0.005}
-    variants = [
+    variants: list[dict[str, Any]] = [
         {},
         {"shape": "square", "contact_model": "unilateral", "noise_std": (1e-6, 1e-6), "quantisation": 1e-7},
         {"shape": "step", "law": "passive", "command_delay_ticks": 0},
@@ -78,6 +80,8 @@ def exercise() -> None:
     observer.reset()
     controller.fallback(1)
     controller.compute(2, np.zeros(4), np.array([np.nan, 0.0, 0.0]))
+    if not isinstance(controller.law, BacksteppingController):
+        raise TypeError(f"the default law is {controller.name}, not backstepping: warm its helpers too")
     controller.law.stiffness_hat_derivatives(0.0, np.array([4000.0, 0.0, 0.0]))
     plant.derivative(0.0, np.zeros(4), 1.0)
     plant.measurement()

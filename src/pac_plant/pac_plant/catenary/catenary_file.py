@@ -225,7 +225,7 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
     """``CatenaryData`` and ``NumericalOptions`` of a catenary file's text (``source`` names it)."""
     r = _Reader(source)
     try:
-        raw = yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+        raw = yaml.load(text, Loader=_Loader)  # safe: _Loader is a SafeLoader
     except _DuplicateKey as exc:
         raise r.fail(str(exc.key), "given twice", "each key once", exc.mark) from None
     except yaml.YAMLError as exc:

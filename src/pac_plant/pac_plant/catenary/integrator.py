@@ -204,7 +204,7 @@ class ContactSimulation:
         return property(get, put)
 
     def _number(index: int, counter: bool = False, kind: type = float) -> property:  # type: ignore[misc]
-        def get(self: ContactSimulation):  # noqa: ANN202
+        def get(self: ContactSimulation):
             return kind((self.state.counters if counter else self.state.scalars)[index])
 
         def put(self: ContactSimulation, value: float) -> None:

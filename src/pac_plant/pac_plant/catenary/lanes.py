@@ -34,11 +34,11 @@ lanes8 = Lanes()
 
 @register_model(Lanes)
 class _LanesModel(models.PrimitiveModel):
-    def __init__(self, dmm, fe_type) -> None:  # noqa: ANN001
+    def __init__(self, dmm, fe_type) -> None:
         super().__init__(dmm, fe_type, _VEC)
 
 
-def _pointer(context, builder, arr_type, arr, offset):  # noqa: ANN001, ANN202
+def _pointer(context, builder, arr_type, arr, offset):
     ary = context.make_array(arr_type)(context, builder, arr)
     ptr = builder.gep(ary.data, [offset])
     return builder.bitcast(ptr, _VEC.as_pointer())
@@ -49,12 +49,12 @@ def _is_float_array(a: types.Type) -> bool:
 
 
 @intrinsic
-def load(typingctx, arr, offset):  # noqa: ANN001, ANN201
+def load(typingctx, arr, offset):
     """arr.flat[offset : offset + 8] as lanes (no bounds check: the caller's index arithmetic)."""
     if not (_is_float_array(arr) and isinstance(offset, types.Integer)):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         ptr = _pointer(context, builder, sig.args[0], args[0], args[1])
         return builder.load(ptr, align=8)
 
@@ -62,12 +62,12 @@ def load(typingctx, arr, offset):  # noqa: ANN001, ANN201
 
 
 @intrinsic
-def store(typingctx, arr, offset, value):  # noqa: ANN001, ANN201
+def store(typingctx, arr, offset, value):
     """arr.flat[offset : offset + 8] = value."""
     if not (_is_float_array(arr) and isinstance(offset, types.Integer) and value == lanes8):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         ptr = _pointer(context, builder, sig.args[0], args[0], args[1])
         builder.store(args[2], ptr, align=8)
         return context.get_dummy_value()
@@ -76,22 +76,22 @@ def store(typingctx, arr, offset, value):  # noqa: ANN001, ANN201
 
 
 @intrinsic
-def zeros(typingctx):  # noqa: ANN001, ANN201
+def zeros(typingctx):
     """Eight zeros."""
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         return ir.Constant(_VEC, [0.0] * WIDTH)
 
     return lanes8(), codegen
 
 
 @intrinsic
-def splat(typingctx, x):  # noqa: ANN001, ANN201
+def splat(typingctx, x):
     """x in every lane."""
     if not isinstance(x, types.Float):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         v = builder.insert_element(ir.Constant(_VEC, ir.Undefined), args[0], ir.Constant(ir.IntType(32), 0))
         return builder.shuffle_vector(
             v, ir.Constant(_VEC, ir.Undefined), ir.Constant(ir.VectorType(ir.IntType(32), WIDTH), [0] * WIDTH)
@@ -100,20 +100,20 @@ def splat(typingctx, x):  # noqa: ANN001, ANN201
     return lanes8(x), codegen
 
 
-def _fma(builder, a, b, c):  # noqa: ANN001, ANN202
+def _fma(builder, a, b, c):
     fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_VEC, [_VEC] * 3), "llvm.fma.v8f64")
     return builder.call(fn, [a, b, c])
 
 
-def _binary(instruction: str, doc: str):  # noqa: ANN202
+def _binary(instruction: str, doc: str):
     """The lane-wise intrinsic ``a <instruction> b`` (an IRBuilder method: fmul, fadd)."""
 
     @intrinsic
-    def op(typingctx, a, b):  # noqa: ANN001, ANN202
+    def op(typingctx, a, b):
         if not (a == lanes8 and b == lanes8):
             return None
 
-        def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+        def codegen(context, builder, sig, args):
             return getattr(builder, instruction)(args[0], args[1])
 
         return lanes8(a, b), codegen
@@ -127,24 +127,24 @@ add = _binary("fadd", "a + b, lane by lane.")
 
 
 @intrinsic
-def fma(typingctx, a, b, c):  # noqa: ANN001, ANN201
+def fma(typingctx, a, b, c):
     """a * b + c, lane by lane, one rounding."""
     if not (a == lanes8 and b == lanes8 and c == lanes8):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         return _fma(builder, *args)
 
     return lanes8(a, b, c), codegen
 
 
 @intrinsic
-def fnma(typingctx, a, b, c):  # noqa: ANN001, ANN201
+def fnma(typingctx, a, b, c):
     """c - a * b, lane by lane, one rounding."""
     if not (a == lanes8 and b == lanes8 and c == lanes8):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         return _fma(builder, builder.fneg(args[0]), args[1], args[2])
 
     return lanes8(a, b, c), codegen
@@ -164,7 +164,7 @@ _I64 = ir.IntType(64)
 _IVEC = ir.VectorType(_I64, WIDTH)
 
 
-def _addresses(context, builder, sig, args):  # noqa: ANN001, ANN202
+def _addresses(context, builder, sig, args):
     """Addresses of arr.flat[idx[c] + j] for the eight lanes c, as a vector of pointers."""
     ary = context.make_array(sig.args[0])(context, builder, args[0])
     idx = context.make_array(sig.args[1])(context, builder, args[1])
@@ -185,7 +185,7 @@ def _addresses(context, builder, sig, args):  # noqa: ANN001, ANN202
 
 
 @intrinsic
-def gather(typingctx, arr, idx, j):  # noqa: ANN001, ANN201
+def gather(typingctx, arr, idx, j):
     """Lane c = arr.flat[idx[c] + j] (idx: int64, at least 8 long; no bounds check)."""
     if not (
         _is_float_array(arr)
@@ -195,7 +195,7 @@ def gather(typingctx, arr, idx, j):  # noqa: ANN001, ANN201
     ):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         ptrs, _ = _addresses(context, builder, sig, args)
         fnty = ir.FunctionType(_VEC, [ptrs.type, ir.IntType(32), ir.VectorType(ir.IntType(1), WIDTH), _VEC])
         fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.masked.gather.v8f64.v8p0")
@@ -206,7 +206,7 @@ def gather(typingctx, arr, idx, j):  # noqa: ANN001, ANN201
 
 
 @intrinsic
-def scatter(typingctx, arr, idx, j, value, bounds):  # noqa: ANN001, ANN201
+def scatter(typingctx, arr, idx, j, value, bounds):
     """arr.flat[idx[c] + j] = value[c] for the lanes c with bounds[c] <= idx[c] + j < bounds[c + 1]
     (bounds: int64, at least 9 long)."""
     ok = _is_float_array(arr) and value == lanes8 and isinstance(j, types.Integer)
@@ -215,7 +215,7 @@ def scatter(typingctx, arr, idx, j, value, bounds):  # noqa: ANN001, ANN201
     if not ok:
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         ptrs, offsets = _addresses(context, builder, sig, args)
         row = builder.add(
             offsets,
@@ -241,7 +241,7 @@ def scatter(typingctx, arr, idx, j, value, bounds):  # noqa: ANN001, ANN201
     return types.none(arr, idx, j, value, bounds), codegen
 
 
-def _mask(context, builder, offset, lo, hi):  # noqa: ANN001, ANN202
+def _mask(context, builder, offset, lo, hi):
     """Lane l on where lo <= offset + l < hi."""
     off = builder.insert_element(ir.Constant(_IVEC, ir.Undefined), offset, ir.Constant(ir.IntType(32), 0))
     off = builder.shuffle_vector(
@@ -262,12 +262,12 @@ def _mask(context, builder, offset, lo, hi):  # noqa: ANN001, ANN202
 
 
 @intrinsic
-def load_masked(typingctx, arr, offset, lo, hi):  # noqa: ANN001, ANN201
+def load_masked(typingctx, arr, offset, lo, hi):
     """Lane l = arr.flat[offset + l] where lo <= offset + l < hi, else 0 (nothing read there)."""
     if not (_is_float_array(arr) and all(isinstance(t, types.Integer) for t in (offset, lo, hi))):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         offset, lo, hi = (
             context.cast(builder, v, t, types.int64) for v, t in zip(args[1:], sig.args[1:], strict=True)
         )
@@ -281,7 +281,7 @@ def load_masked(typingctx, arr, offset, lo, hi):  # noqa: ANN001, ANN201
 
 
 @intrinsic
-def store_masked(typingctx, arr, offset, value, lo, hi):  # noqa: ANN001, ANN201
+def store_masked(typingctx, arr, offset, value, lo, hi):
     """arr.flat[offset + l] = value[l] where lo <= offset + l < hi (nothing written elsewhere)."""
     if not (
         _is_float_array(arr)
@@ -290,7 +290,7 @@ def store_masked(typingctx, arr, offset, value, lo, hi):  # noqa: ANN001, ANN201
     ):
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         offset, lo, hi = (
             context.cast(builder, v, t, types.int64)
             for v, t in ((args[1], sig.args[1]), (args[3], sig.args[3]), (args[4], sig.args[4]))
@@ -309,12 +309,12 @@ _ROWS = types.UniTuple(lanes8, WIDTH)
 
 
 @intrinsic
-def transpose(typingctx, rows):  # noqa: ANN001, ANN201
+def transpose(typingctx, rows):
     """The 8 x 8 transpose: lane l of result c = lane c of rows[l] (three rounds of shuffles)."""
     if rows != _ROWS:
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         r = [builder.extract_value(args[0], i) for i in range(WIDTH)]
         m = lambda *idx: ir.Constant(ir.VectorType(ir.IntType(32), WIDTH), list(idx))  # noqa: E731
         for step, (lo_mask, hi_mask) in (
@@ -338,7 +338,7 @@ def transpose(typingctx, rows):  # noqa: ANN001, ANN201
 
 
 @intrinsic
-def window(typingctx, lo, hi, k):  # noqa: ANN001, ANN201
+def window(typingctx, lo, hi, k):
     """Lanes k .. k+7 of the sixteen (lo, hi): eight consecutive values from two loaded blocks
     (k a constant 0..8), one shuffle instead of an unaligned load."""
     if not (lo == lanes8 and hi == lanes8 and isinstance(k, types.IntegerLiteral)):
@@ -347,7 +347,7 @@ def window(typingctx, lo, hi, k):  # noqa: ANN001, ANN201
     if not 0 <= shift <= WIDTH:
         return None
 
-    def codegen(context, builder, sig, args):  # noqa: ANN001, ANN202
+    def codegen(context, builder, sig, args):
         mask = ir.Constant(ir.VectorType(ir.IntType(32), WIDTH), list(range(shift, shift + WIDTH)))
         return builder.shuffle_vector(args[0], args[1], mask)
 
