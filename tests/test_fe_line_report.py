@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import pytest
 
-from pac_experiments.fe_line_report import lines_reference_section
+from pac_experiments.fe_line_report import lines_reference_section, reference_figure_name
 from pac_experiments.fe_line_runs import EN50318_BANDS, reference_lines
 from pac_plant.catenary.catenary_file import DEFAULT, presets
 
@@ -49,6 +50,7 @@ def test_every_line_gets_its_band_table_with_distances():
     assert "no stitch wire" in a and "stitch wire at the supports" in b
     assert "Spans 55 m" in a and "Spans 60/65 m" in b
     assert "250 km/h 0, 300 km/h 3" in b
+    assert "(reference_runs_line_a.png)" in a and "(reference_runs_line_b.png)" in b
     assert "not its own" in text and "EN 50318:2002 reference model" in text
 
 
@@ -56,6 +58,7 @@ def test_every_line_gets_its_band_table_with_distances():
 def test_reference_runs_cover_every_preset_default_first():
     lines = reference_lines()
     assert lines[0] == DEFAULT
+    assert reference_figure_name(DEFAULT) == "reference_runs.png"  # the default line's figure keeps its name
     assert sorted(lines) == sorted(presets()) and len(lines) == len(set(lines)) >= 3
 
 
@@ -87,3 +90,24 @@ def test_docs_per_preset_table_is_the_committed_report():
         assert cells == [f"{run[k]:.1f}" for k in keys], (line, speed)
         seen.add((line, speed))
     assert seen == {(line, speed) for line, by_speed in runs.items() for speed in by_speed}
+
+
+@pytest.mark.unit
+def test_reference_figure_of_a_line_with_its_own_supports(tmp_path):
+    """A line's figure is drawn over its own window (its supports, not the default line's 55 m)."""
+    import matplotlib.image
+
+    from pac_experiments.fe_line_report import reference_figure
+
+    x = np.linspace(0.0, 400.0, 4001)
+    run = {
+        "catenary": "line_b",
+        "_x": x,
+        "_f": 120.0 + 20.0 * np.sin(2 * np.pi * x / 65.0),
+        "_uplift": 0.05 + 0.01 * np.cos(2 * np.pi * x / 65.0),
+        "_window_supports": (260.0, 325.0, 390.0),
+    }
+    path = tmp_path / "reference_runs_line_b.png"
+    reference_figure(path, {250: run, 300: run})
+    image = matplotlib.image.imread(path)
+    assert image.shape[0] > 500 and image.shape[1] > 1000 and image.std() > 0.01

@@ -74,7 +74,8 @@ def lines_reference_section(refs_by_line: dict[str, dict[int, dict[str, Any]]]) 
             "",
             reference_table(refs),
             "",
-            f"Largest number of slack droppers at once: {slack}.",
+            f"Largest number of slack droppers at once: {slack}. Force and uplift over the window: "
+            f"[{reference_figure_name(name)}]({reference_figure_name(name)}).",
         ]
     return "\n".join(parts)
 
@@ -127,6 +128,35 @@ def experiment_table(metrics: list[dict[str, Any]]) -> str:
     )
 
 
+def reference_figure_name(catenary: str) -> str:
+    """The file of a line's reference-run figure: the default line keeps its old name."""
+    return "reference_runs.png" if catenary == DEFAULT else f"reference_runs_{catenary}.png"
+
+
+def reference_figure(path: Path, refs: dict[int, dict[str, Any]]) -> None:
+    """One line's reference runs: contact force (raw, 20 Hz) and uplift over the window, per speed."""
+    fig, axes = plt.subplots(2, len(refs), figsize=(12, 7), constrained_layout=True, squeeze=False)
+    for col, (v, r) in enumerate(refs.items()):
+        x = r["_x"]
+        supports = r["_window_supports"]
+        w = (x >= supports[0]) & (x <= supports[-1])
+        axes[0, col].plot(x[w], r["_f"][w], color="0.7", lw=0.6, label="raw")
+        axes[0, col].plot(x[w], lowpass(r["_f"], 1e-3)[w], "C3", lw=1.0, label="20 Hz low-pass")
+        line = f"{r['catenary']}, " if r.get("catenary", DEFAULT) != DEFAULT else ""
+        axes[0, col].set_title(f"3-mass passive, {line}{v} km/h, Fm target {target_mean_force(v):.1f} N")
+        axes[0, col].set_ylabel("contact force [N]")
+        axes[0, col].legend()
+        axes[1, col].plot(x[w], 1e3 * r["_uplift"][w], "C0")
+        axes[1, col].set_ylabel("uplift at contact [mm]")
+        axes[1, col].set_xlabel("position [m]")
+        for ax in axes[:, col]:
+            for s in supports:
+                ax.axvline(s, color="k", lw=0.5, ls=":")
+            ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def write_report(
     out: Path,
     statics: dict[str, Any],
@@ -173,24 +203,8 @@ def write_report(
     fig.savefig(out / "stiffness_profile.png", dpi=110)
     plt.close(fig)
 
-    fig, axes = plt.subplots(2, 2, figsize=(12, 7), constrained_layout=True)
-    for col, (v, r) in enumerate(refs.items()):
-        x = r["_x"]
-        w = (x >= 4 * SPAN) & (x <= 6 * SPAN)
-        axes[0, col].plot(x[w], r["_f"][w], color="0.7", lw=0.6, label="raw")
-        axes[0, col].plot(x[w], lowpass(r["_f"], 1e-3)[w], "C3", lw=1.0, label="20 Hz low-pass")
-        axes[0, col].set_title(f"3-mass passive, {v} km/h, Fm target {target_mean_force(v):.1f} N")
-        axes[0, col].set_ylabel("contact force [N]")
-        axes[0, col].legend()
-        axes[1, col].plot(x[w], 1e3 * r["_uplift"][w], "C0")
-        axes[1, col].set_ylabel("uplift at contact [mm]")
-        axes[1, col].set_xlabel("position [m]")
-        for ax in axes[:, col]:
-            for s in (4 * SPAN, 5 * SPAN, 6 * SPAN):
-                ax.axvline(s, color="k", lw=0.5, ls=":")
-            ax.grid(alpha=0.3)
-    fig.savefig(out / "reference_runs.png", dpi=110)
-    plt.close(fig)
+    for name, line_refs in refs_by_line.items():
+        reference_figure(out / reference_figure_name(name), line_refs)
 
     exp_by = {(r["speed_kmh"], r["mode"], r["datum"]): r for r in exp}
     lines = (

@@ -151,6 +151,7 @@ def passive_reference(
         "_x": x,
         "_f": f,
         "_uplift": np.array(ups),
+        "_window_supports": supports,
     }
 
 
