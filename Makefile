@@ -7,7 +7,7 @@ ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
 # SPECs of config/campaigns/ that `make campaigns` runs.
-CAMPAIGNS ?= laws_speeds robustness
+CAMPAIGNS ?= laws_speeds robustness lines_speeds
 
 # Test kinds: pytest.ini (unit, offline, live; slow marks the costly ones); `make test-fast` = unit +
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.

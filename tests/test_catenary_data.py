@@ -549,6 +549,7 @@ def test_a_campaign_may_vary_the_line_and_keeps_its_old_keys_on_the_default_line
     for spec, results in (
         ("config/campaigns/laws_speeds.yaml", "reports/campaigns/laws_speeds/results.csv"),
         ("config/campaigns/fe_laws.yaml", "reports/catenary/laws/results.csv"),
+        ("config/campaigns/lines_speeds.yaml", "reports/campaigns/lines_speeds/results.csv"),
     ):
         keys = {p.key for p in expand(load_spec(ROOT / spec))}
         with (ROOT / results).open() as rows:

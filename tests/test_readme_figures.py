@@ -179,3 +179,28 @@ def test_readme_fe_laws_tables_are_the_committed_report():
     assert len(tables) >= 2  # the goals and every law (the section was found and read)
     for table in tables:
         assert table in report, table.splitlines()[0]
+
+
+def test_readme_lines_speeds_table_is_the_committed_campaign():
+    """EN 50318 σ [N] passive / line_adaptive (contact loss %, shown when not 0) on each line at
+    each speed, as lines_speeds' results.csv."""
+    header, *rows = readme_table("speed [km/h]")
+    by_point = {(r["law"], r["catenary"], float(r["speed_kmh"])): r for r in results("lines_speeds")}
+    checked, wrong = 0, []
+    for row in rows:
+        for line, pair in zip(header[1:], row[1:], strict=True):
+            for law, cell in zip(("passive", "line_adaptive"), pair.split(" / "), strict=True):
+                measured = by_point[(law, line, float(row[0]))]
+                sigma = float(measured["en50318_contact_force_std"])
+                loss = float(measured["en50318_contact_loss_percent"])
+                match = CELL.match(cell)
+                assert match, (law, line, row[0], cell)
+                if not agrees(match["sigma"], sigma) or not (
+                    agrees(match["loss"], loss) if match["loss"] else loss == 0
+                ):
+                    wrong.append(
+                        f"{law} on {line} at {row[0]} km/h: README {cell}, csv {sigma:.4g} ({loss:.3g} %)"
+                    )
+                checked += 1
+    assert wrong == []
+    assert checked >= 18  # the table was read (3 speeds x 3 lines x 2 laws when this was written)

@@ -2,8 +2,9 @@
 
 1. statics: achieved vs target pre-sag, dropper lengths, static stiffness along a span;
 2. reference runs: the benchmark-like 3-mass pantograph, passive, at 250 and 300 km/h on
-   the 10-span line, EN 50318 statistics over the middle two spans, beside the EN 50318:2002
-   bands (a *different* reference model) with the distance to each band;
+   the 10-span section of every shipped catenary preset (config/catenaries/), EN 50318
+   statistics over the middle two spans, beside the EN 50318:2002 bands (a *different*
+   reference model) with the distance to each band;
 3. numerics: mesh/time-step convergence, penalty stiffness, damping, cost per step;
 4. the diagnosis of the paper's law on the FE line (passive vs adaptive backstepping, two
    measurement datums, the best fit of the paper's contact model).
@@ -27,9 +28,11 @@ from .fe_line_runs import (
     EXPERIMENT_RUNS,
     EXPERIMENT_SPEEDS,
     NUMERICS_VARIANTS,
+    REFERENCE_SPEEDS,
     closed_loop_run,
     cost_breakdown,
     passive_reference,
+    reference_lines,
     statics_summary,
 )
 
@@ -60,17 +63,23 @@ def main(argv: list[str] | None = None) -> int:
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         exp_jobs = [(v, m, d) for v in EXPERIMENT_SPEEDS for m, d in EXPERIMENT_RUNS]
         exp_futures = [pool.submit(closed_loop_run, j) for j in exp_jobs]
-        ref_futures = {v: pool.submit(passive_reference, v) for v in (250, 300)}
+        ref_futures = {
+            (name, v): pool.submit(passive_reference, v, catenary=name)
+            for name in reference_lines()
+            for v in REFERENCE_SPEEDS
+        }
         num_jobs: dict[str, Any] = {}
         if not args.skip_numerics:
             for label, kw in NUMERICS_VARIANTS.items():
                 num_jobs[label] = pool.submit(passive_reference, 300, **kw)
-        refs = {v: f.result() for v, f in ref_futures.items()}
+        refs_by_line: dict[str, dict[int, dict[str, Any]]] = {}
+        for (name, v), f in ref_futures.items():
+            refs_by_line.setdefault(name, {})[v] = f.result()
         numerics = {k: f.result() for k, f in num_jobs.items()}
         exp = [f.result() for f in exp_futures]
     cost = cost_breakdown()
 
-    print(write_report(out, statics, refs, numerics, cost, exp))
+    print(write_report(out, statics, refs_by_line, numerics, cost, exp))
     return 0
 
 

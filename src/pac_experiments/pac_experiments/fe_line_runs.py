@@ -2,9 +2,9 @@
 
 1. statics: achieved vs target pre-sag, dropper lengths, static stiffness along a span;
 2. reference runs: the benchmark-like 3-mass pantograph, passive, at 250 and 300 km/h on
-   the 10-span line (start in static equilibrium under its uplift at the first interior
-   support, EN 50318 statistics over the middle two spans), beside the EN 50318:2002 bands
-   (a *different* reference model) with the distance to each band;
+   the 10-span section of every shipped catenary preset (start in static equilibrium under
+   its uplift at the first interior support, EN 50318 statistics over the middle two spans),
+   beside the EN 50318:2002 bands (a *different* reference model) with the distance to each band;
 3. numerics: mesh/time-step convergence, penalty stiffness, damping, cost per step;
 4. the diagnosis: the paper's 2-DOF pantograph on the endless FE line at 250/300/320/360
    km/h, passive (u = F_r, constant uplift at the EN 50367 target) vs the unchanged adaptive
@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from typing import Any
@@ -23,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from pac_common.contact_statistics import contact_statistics, en50367_criteria, target_mean_force
+from pac_plant.catenary.catenary_file import DEFAULT, load_catenary, presets
 from pac_plant.catenary.data import CatenaryData, NumericalOptions
 from pac_plant.catenary.integrator import ContactSimulation
 from pac_plant.catenary.line import Line
@@ -41,6 +43,8 @@ EN50318_BANDS = {
     "support_uplift_mm": {250: (48, 55), 300: (55, 65)},
     "contact_loss_percent": {250: (0, 0), 300: (0, 0)},
 }
+#: Speeds of the reference runs (those of the EN 50318:2002 bands) [km/h].
+REFERENCE_SPEEDS = (250, 300)
 EXPERIMENT_SPEEDS = (250, 300, 320, 360)
 EXPERIMENT_DURATION = 8.0  # s
 EXPERIMENT_WINDOW = (3.0, 8.0)  # s: after the observer's convergence transient
@@ -75,6 +79,11 @@ def band_distance(value: float, band: tuple[float, float]) -> float:
     return 0.0 if low <= value <= high else (value - high if value > high else value - low)
 
 
+def reference_lines() -> list[str]:
+    """The catenaries of the reference runs: the default line first, then every other preset."""
+    return [DEFAULT] + [name for name in presets() if name != DEFAULT]
+
+
 # -- reference runs (3-mass pantograph, fixed 10-span line) ------------------------------------
 def passive_reference(
     speed_kmh: float,
@@ -83,31 +92,49 @@ def passive_reference(
     contact_stiffness: float = 50e3,
     damping: bool = True,
     force: float | None = None,
+    catenary: str = DEFAULT,
 ) -> dict[str, Any]:
-    """One passive run over the 10-span line; statistics over the middle two spans."""
-    numerics = NumericalOptions(element_size=element_size, contact_stiffness=contact_stiffness)
-    line = Line(DATA, numerics)
+    """One passive run over the ``catenary`` file's fixed section; statistics over spans 5-6.
+
+    The line's own damping comes from its file; ``element_size`` and ``contact_stiffness``
+    replace the file's (the numerics study varies them). Spans 5 and 6 are whole spans, support
+    to support (EN 50318 practice), whatever their lengths.
+    """
+    cat = load_catenary(catenary)
+    numerics = dataclasses.replace(
+        cat.numerics, element_size=element_size, contact_stiffness=contact_stiffness
+    )
+    line = Line(cat.data, numerics)
     v = speed_kmh / 3.6
     force = target_mean_force(speed_kmh) if force is None else force
-    sim = ContactSimulation(line, three_mass_pantograph(), dt, v, SPAN, damping=damping)
+    support_x = line.layout.support_x
+    sim = ContactSimulation(line, three_mass_pantograph(), dt, v, float(support_x[1]), damping=damping)
     sim.start_static(force)
-    x_from, x_to = 4 * SPAN, 6 * SPAN
-    supports = (4 * SPAN, 5 * SPAN, 6 * SPAN)
+    x_from, x_to = float(support_x[4]), float(support_x[6])
+    supports = (x_from, float(support_x[5]), x_to)
+    # Half a span past the window's end (the end of the run) and one span either side of it (where
+    # the support uplift is watched): the last window span's length.
+    tail = float(support_x[6] - support_x[5])
     xs, fs, ups, slack = [], [], [], 0
     support_uplift = 0.0
     start = time.process_time()
-    while sim.x + v * dt < x_to + 0.5 * SPAN:
+    while sim.x + v * dt < x_to + 0.5 * tail:
         sim.step(force)
         xs.append(sim.x)
         fs.append(sim.contact_force)
         ups.append(sim.uplift())
         slack = max(slack, len(sim.slack))
-        if x_from - SPAN < sim.x < x_to + SPAN:
+        if x_from - tail < sim.x < x_to + tail:
             support_uplift = max(support_uplift, max(sim.uplift(s) for s in supports))
     wall = time.process_time() - start
     x, f = np.array(xs), np.array(fs)
     stats = contact_statistics(f, x, dt, x_from, x_to)
     return {
+        "catenary": cat.data.name,
+        "span_lengths_m": sorted({s.length for s in cat.data.spans}),
+        "stitched": cat.data.stitched,
+        "contact_tension_N": cat.data.contact.tension,
+        "messenger_tension_N": cat.data.messenger.tension,
         "speed_kmh": speed_kmh,
         "static_force": force,
         "element_size": element_size,
@@ -124,6 +151,7 @@ def passive_reference(
         "_x": x,
         "_f": f,
         "_uplift": np.array(ups),
+        "_window_supports": supports,
     }
 
 
