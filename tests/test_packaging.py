@@ -111,6 +111,71 @@ def test_setup_py_installs_what_exists_and_agrees_with_package_xml(package):
     assert xml and xml.group(1) == description
 
 
+def module_imports(package: Path) -> dict[str, set[str]]:
+    """Module -> the modules of its own package it imports (relative or absolute, any depth)."""
+    root = package / package.name
+    modules = {
+        path.relative_to(root).with_suffix("").as_posix().replace("/", "."): path
+        for path in root.rglob("*.py")
+    }
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        parent = name.rsplit(".", 1)[0] if "." in name else ""
+        deps: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = parent if node.level == 1 else parent.rsplit(".", node.level - 1)[0]
+                    stem = ".".join(x for x in (base, node.module or "") if x)
+                elif node.module and node.module.split(".")[0] == package.name:
+                    stem = node.module.partition(".")[2]
+                else:
+                    continue
+                targets = [stem] if stem in modules else []
+                targets += [f"{stem}.{a.name}" if stem else a.name for a in node.names]
+            elif isinstance(node, ast.Import):
+                own = [a.name for a in node.names if a.name.split(".")[0] == package.name]
+                targets = [name.partition(".")[2] for name in own]
+            else:
+                continue
+            deps |= {t for t in targets if t in modules and t != name}
+        graph[name] = deps
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One import cycle of ``graph`` (a path that returns to its start), None if there is none."""
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+
+    def visit(name: str, path: list[str]) -> list[str] | None:
+        state[name] = 1
+        for dep in sorted(graph.get(name, ())):
+            if state.get(dep) == 1:
+                return [*path, name, dep]
+            if dep not in state and (found := visit(dep, [*path, name])):
+                return found
+        state[name] = 2
+        return None
+
+    for name in sorted(graph):
+        if name not in state and (found := visit(name, [])):
+            return found
+    return None
+
+
+def test_find_cycle_finds_one():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": set()}) is None
+
+
+@pytest.mark.parametrize("package", packages(), ids=lambda p: p.name)
+def test_no_import_cycle_between_the_modules_of_a_package(package):
+    """Within a package too: a module that imports one that imports it back (even at the bottom of
+    the file) is two ideas in the wrong homes."""
+    cycle = find_cycle(module_imports(package))
+    assert cycle is None, "import cycle: " + " -> ".join(cycle or [])
+
+
 def test_no_import_cycle_between_packages():
     graph = {p.name: {m for m in imports(p) if m.startswith("pac_")} for p in packages()}
     state: dict[str, int] = {}  # 1: on the current path, 2: done

@@ -25,6 +25,7 @@ from pac_common import messages
 from pac_common.smallmat import fma
 from pac_model import model
 
+from . import backstepping_equations, line_adaptive_kernels
 from .controller import limit_command
 from .reference import reference_at4
 
@@ -127,7 +128,7 @@ CONTROLLER_STATE = np.dtype(
         ("line_start_tick", "i8"),  # -1: the spans have not started
         ("line_passive_var", "f8"),
         ("line_passive_spans", "i8"),
-        ("line_recent_var", "f8", 3),  # line_adaptive.GUARD_SPANS
+        ("line_recent_var", "f8", 3),  # line_adaptive_kernels.GUARD_SPANS
         ("line_last_sigma_ratio", "f8"),
         ("line_tripped", "b1"),
         ("line_pending_error", "f8"),
@@ -136,7 +137,7 @@ CONTROLLER_STATE = np.dtype(
         ("line_last_commit", "i8"),  # the tick of the last commit (-1: none)
         ("line_restart_pending", "b1"),  # restarted after a fallback: resume or, on a new run, forget
         ("line_tainted_span", "i8"),  # a span a fallback episode touched: neither learned nor judged (-1)
-        ("line_stack", "i8", (64, 3)),  # scratch of line_adaptive._pairwise: (start, length, stage)
+        ("line_stack", "i8", (64, 3)),  # scratch of line_adaptive_kernels._pairwise: (start, length, stage)
         ("line_values", "f8", 64),
     ]
 )
@@ -162,7 +163,7 @@ def _contact_force_estimate(t: float, omega: float, z_hat, theta_hat) -> float:
 def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
     """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
     if p.law == _LINE:
-        line_adaptive.line_restart(s, memory, has_u)
+        line_adaptive_kernels.line_restart(s, memory, has_u)
         return
     s.has_bumpless, s.bumpless_from = has_u, u_applied
     s.started = False
@@ -183,13 +184,13 @@ def law_output(
     the estimate's contact force (read by line_adaptive only)."""
     law = p.law
     if law == _LINE:
-        return line_adaptive.line_output(p, s, table, memory, tick, f_r[0], f_hat)
+        return line_adaptive_kernels.line_output(p, s, table, memory, tick, f_r[0], f_hat)
     if law == _ADAPTIVE or law == _KNOWN:  # eq. (43); the oracle is told the true theta
         if law == _ADAPTIVE:
             th0, th1, th2 = theta_hat[0], theta_hat[1], theta_hat[2]
         else:
             th0, th1, th2 = p.theta[0], p.theta[1], p.theta[2]
-        return backstepping.backstepping_law4(
+        return backstepping_equations.backstepping_law4(
             t, f_r, z_hat, th0, th1, th2, p.omega, p.m1, p.b1, p.k1, p.m2, p.b2,
             p.c1, p.c2, p.c3, p.stiffness_hat_min,
         )  # fmt: skip
@@ -238,7 +239,7 @@ def law_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     """The limited force actually commanded for ``tick``: update the law's state."""
     law = p.law
     if law == _LINE:
-        line_adaptive.line_commit(p, s, table, memory, tick, u_applied)
+        line_adaptive_kernels.line_commit(p, s, table, memory, tick, u_applied)
     elif law == _PID:
         s.integral, s.derivative, s.last_error = s.pending_integral, s.pending_derivative, s.pending_error
         s.law_last_tick = tick
@@ -369,7 +370,3 @@ class KernelLaw:
 
     def commit(self, tick: int, u_applied: float) -> None:
         _commit_one(self.params, self.state, self.table, self.memory, int(tick), float(u_applied))
-
-
-# Last: backstepping.py subclasses KernelLaw (the compiled functions look it up when they compile).
-from . import backstepping, line_adaptive  # noqa: E402 - eqs. (23)-(43), line_adaptive; they import this one

@@ -1,0 +1,331 @@
+"""line_adaptive's arithmetic, compiled: one span's sums, the secant step, the guard.
+
+The law, its equations and its design are in ``line_adaptive.py`` (module docstring) and
+docs/laws.md; the class there and the compiled dispatcher (``kernels.py``) both call these
+functions, so neither imports the other's module to reach them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from pac_common.smallmat import fma
+
+#: An update smaller than this [N] in a harmonic says nothing about its response.
+MIN_INFORMATIVE_STEP = 0.5
+#: The guard judges the RMS of the last this many spans' sigma_b (learning is not monotone span by span).
+GUARD_SPANS = 3
+#: One span's sigma_b above this multiple of line_guard_ratio * sigma_b,passive trips the guard at once.
+GUARD_HARD_FACTOR = 3.0
+
+
+#: Rows of the ``memory`` table (complex, one column per harmonic); S_h is stored as real parts.
+U_FF, U_PREV, E_ACC, A_ACC, E_PREV, Z, S, SCRATCH = range(8)
+MEMORY_ROWS = 8
+
+
+# -- complex arithmetic as numpy performs it (module docstring) ---------------------------------
+@njit(cache=True, inline="always")
+def _cmul(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
+    """(a r + i a i)(b r + i b i) as numpy's vector loop: fused multiply-adds."""
+    return fma(ar, br, -(ai * bi)), fma(ar, bi, ai * br)
+
+
+@njit(cache=True, inline="always")
+def _cdiv(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
+    """a / b as numpy's loop (Smith's scaling, one reciprocal)."""
+    if abs(br) >= abs(bi):
+        rat = bi / br
+        scl = 1.0 / (br + bi * rat)
+        return (ar + ai * rat) * scl, (ai - ar * rat) * scl
+    rat = br / bi
+    scl = 1.0 / (bi + br * rat)
+    return (ar * rat + ai) * scl, (ai * rat - ar) * scl
+
+
+@njit(cache=True, inline="always")
+def _cabs(re: float, im: float) -> float:
+    """|a| as numpy's vector loop: larger * sqrt(1 + (smaller / larger)^2)."""
+    re, im = abs(re), abs(im)
+    if re == math.inf:
+        im = math.inf
+    if im == math.inf:
+        re = math.inf
+    if math.isnan(re):
+        im = math.nan
+    if math.isnan(im):
+        re = math.nan
+    larger, smaller = max(re, im), min(im, re)
+    ratio = 0.0 if (larger == 0.0 or smaller == math.inf) else smaller / larger
+    return math.sqrt(fma(ratio, ratio, 1.0)) * larger
+
+
+@njit(cache=True)
+def _leaf_complex(row: np.ndarray, lo: int, n: int) -> float:
+    """Real part of numpy's pairwise sum of complex ``row[lo:lo + n]``, n <= 64 (no split)."""
+    if n < 4:
+        r = -0.0
+        for i in range(lo, lo + n):
+            r += row[i].real
+        return r
+    r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
+    m = n - n % 4
+    for i in range(lo + 4, lo + m, 4):
+        r0 += row[i].real
+        r1 += row[i + 1].real
+        r2 += row[i + 2].real
+        r3 += row[i + 3].real
+    r = (r0 + r1) + (r2 + r3)
+    for i in range(lo + m, lo + n):
+        r += row[i].real
+    return r
+
+
+@njit(cache=True)
+def _leaf_float(row: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum of the float array ``row[lo:lo + n].real``, n <= 128 (no split)."""
+    if n < 8:
+        r = -0.0
+        for i in range(lo, lo + n):
+            r += row[i].real
+        return r
+    r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
+    r4, r5, r6, r7 = row[lo + 4].real, row[lo + 5].real, row[lo + 6].real, row[lo + 7].real
+    m = n - n % 8
+    for i in range(lo + 8, lo + m, 8):
+        r0 += row[i].real
+        r1 += row[i + 1].real
+        r2 += row[i + 2].real
+        r3 += row[i + 3].real
+        r4 += row[i + 4].real
+        r5 += row[i + 5].real
+        r6 += row[i + 6].real
+        r7 += row[i + 7].real
+    r = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    for i in range(lo + m, lo + n):
+        r += row[i].real
+    return r
+
+
+@njit(cache=True)
+def _pairwise(s, row: np.ndarray, n: int, as_float: bool) -> float:
+    """numpy's pairwise sum of ``row[:n]``: the real part of a complex array's (as_float False) or
+    of the float array of the real parts (True).  numpy splits in halves until a block is small
+    (64 complex, 128 float numbers) and adds the halves' sums; the same tree here, walked with an
+    explicit stack in the state record (numba's cache cannot load recursive functions)."""
+    leaf = 128 if as_float else 64
+    stack, values = s.line_stack, s.line_values
+    top, count = 1, 0
+    stack[0, 0], stack[0, 1], stack[0, 2] = 0, n, 0
+    while top:
+        lo, m, stage = stack[top - 1, 0], stack[top - 1, 1], stack[top - 1, 2]
+        if m <= leaf:
+            values[count] = _leaf_float(row, lo, m) if as_float else _leaf_complex(row, lo, m)
+            count += 1
+            top -= 1
+            continue
+        if as_float:
+            half = m // 2
+            half -= half % 8
+        else:
+            half = (m - m % 8) // 2
+        if stage < 2:  # the left half, then the right half
+            stack[top - 1, 2] = stage + 1
+            stack[top, 0], stack[top, 1], stack[top, 2] = (
+                (lo, half, 0) if stage == 0 else (lo + half, m - half, 0)
+            )
+            top += 1
+        else:  # both halves summed: their sum replaces them
+            values[count - 2] = values[count - 2] + values[count - 1]
+            count -= 1
+            top -= 1
+    return values[0]
+
+
+# -- the law, compiled: the class below and pac_controller.kernels call these --------------------
+@njit(cache=True, error_model="numpy")
+def line_restart(s, memory, has_u: bool) -> None:
+    """Before the first command, or after commands that were not the law's (a fallback episode).
+
+    What was learned is the line's, not the episode's: after a fallback the law resumes with it
+    (the span the episode touched is not learned from, nor judged). The ticks tell a new run
+    (they start again): then it forgets everything and runs in again from u = F_r.
+    """
+    if not has_u or s.line_last_commit < 0:
+        line_forget(s, memory)
+    else:
+        s.line_restart_pending = True
+
+
+@njit(cache=True, error_model="numpy")
+def line_forget(s, memory) -> None:
+    """Forget everything learned: the next span starts a new run-in (u = F_r)."""
+    memory[:, :] = 0.0
+    s.line_open_span, s.line_last_commit, s.line_restart_pending, s.line_tainted_span = -1, -1, False, -1
+    s.line_u_mean, s.line_clip_offset, s.line_a_mean, s.line_e_mean = 0.0, 0.0, 0.0, 0.0
+    s.line_has_prev, s.line_start_tick = False, -1
+    s.line_passive_var, s.line_passive_spans = 0.0, 0
+    s.line_recent_var[:] = 0.0
+    s.line_last_sigma_ratio, s.line_tripped = 0.0, False
+    s.line_pending_error, s.line_pending_reference = 0.0, 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def line_feedforward(p, s, table, memory, tick: int) -> float:
+    """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
+    n, h = p.line_period, p.line_harmonics
+    phase = (tick + p.line_delay) % n
+    for j in range(h):
+        ur, ui = _cmul(memory[U_FF, j].real, memory[U_FF, j].imag, table[n, j].real, table[n, j].imag)
+        pr, pi = _cmul(ur, ui, table[phase, j].real, table[phase, j].imag)
+        memory[SCRATCH, j] = complex(pr, pi)
+    return s.line_u_mean + s.line_clip_offset + (0.0 + _pairwise(s, memory[SCRATCH], h, False))
+
+
+@njit(cache=True, error_model="numpy")
+def line_output(
+    p, s, table, memory, tick: int, f_r0: float, f_hat: float
+) -> tuple[float, float, float, float]:
+    """(u_law, error, u_ff, sigma ratio): F_r + the feedforward (0 once the guard has tripped)."""
+    error = f_r0 - f_hat
+    s.line_pending_error, s.line_pending_reference = error, f_r0  # what commit accumulates
+    new_run = s.line_restart_pending and s.line_last_commit >= 0 and tick <= s.line_last_commit
+    u_ff = 0.0 if s.line_tripped or new_run else line_feedforward(p, s, table, memory, tick)
+    return f_r0 + u_ff, error, u_ff, s.line_last_sigma_ratio
+
+
+@njit(cache=True, error_model="numpy")
+def _accumulate(table, memory, row: int, phase: int, weight: float, h: int) -> None:
+    """memory[row] += weight conj(basis[phase]) (numpy's scalar-times-array product)."""
+    for j in range(h):
+        br, bi = table[phase, j].real, -table[phase, j].imag
+        cr, ci = _cmul(weight, 0.0, br, bi)
+        memory[row, j] = complex(memory[row, j].real + cr, memory[row, j].imag + ci)
+
+
+@njit(cache=True, error_model="numpy")
+def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
+    """The force commanded for ``tick``: accumulate this span's E_h, A_h; learn at its end."""
+    n, h = p.line_period, p.line_harmonics
+    if s.line_restart_pending:
+        s.line_restart_pending = False
+        if s.line_last_commit >= 0 and tick <= s.line_last_commit:
+            line_forget(s, memory)  # a new run
+        elif s.line_start_tick >= 0:  # resume: the episode's spans teach nothing
+            _clear_sums(s, memory)
+            s.line_open_span = -1
+            s.line_tainted_span = (tick - s.line_start_tick) // n
+    s.line_last_commit = tick
+    if s.line_start_tick < 0:
+        s.line_start_tick = tick
+    k = tick - s.line_start_tick
+    if s.line_open_span >= 0 and k // n != s.line_open_span:
+        # The open span's last tick never came (no estimate for it, live): close it now, or its
+        # sums would run on into the next span and the next step be taken on two spans' worth.
+        _end_of_span(p, s, table, memory, s.line_open_span)
+    s.line_open_span = k // n
+    e = s.line_pending_error
+    _accumulate(table, memory, E_ACC, tick % n, (2.0 / n) * e, h)
+    # The command as the actuator's limits let it through, on the feedforward's own phase.
+    applied = u_applied - s.line_pending_reference - s.line_u_mean - s.line_clip_offset
+    _accumulate(table, memory, A_ACC, (tick + p.line_delay) % n, (2.0 / n) * applied, h)
+    s.line_a_mean += applied / n
+    s.line_e_mean += e / n
+    if k % n == n - 1:
+        _end_of_span(p, s, table, memory, k // n)
+        s.line_open_span = -1
+
+
+@njit(cache=True, error_model="numpy")
+def _clear_sums(s, memory) -> None:
+    memory[E_ACC, :] = 0.0
+    memory[A_ACC, :] = 0.0
+    s.line_a_mean = 0.0
+    s.line_e_mean = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _end_of_span(p, s, table, memory, span: int) -> None:
+    if span == s.line_tainted_span:
+        s.line_tainted_span = -1
+        _clear_sums(s, memory)
+        return
+    # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
+    # E_h), what the law acts on and the EN 50318 statistics keep. The raw variance of F_hat
+    # is blind under sensor noise: 10 um on z1, z2 gave sigma(F_hat) ~210 N for sigma(F) ~35 N.
+    h = p.line_harmonics
+    for j in range(h):
+        a = _cabs(memory[E_ACC, j].real, memory[E_ACC, j].imag)
+        memory[SCRATCH, j] = complex(a * a, 0.0)
+    var = 0.5 * (0.0 + _pairwise(s, memory[SCRATCH], h, True))
+    if 1 <= span < p.line_runin_spans:  # span 0 holds the start transient
+        s.line_passive_var += var
+        s.line_passive_spans += 1
+    elif span >= p.line_runin_spans and s.line_passive_spans and not s.line_tripped:
+        sigma_p = math.sqrt(s.line_passive_var / s.line_passive_spans)
+        s.line_recent_var[span % GUARD_SPANS] = var
+        learned = span - p.line_runin_spans + 1  # learning spans so far
+        m = min(learned, GUARD_SPANS)
+        total = -0.0
+        for i in range(m):
+            total += s.line_recent_var[i]
+        s.line_last_sigma_ratio = math.sqrt((0.0 + total) / m) / sigma_p if sigma_p > 0.0 else 0.0
+        span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
+        judged = learned >= p.line_guard_after and not s.line_last_sigma_ratio <= p.line_guard_ratio
+        if judged or not span_ratio <= GUARD_HARD_FACTOR * p.line_guard_ratio:
+            s.line_tripped = True
+            memory[U_FF, : p.line_harmonics] = 0.0
+            s.line_u_mean = 0.0
+            s.line_clip_offset = 0.0
+    if span >= p.line_runin_spans - 1 and not s.line_tripped:
+        _learn(p, s, table, memory)
+    _clear_sums(s, memory)
+
+
+@njit(cache=True, error_model="numpy")
+def _learn(p, s, table, memory) -> None:
+    """One secant step per harmonic (module docstring)."""
+    n = p.line_period
+    lam, prior, floor = p.line_forgetting, p.line_prior_weight, p.line_response_min
+    for j in range(p.line_harmonics):
+        # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
+        real_r, real_i = _cdiv(
+            memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag
+        )
+        e_r, e_i = memory[E_ACC, j].real, memory[E_ACC, j].imag
+        s_h, z_r, z_i = memory[S, j].real, memory[Z, j].real, memory[Z, j].imag
+        if s.line_has_prev:
+            du_r, du_i = real_r - memory[U_PREV, j].real, real_i - memory[U_PREV, j].imag
+            de_r, de_i = e_r - memory[E_PREV, j].real, e_i - memory[E_PREV, j].imag
+            du_abs = _cabs(du_r, du_i)
+            if du_abs > MIN_INFORMATIVE_STEP:
+                s_h = lam * s_h + du_abs * du_abs
+                zr, zi = _cmul(lam, 0.0, z_r, z_i)
+                cr, ci = _cmul(du_r, -du_i, de_r, de_i)
+                z_r, z_i = zr + cr, zi + ci
+        r_r, r_i = _cdiv(z_r - prior, z_i, s_h + prior, 0.0)
+        if _cabs(r_r, r_i) < floor:
+            angle = math.atan2(r_i, r_r)
+            r_r, r_i = _cmul(floor, 0.0, math.cos(angle), math.sin(angle))
+        g_r, g_i = _cmul(-p.line_gain, 0.0, e_r, e_i)
+        st_r, st_i = _cdiv(g_r, g_i, r_r, r_i)
+        # A harmonic whose response has not been identified yet (only the prior F = u, which can be
+        # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
+        limit = p.line_step_max if s_h > 0.0 else p.line_probe_step
+        shrink = _cabs(st_r, st_i) / limit
+        if not shrink <= 1.0:  # np.maximum(1.0, x): NaN propagates
+            st_r, st_i = _cdiv(st_r, st_i, shrink, 0.0)
+        else:
+            st_r, st_i = _cdiv(st_r, st_i, 1.0, 0.0)
+        memory[S, j] = complex(s_h, 0.0)
+        memory[Z, j] = complex(z_r, z_i)
+        memory[U_PREV, j] = complex(real_r, real_i)
+        memory[E_PREV, j] = complex(e_r, e_i)
+        memory[U_FF, j] = complex(real_r + st_r, real_i + st_i)
+    s.line_has_prev = True
+    s.line_u_mean += p.line_gain * s.line_e_mean
+    # C: the mean the limits took off is known exactly from the applied command (module docstring).
+    s.line_clip_offset = -s.line_a_mean
