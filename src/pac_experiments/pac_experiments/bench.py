@@ -641,6 +641,7 @@ def main(argv: list[str] | None = None) -> int:
         print("bench: node start-up ...", flush=True)
         startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
         results = goal_figures(args, workdir, runs, startup)
+        live_tables = ""
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
     print(
@@ -660,9 +661,12 @@ def main(argv: list[str] | None = None) -> int:
                 *(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names),
             ]
         )
-        print(timing_table(runs, extra), end="")
-        print("\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n")
-        print(floor_table(runs, cpus, pairs), end="")
+        live_tables = (
+            timing_table(runs, extra)
+            + "\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n\n"
+            + floor_table(runs, cpus, pairs)
+        )
+        print(live_tables, end="")
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
         f"{speed_bag:.1f}x with bag writing"
@@ -688,6 +692,7 @@ def main(argv: list[str] | None = None) -> int:
         load_before=load_before,
         load_after=load_average(),
         repeats=args.repeats,
+        loop_timing=live_tables,
     )
     print("\n" + bench_report.markdown(results))
     js, md = bench_report.write(results, args.out_dir)

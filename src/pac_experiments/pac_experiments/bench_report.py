@@ -136,7 +136,7 @@ def table(results: dict[str, Any]) -> str:
 
 
 def markdown(results: dict[str, Any]) -> str:
-    """reports/bench/latest.md: the table, the machine's load, the notes."""
+    """reports/bench/latest.md: the table, the machine's load, the notes, the live loop's timing tables."""
     head = (
         f"# pac bench, {results['date']}\n\n"
         f"{results['machine']}; load average (1, 5, 15 min) before {results['load_before']}, "
@@ -144,7 +144,9 @@ def markdown(results: dict[str, Any]) -> str:
         "CPU time for the per-tick figures, wall time for whole processes.\n\n"
     )
     notes = "".join(f"- {n}\n" for n in results.get("notes", []))
-    return head + table(results) + ("\n" + notes if notes else "")
+    timing = results.get("loop_timing", "")
+    live = f"\n### The live loop, pac against its floor (same run)\n\n{timing}" if timing else ""
+    return head + table(results) + ("\n" + notes if notes else "") + live
 
 
 def write(results: dict[str, Any], directory: Path) -> tuple[Path, Path]:
