@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from pac_common.contact_statistics import target_mean_force
 from pac_common.parameters import ParameterError
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
@@ -30,9 +31,9 @@ from .catenary import kernels
 from .catenary.catenary_file import load_catenary
 from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.imperfections import apply_imperfections
-from .catenary.integrator import ContactSimulation
+from .catenary.integrator import ContactSimulation, PassivePantograph, rear_periods
 from .catenary.line import Line
-from .catenary.pantographs import paper_pantograph
+from .catenary.pantographs import LumpedPantograph, paper_pantograph, three_mass_pantograph
 from .parameters import PlantOptions
 from .plant import Plant, Truth
 
@@ -41,12 +42,19 @@ WINDOW_SPANS = 10
 START_SPAN = 4
 
 
-def window_periods(data: CatenaryData) -> tuple[int, int]:
-    """(periods in the endless window, the period the run starts at): the window shifts by whole
-    periods of the line, so it holds at least WINDOW_SPANS spans and 3 periods (one behind the
-    contact point, one it runs in, one ahead); one span per period gives 10 and 4."""
-    p = len(data.spans)
-    return max(3, math.ceil(WINDOW_SPANS / p)), max(1, START_SPAN // p)
+def window_periods(data: CatenaryData, spacing: float = 0.0) -> tuple[int, int]:
+    """(periods in the endless window, the period the first pantograph starts at): the window shifts
+    by whole periods of the line, so it holds at least WINDOW_SPANS spans and 3 periods (one behind
+    the contact point, one it runs in, one ahead); one span per period gives 10 and 4. Pantographs
+    up to ``spacing`` [m] behind the first add ceil(spacing / period) periods at the rear (and the
+    start moves as far forward): the last one then runs as far from the rear end as the first."""
+    p, rear = len(data.spans), rear_periods(data.period, spacing)
+    return max(3, math.ceil(WINDOW_SPANS / p)) + rear, max(1, START_SPAN // p) + rear
+
+
+def passive_model(name: str) -> LumpedPantograph:
+    """The model of a passive pantograph (``passive_pantograph``)."""
+    return three_mass_pantograph() if name == "three_mass" else paper_pantograph()
 
 
 @functools.lru_cache(maxsize=4)
@@ -59,6 +67,18 @@ def line_and_flexibility(
     would otherwise pay per run."""
     line = Line(data, numerics, n_spans=n_spans)
     return line, line.element_flexibility()
+
+
+@dataclasses.dataclass(frozen=True)
+class PantographTruth:
+    """One pantograph's contact at a tick: force [N], position along the line [m], the wire's uplift
+    there and at the nearest support [m], and whether it is the rig's controlled one."""
+
+    contact_force: float
+    contact_position: float
+    contact_uplift: float
+    support_uplift: float
+    controlled: bool
 
 
 class FEPlant(Plant):
@@ -89,7 +109,8 @@ class FEPlant(Plant):
             data, options.fe_height_error, options.fe_wear, options.fe_imperfection_seed
         )
         self.data = data
-        periods, start = window_periods(data)
+        spacings = options.pantographs
+        periods, start = window_periods(data, spacings[-1])
         self.line, self._flex = line_and_flexibility(self.data, numerics, periods * len(data.spans))
         pushing = int(np.count_nonzero(self.line.droppers.static_tension <= 0.0))
         if pushing:  # the static state assumes taut droppers: a dropper cannot push
@@ -104,6 +125,15 @@ class FEPlant(Plant):
                 f"a line whose droppers all hang in tension at rest ({pushing} of "
                 f"{len(self.line.droppers.node)} would be compressed)",
             )
+        ctrl = options.controlled_pantograph
+        uplift = options.passive_uplift or target_mean_force(track.speed_kmh)
+        passive = tuple(
+            PassivePantograph(passive_model(options.passive_pantograph), lag, uplift)
+            for k, lag in enumerate(spacings)
+            if k != ctrl
+        )
+        #: contact of each pantograph of ``pantographs`` in the simulation (the controlled one is 0)
+        self.contact_of = [0 if k == ctrl else 1 + k - (k > ctrl) for k in range(len(spacings))]
         self.sim = ContactSimulation(
             self.line,
             paper_pantograph(pantograph),
@@ -111,11 +141,13 @@ class FEPlant(Plant):
             track.speed_kmh / 3.6,
             start * data.period,
             endless=True,
+            lag=spacings[ctrl],
+            passive=passive,
         )
         # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
         # no tick pays one later.
-        self.sim.prepare_contact_columns(start * data.period, (periods // 2 + 1) * data.period)
-        self.datum = self.line.static_height(self.sim.x)
+        self.sim.prepare_contact_columns(start * data.period, self.sim.shift_at)
+        self.datum = self.line.static_height(self.sim.x - self.sim.lags[0])
         self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
         self.sim.readings(self._flex, self._readings)
         self.tick = 0
@@ -160,8 +192,25 @@ class FEPlant(Plant):
             u_applied=self.u_applied,
             contact_uplift=r[kernels.CONTACT_UPLIFT],
             support_uplift=r[kernels.SUPPORT_UPLIFT],  # at the support nearest x
-            contact_position=s.position,
+            contact_position=s.position - s.lags[0],
         )
+
+    def pantograph_truths(self) -> list[PantographTruth]:
+        """What each pantograph of ``pantographs`` (in that order) feels at this tick."""
+        s, out, r = self.sim, [], np.zeros(5)
+        forces, positions = s.contact_forces, s.contact_positions
+        for k in self.contact_of:
+            s.readings_at(self._flex, s.x - s.lags[k], r)
+            out.append(
+                PantographTruth(
+                    contact_force=float(forces[k]),
+                    contact_position=float(positions[k]),
+                    contact_uplift=float(r[kernels.CONTACT_UPLIFT]),
+                    support_uplift=float(r[kernels.SUPPORT_UPLIFT]),
+                    controlled=k == 0,
+                )
+            )
+        return out
 
     def advance(self, u: float) -> None:
         """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""

@@ -4,7 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pac_common.parameters import ParameterSet, parameter
+from pac_common.parameters import ParameterError, ParameterSet, parameter
+
+#: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
+#: moving window grows by that distance (its cost with it).
+MAX_PANTOGRAPHS = 4
+MAX_PANTOGRAPH_SPACING = 1000.0
 
 
 @dataclass(frozen=True)
@@ -80,7 +85,56 @@ class PlantOptions(ParameterSet):
         0, "fe: seed of the height errors (the same seed gives the same line)", low=0
     )
 
+    pantographs: tuple = parameter(
+        (0.0,),
+        "fe: the pantographs on the line, each one's distance behind the first (0: one pantograph; "
+        "0, 200: a second, passive one 200 m behind; increasing; the window grows by the spacing, "
+        "docs/catenary.md: Several pantographs)",
+        "m",
+        low=0.0,
+        high=MAX_PANTOGRAPH_SPACING,
+        max_length=MAX_PANTOGRAPHS,
+    )
+    controlled_pantograph: int = parameter(
+        0,
+        "fe: which of 'pantographs' (0: the first) the rig controls, the one observer and controller "
+        "see; every other one is passive",
+        low=0,
+        high=MAX_PANTOGRAPHS - 1,
+    )
+    passive_pantograph: str = parameter(
+        "three_mass",
+        "fe: the model of the passive pantographs: 'three_mass' the benchmark-like 3-mass "
+        "pantograph, 'paper' Table 1's 2-DOF (docs/catenary.md: Several pantographs)",
+        choices=("three_mass", "paper"),
+    )
+    passive_uplift: float = parameter(
+        0.0,
+        "fe: constant uplift force on each passive pantograph (0: the EN 50367 target Fm(v) at the "
+        "track speed)",
+        "N",
+        low=0.0,
+        high=500.0,
+    )
+
     def check_consistency(self) -> None:
         from .catenary.catenary_file import load_catenary
 
         load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)
+        spacings = self.pantographs
+        if spacings[0] != 0.0 or any(b <= a for a, b in zip(spacings, spacings[1:], strict=False)):
+            raise ParameterError(
+                "pantographs", spacings, "distances behind the first pantograph: 0 first, then increasing"
+            )
+        if len(spacings) > 1 and self.catenary_model != "fe":
+            raise ParameterError(
+                "pantographs",
+                spacings,
+                "one pantograph (0) on the lumped line; several need catenary_model fe",
+            )
+        if self.controlled_pantograph >= len(spacings):
+            raise ParameterError(
+                "controlled_pantograph",
+                self.controlled_pantograph,
+                f"an index into pantographs, an integer in [0, {len(spacings) - 1}]",
+            )

@@ -144,7 +144,7 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
         stiff = readings[fe.STATIC_STIFFNESS]
         force = c.numbers[4] * st.scalars[fe.DELTA] if st.counters[fe.IN_CONTACT] else 0.0
         out.contact_uplift, out.support_uplift = readings[fe.CONTACT_UPLIFT], readings[fe.SUPPORT_UPLIFT]
-        out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET]
+        out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[c.indices[5]]
     else:
         stiff = model.stiffness(t, pp.omega, pp.theta)
         force = model.contact_force(stiff, z[0], pp.unilateral)
