@@ -108,6 +108,15 @@ class PlantNode(PacNode):
         self.truth_pub = self.create_publisher(
             self.factory.cls(messages.PLANT_TRUTH), "plant_truth", PUBLISH_QOS
         )
+        # Every pantograph's truth, when the FE line carries several (docs/catenary.md).
+        self.spacing = self.parameters(PlantOptions).pantographs
+        self.pantographs_pub = (
+            self.create_publisher(
+                self.factory.cls(messages.PANTOGRAPH_TRUTH), "pantograph_truth", PUBLISH_QOS
+            )
+            if len(self.spacing) > 1
+            else None
+        )
         self.run_status_pub = self.create_publisher(
             self.factory.cls(messages.RUN_STATUS), "run_status", RUN_STATUS_QOS
         )
@@ -208,6 +217,13 @@ class PlantNode(PacNode):
                 ),
             )
         )
+        if self.pantographs_pub is not None:
+            self.pantographs_pub.publish(
+                self.factory.make(
+                    messages.PANTOGRAPH_TRUTH,
+                    messages.pantograph_truth_fields(self.plant.pantograph_truths(), self.spacing, k, stamp),
+                )
+            )
 
     def publish_run_status(self, state: int) -> None:
         k = self.plant.tick
