@@ -33,6 +33,7 @@ setup(
             "fe_experiment = pac_experiments.fe_experiment:main",
             "fe_live = pac_experiments.fe_live:main",
             "two_pantographs = pac_experiments.two_pantographs:main",
+            "line_response = pac_experiments.line_response:main",
         ],
     },
 )
