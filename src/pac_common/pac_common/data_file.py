@@ -232,28 +232,31 @@ class Presets:
         path = self.path(self.default)
         return sorted(p.stem for p in path.parent.glob("*.yaml")) if path else []
 
-    def resolve(self, value: str) -> Path:
-        """The file ``value`` names; a name that is no preset: ParameterError (one line)."""
+    def resolve(self, value: str, parameter: str = "") -> Path:
+        """The file ``value`` names; a name that is no preset: ParameterError (one line) naming
+        ``parameter`` (default: the kind's own parameter)."""
         if "/" in value or value.endswith((".yaml", ".yml")):
             return Path(value)
         path = self.path(value)
         if path is None:
             raise ParameterError(
-                self.parameter,
+                parameter or self.parameter,
                 value,
                 f"a {self.parameter} file or a preset: one of {', '.join(self.names())} ({self.doc})",
             )
         return path
 
-    def read(self, value: str) -> tuple[str, int, int]:
+    def read(self, value: str, parameter: str = "") -> tuple[str, int, int]:
         """(path, mtime in ns, size) of the file ``value`` names: the key of a per-file cache that
         sees an edited file; unreadable: ParameterError."""
-        path = self.resolve(value)
+        path = self.resolve(value, parameter)
         try:
             stat = path.stat()
         except OSError as exc:
             raise ParameterError(
-                self.parameter, value, f"a readable {self.parameter} file ({exc.strerror or exc})"
+                parameter or self.parameter,
+                value,
+                f"a readable {self.parameter} file ({exc.strerror or exc})",
             ) from None
         return str(path), stat.st_mtime_ns, stat.st_size
 

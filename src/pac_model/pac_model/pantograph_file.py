@@ -34,6 +34,8 @@ from .parameters import PantographParameters
 
 DEFAULT = "paper_2dof"
 PRESETS = Presets(Path("config") / "pantographs", DEFAULT, "pantograph", __file__, "docs/catenary.md")
+#: Who needs the paper's 2-DOF shape (the refusal says so).
+TABLE1_USERS = "the lumped plant and every observer and law are built on"
 #: The car roof: the fixed end of springs and dampers (not a mass).
 ROOF = "roof"
 TOP_KEYS = (
@@ -119,7 +121,7 @@ class PantographFile:
         another shape: ParameterError naming ``parameter`` (one line)."""
         why = self.table1_shape()
         if why:
-            raise ParameterError(parameter, self.path or self.name, why)
+            raise ParameterError(parameter, self.path or self.name, f"{why}, which {TABLE1_USERS}")
         frame = self.actuator
         k1 = sum(v for _, j, v in self.springs)
         b1 = sum(v for _, j, v in self.dampers if j >= 0)
@@ -174,7 +176,7 @@ def parse_pantograph(text: str, source: str) -> PantographFile:
     springs = _links(r, raw, "springs", "stiffness", "N/m", 1e8, names)
     dampers = _links(r, raw, "dampers", "damping", "N s/m", 1e6, names)
     head, actuator = (_mass(r, raw, key, names) for key in ("head", "actuator"))
-    _check_held(r, raw, springs, names, head)
+    _check_held(r, raw, springs, names, head, actuator)
     aero = r.mapping(raw, "aerodynamic_uplift", "", AERO_KEYS, optional=True)
     return PantographFile(
         name=name,
@@ -236,15 +238,17 @@ def _mass(r: Reader, raw: Map, key: str, names: list[str]) -> int:
 
 
 def _check_held(
-    r: Reader, raw: Map, springs: tuple[tuple[int, int, float], ...], names: list[str], head: int
+    r: Reader,
+    raw: Map,
+    springs: tuple[tuple[int, int, float], ...],
+    names: list[str],
+    head: int,
+    actuator: int,
 ) -> None:
     """Every mass must hang by springs from the head (held by the wire) or the roof: else its
-    static position is undefined (a free body; the static equilibrium has no solution)."""
-    held, grew = {head} | {i for i, j, _ in springs if j < 0}, True
-    while grew:
-        joined = {i for i, j, _ in springs if j in held} | {j for i, j, _ in springs if i in held}
-        grew = not joined <= held
-        held |= joined
+    static position is undefined (a free body; the static equilibrium has no solution); and the
+    head's springs must reach the actuator's mass (else the uplift never presses the wire)."""
+    held = _reached({head, -1}, springs)  # from the wire and the roof
     loose = [n for i, n in enumerate(names) if i not in held]
     if loose:
         raise r.fail(
@@ -253,6 +257,24 @@ def _check_held(
             "a chain in which every mass is joined by springs to the head or the roof",
             raw.marks.get("springs", raw.start),
         )
+    if actuator not in _reached({head}, springs):
+        raise r.fail(
+            "springs",
+            names[head],
+            f"springs that join the head to the actuator's mass ({names[actuator]}): "
+            "its uplift must reach the wire",
+            raw.marks.get("springs", raw.start),
+        )
+
+
+def _reached(start: set[int], springs: tuple[tuple[int, int, float], ...]) -> set[int]:
+    """The masses joined by springs to ``start`` (-1: the roof, passed through only if in it)."""
+    out, grew = set(start), True
+    while grew:
+        joined = {i for i, j, _ in springs if j in out} | {j for i, j, _ in springs if i in out and j >= 0}
+        grew = not joined <= out
+        out |= joined
+    return out
 
 
 def presets() -> list[str]:
@@ -260,9 +282,10 @@ def presets() -> list[str]:
     return PRESETS.names()
 
 
-def load_pantograph_file(pantograph: str = DEFAULT) -> PantographFile:
-    """Read and check a pantograph file (a path or a preset's name); cached per file and its mtime."""
-    return _load(*PRESETS.read(pantograph))
+def load_pantograph_file(pantograph: str = DEFAULT, parameter: str = "pantograph") -> PantographFile:
+    """Read and check a pantograph file (a path or a preset's name; ``parameter``: the parameter
+    that named it, for the error line); cached per file and its mtime."""
+    return _load(*PRESETS.read(pantograph, parameter))
 
 
 @lru_cache(maxsize=32)

@@ -32,7 +32,7 @@ from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.imperfections import apply_imperfections
 from .catenary.integrator import ContactSimulation
 from .catenary.line import Line
-from .catenary.pantographs import paper_pantograph
+from .catenary.pantographs import head_first, lumped, plant_chain
 from .parameters import PlantOptions
 from .plant import Plant, Truth
 
@@ -104,9 +104,10 @@ class FEPlant(Plant):
                 f"a line whose droppers all hang in tension at rest ({pushing} of "
                 f"{len(self.line.droppers.node)} would be compressed)",
             )
+        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
         self.sim = ContactSimulation(
             self.line,
-            paper_pantograph(pantograph),
+            head_first(lumped(chain)),  # z1 = the head, z2 = the actuator's mass
             sample_period / options.fe_substeps,
             track.speed_kmh / 3.6,
             start * data.period,
@@ -167,7 +168,8 @@ class FEPlant(Plant):
         """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
         if not math.isfinite(u):
             raise ValueError(f"actuator force must be finite, got {u!r}")
-        self.sim.advance(u, self.options.fe_substeps, self._flex, self._readings)
+        # The pantograph's own uplift and the wind act with u on the actuator's mass.
+        self.sim.advance(u + self.uplift, self.options.fe_substeps, self._flex, self._readings)
         self.tick += 1
         self.u_applied = float(u)
 

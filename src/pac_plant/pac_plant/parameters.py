@@ -46,6 +46,22 @@ class PlantOptions(ParameterSet):
         "fe: the line, a catenary file (a path) or a shipped preset's name (config/catenaries/: "
         "benchmark_55m, ...); the file format is documented in docs/catenary.md, 'The catenary file'",
     )
+    pantograph: str = parameter(
+        "",
+        "the simulated pantograph, a pantograph file (a path) or a shipped preset's name "
+        "(config/pantographs/: paper_2dof, three_mass, ...): any chain of masses, springs and dampers "
+        "with its static and aerodynamic uplift (the lumped plant takes the paper's 2-DOF shape only); "
+        "'' = the nominal pantograph (m1, b1, k1, m2, b2 or nominal_pantograph). The file format is "
+        "documented in docs/catenary.md, 'The pantograph file'",
+    )
+    wind_uplift: float = parameter(
+        0.0,
+        "steady wind uplift on the pantograph, added to the actuator force on the actuator's mass "
+        "(0: no wind; docs/catenary.md, 'The pantograph file')",
+        "N",
+        low=-200.0,
+        high=200.0,
+    )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
     )
@@ -84,3 +100,7 @@ class PlantOptions(ParameterSet):
         from .catenary.catenary_file import load_catenary
 
         load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)
+        if self.pantograph:
+            from pac_model.pantograph_file import load_pantograph_file
+
+            load_pantograph_file(self.pantograph)

@@ -12,6 +12,7 @@ from numba import njit
 from pac_model import model
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .catenary.pantographs import plant_chain
 from .parameters import PlantOptions
 
 
@@ -144,6 +145,9 @@ class Plant:
     ) -> None:
         if not (math.isfinite(sample_period) and sample_period > 0.0):
             raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
+        if options.pantograph:  # eq. (5) is the paper's 2-DOF: a file of that shape, or refused
+            pantograph = chain.table1("pantograph")
         self.pantograph = pantograph
         self.track = track
         self.catenary = catenary
@@ -243,7 +247,7 @@ class Plant:
             self.time,
             self.sample_period,
             self.options.substeps,
-            float(u),
+            float(u) + self.uplift,  # the pantograph's own uplift and the wind act with u
             self._a,
             self._theta,
             self._omega,

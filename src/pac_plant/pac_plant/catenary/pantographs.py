@@ -13,8 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pac_common.parameters import ParameterError
 from pac_model.pantograph_file import DEFAULT, PantographFile, load_pantograph_file, table1_file
 from pac_model.parameters import PantographParameters
+
+from ..parameters import PlantOptions
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,48 @@ def load_pantograph(pantograph: str = DEFAULT) -> tuple[LumpedPantograph, Pantog
     line runs with, and the file itself (its uplift: ``PantographFile.uplift(speed_kmh)``)."""
     chain = load_pantograph_file(pantograph)
     return lumped(chain), chain
+
+
+def head_first(chain: LumpedPantograph) -> LumpedPantograph:
+    """The same chain with its DOFs reordered (head, actuator's mass, the rest): the order in which
+    the rig reads z1 (the head) and z2 (the mass the actuator drives, the paper's frame). The paper's
+    chain is already in that order (returned as it is)."""
+    if chain.head == chain.input:
+        raise ParameterError(
+            "pantograph",
+            chain.name,
+            "a chain whose actuator acts on another mass than the head (the rig measures both)",
+        )
+    order = [chain.head, chain.input] + [i for i in range(chain.n) if i not in (chain.head, chain.input)]
+    if order == list(range(chain.n)):
+        return chain
+    ix = np.ix_(order, order)
+    return LumpedPantograph(
+        name=chain.name,
+        mass=chain.mass[order],
+        stiffness=chain.stiffness[ix],
+        damping=chain.damping[ix],
+        ground_stiffness=chain.ground_stiffness[order],
+        head=0,
+        input=1,
+    )
+
+
+def plant_chain(
+    pantograph: PantographParameters, options: PlantOptions, speed_kmh: float
+) -> tuple[PantographFile, float]:
+    """The plant's pantograph and the force that acts with the actuator's u on its actuator mass [N]:
+    the file ``options.pantograph`` names, else the nominal pantograph's chain (``pantograph``'s m1,
+    b1, k1, m2, b2, with the uplift of its ``nominal_pantograph`` file if any); the force is the
+    file's uplift at ``speed_kmh`` (static + aerodynamic) plus the steady ``wind_uplift``."""
+    if options.pantograph:
+        chain = load_pantograph_file(options.pantograph)
+        pressed_by = chain
+    else:
+        chain = table1_file(pantograph)
+        named = pantograph.nominal_pantograph
+        pressed_by = load_pantograph_file(named, "nominal_pantograph") if named else chain
+    return chain, pressed_by.uplift(speed_kmh) + options.wind_uplift
 
 
 def paper_pantograph(p: PantographParameters | None = None) -> LumpedPantograph:
