@@ -103,4 +103,6 @@ class PlantOptions(ParameterSet):
         if self.pantograph:
             from pac_model.pantograph_file import load_pantograph_file
 
-            load_pantograph_file(self.pantograph)
+            chain = load_pantograph_file(self.pantograph)
+            if self.catenary_model == "lumped":  # eq. (5): the paper's 2-DOF shape, else one line
+                chain.table1("pantograph")

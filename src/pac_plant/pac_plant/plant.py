@@ -179,7 +179,8 @@ class Plant:
         """f(t, z) with the actuator force u held: eq. (5) (or its unilateral variant)."""
         p = self.pantograph
         z = np.asarray(z, dtype=np.float64)
-        return plant_rhs(t, z, float(u), self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
+        f = float(u) + self.uplift  # the pantograph's own uplift and the wind act with u
+        return plant_rhs(t, z, f, self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
 
     def measurement(self) -> Measurement:
         """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
