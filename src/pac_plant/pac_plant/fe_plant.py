@@ -3,6 +3,9 @@
 ``catenary_model:=fe``: the pantograph of Table 1 (eqs. 3-4 with the actuator force u on
 the lower mass m2) runs on the FE simple catenary of ``pac_plant.catenary`` at the track
 speed instead of on the spring k(t) of eq. (7). The observer and controller are unchanged.
+``pantograph:=NAME|PATH`` replaces that pantograph by any chain of a pantograph file
+(docs/catenary.md, "The pantograph file"), its degrees of freedom ordered head, actuator's mass,
+the rest (z1, z2 below are those two); its uplift and the wind act with u on the actuator's mass.
 
 Coordinates: z1, z2 are the head and frame heights measured from the static contact-wire
 height at the start point (a support, where the pre-sag is 0), i.e. from a fixed datum,
