@@ -7,8 +7,6 @@ and the refusals of bad ``pantographs`` values (one line, exit 2)."""
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -192,16 +190,22 @@ def test_several_pantographs_need_the_fe_line():
 
 @pytest.mark.slow
 def test_simulate_refuses_a_negative_spacing_with_one_line_exit_2(tmp_path):
-    bag = tmp_path / "bag"
-    args = ["-p", "catenary_model:=fe", "-p", "pantographs:=[0.0, -200.0]", "-p", "duration:=0.01"]
-    run = subprocess.run(
-        [sys.executable, "-m", "pac_rig.simulate", str(bag), *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
+    from conftest import simulate_refusal
+
+    line = simulate_refusal(
+        tmp_path / "bag", "catenary_model:=fe", "pantographs:=[0.0, -200.0]", "duration:=0.01"
     )
-    assert run.returncode == 2
-    lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1, run.stderr
-    assert "'pantographs'" in lines[0] and "-200" in lines[0] and "each in [0, 1000] m" in lines[0]
-    assert not bag.exists()
+    assert "'pantographs'" in line and "-200" in line and "each in [0, 1000] m" in line
+
+
+@pytest.mark.slow
+def test_simulate_refuses_a_passive_pantograph_file_that_does_not_exist(tmp_path):
+    from conftest import simulate_refusal
+
+    line = simulate_refusal(
+        tmp_path / "bag",
+        "catenary_model:=fe",
+        "pantographs:=[0.0, 200.0]",
+        "passive_pantograph:=/no/such.yaml",
+    )
+    assert "'passive_pantograph'" in line and "/no/such.yaml" in line

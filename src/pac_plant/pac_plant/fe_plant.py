@@ -3,6 +3,9 @@
 ``catenary_model:=fe``: the pantograph of Table 1 (eqs. 3-4 with the actuator force u on
 the lower mass m2) runs on the FE simple catenary of ``pac_plant.catenary`` at the track
 speed instead of on the spring k(t) of eq. (7). The observer and controller are unchanged.
+``pantograph:=NAME|PATH`` replaces that pantograph by any chain of a pantograph file
+(docs/catenary.md, "The pantograph file"), its degrees of freedom ordered head, actuator's mass,
+the rest (z1, z2 below are those two); its uplift and the wind act with u on the actuator's mass.
 
 Coordinates: z1, z2 are the head and frame heights measured from the static contact-wire
 height at the start point (a support, where the pre-sag is 0), i.e. from a fixed datum,
@@ -23,8 +26,8 @@ import math
 
 import numpy as np
 
-from pac_common.contact_statistics import target_mean_force
 from pac_common.parameters import ParameterError
+from pac_model.pantograph_file import load_pantograph_file
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
 from .catenary import kernels
@@ -33,7 +36,7 @@ from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.imperfections import apply_imperfections
 from .catenary.integrator import ContactSimulation, PassivePantograph, rear_periods
 from .catenary.line import Line
-from .catenary.pantographs import LumpedPantograph, paper_pantograph, three_mass_pantograph
+from .catenary.pantographs import LumpedPantograph, head_first, lumped, plant_chain
 from .parameters import PlantOptions
 from .plant import Plant, Truth
 
@@ -52,9 +55,12 @@ def window_periods(data: CatenaryData, spacing: float = 0.0) -> tuple[int, int]:
     return max(3, math.ceil(WINDOW_SPANS / p)) + rear, max(1, START_SPAN // p) + rear
 
 
-def passive_model(name: str) -> LumpedPantograph:
-    """The model of a passive pantograph (``passive_pantograph``)."""
-    return three_mass_pantograph() if name == "three_mass" else paper_pantograph()
+def passive_pantograph(options: PlantOptions, speed_kmh: float) -> tuple[LumpedPantograph, float]:
+    """A passive pantograph (``passive_pantograph``, a pantograph file) and the constant force on its
+    actuator's mass: ``passive_uplift``, or (0) the file's uplift at ``speed_kmh``, plus the wind."""
+    chain = load_pantograph_file(options.passive_pantograph, "passive_pantograph")
+    uplift = options.passive_uplift or chain.uplift(speed_kmh)
+    return lumped(chain), uplift + options.wind_uplift
 
 
 @functools.lru_cache(maxsize=4)
@@ -125,18 +131,15 @@ class FEPlant(Plant):
                 f"a line whose droppers all hang in tension at rest ({pushing} of "
                 f"{len(self.line.droppers.node)} would be compressed)",
             )
+        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
         ctrl = options.controlled_pantograph
-        uplift = options.passive_uplift or target_mean_force(track.speed_kmh)
-        passive = tuple(
-            PassivePantograph(passive_model(options.passive_pantograph), lag, uplift)
-            for k, lag in enumerate(spacings)
-            if k != ctrl
-        )
+        model, force = passive_pantograph(options, track.speed_kmh)
+        passive = tuple(PassivePantograph(model, lag, force) for k, lag in enumerate(spacings) if k != ctrl)
         #: contact of each pantograph of ``pantographs`` in the simulation (the controlled one is 0)
         self.contact_of = [0 if k == ctrl else 1 + k - (k > ctrl) for k in range(len(spacings))]
         self.sim = ContactSimulation(
             self.line,
-            paper_pantograph(pantograph),
+            head_first(lumped(chain)),  # z1 = the head, z2 = the actuator's mass
             sample_period / options.fe_substeps,
             track.speed_kmh / 3.6,
             start * data.period,
@@ -216,7 +219,8 @@ class FEPlant(Plant):
         """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
         if not math.isfinite(u):
             raise ValueError(f"actuator force must be finite, got {u!r}")
-        self.sim.advance(u, self.options.fe_substeps, self._flex, self._readings)
+        # The pantograph's own uplift and the wind act with u on the actuator's mass.
+        self.sim.advance(u + self.uplift, self.options.fe_substeps, self._flex, self._readings)
         self.tick += 1
         self.u_applied = float(u)
 
