@@ -16,6 +16,11 @@ everything is at rest, as in the lumped plant. The line is endless (a moving win
 Truth: ``stiffness`` is the line's static point stiffness at the contact point (droppers
 taut), ``contact_force`` the penalty force, plus the wire uplift at the contact point
 and at the nearest support.
+
+``pantographs:=[0.0, 200.0]``: more pantographs on the same line, each this far behind the first;
+``controlled_pantograph`` is the one above (u, measurement, truth), the others are passive
+(``passive_pantograph``, ``passive_uplift``); ``pantograph_truths()`` gives every one's contact, and
+the window grows by the spacing (``window_periods``; docs/catenary.md, "Several pantographs").
 """
 
 from __future__ import annotations
