@@ -15,7 +15,7 @@ def test_the_rig_records_and_reports_every_pantograph(rigs):
 
     duration = 1.6  # s: 133 m at 300 km/h, at least one whole span for each pantograph
     fe = {"catenary_model": "fe", "speed_kmh": 300.0, "span_length": 55.0}
-    params = {"all": fe, "plant_node": {"pantographs": [0.0, 200.0], "controlled_pantograph": 1}}
+    params = {"all": fe, "plant": {"pantographs": [0.0, 200.0], "controlled_pantograph": 1}}
     rig = rigs("two", duration=duration, timing_mode="lockstep", params=params)
     rig.start()
     rig.wait_finished(timeout=240)
@@ -26,7 +26,7 @@ def test_the_rig_records_and_reports_every_pantograph(rigs):
     for m in read_ros2_messages(str(files[0]), topics=list(forces)):
         forces[m.channel.topic][int(m.ros_msg.tick)] = m.ros_msg
     ticks = sorted(forces["/plant_truth"])
-    assert ticks == sorted(forces["/pantograph_truth"]) and len(ticks) == round(duration * 1000) + 1
+    assert ticks == sorted(forces["/pantograph_truth"]) and len(ticks) == round(duration * 1000)
     for k in ticks:
         one, every = forces["/plant_truth"][k], forces["/pantograph_truth"][k]
         assert every.controlled == 1 and list(every.spacing) == [0.0, 200.0]
