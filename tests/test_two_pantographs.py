@@ -167,6 +167,32 @@ def test_the_plant_controls_the_trailing_pantograph_and_reports_both():
     assert lead.contact_force > 50.0 and trail.contact_force > 0.0
 
 
+@pytest.mark.slow
+def test_the_compiled_closed_loop_with_two_pantographs_equals_the_core_objects():
+    """closed_loop.run (the compiled loop_tick on the packed FE buffers) == the core objects stepped
+    tick by tick (the nodes' path), with the trailing pantograph controlled by line_adaptive: every
+    field of every record."""
+    import dataclasses
+
+    from pac_rig.closed_loop import build_cores, run, run_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    def fields(rec):
+        return [
+            np.asarray(getattr(part, f.name), dtype=object).ravel().tolist()
+            for part in (rec.measurement, rec.truth, rec.estimate, rec.command)
+            for f in dataclasses.fields(part)
+        ]
+
+    flat = {"catenary_model": "fe", "duration": 0.4, "law": "line_adaptive", "observer": "contact_force"}
+    two = scenario_from_flat({**flat, "pantographs": (0.0, SPACING), "controlled_pantograph": 1})
+    compiled = [fields(rec) for rec in run(two)]
+    assert compiled == [fields(rec) for rec in run_cores(two, *build_cores(two))]
+    # The window: 4 periods added at the rear, the first pantograph starts 4 periods further on
+    # (support 8, not 4), the controlled one 200 m behind it.
+    assert next(iter(run(two))).truth.contact_position == pytest.approx(8 * 55.0 - SPACING)
+
+
 @pytest.mark.parametrize(
     ("options", "name", "allowed"),
     [
