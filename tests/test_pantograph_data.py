@@ -464,3 +464,30 @@ def test_the_reference_run_with_the_preset_is_the_committed_one():
         "support_uplift_mm",
     ):
         assert run[key] == pytest.approx(committed[key], rel=1e-12, abs=1e-12), key
+
+
+@pytest.mark.live
+def test_the_nodes_refuse_a_pantograph_they_cannot_use_in_one_line(domain_id, tmp_path):
+    from test_node_cli import one_line_refusal, run_node
+
+    from pac_rig.launcher import node_env
+
+    env = node_env(domain_id)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(GOOD.replace("mass: 9.0", "mass: -9.0"))
+    one_line_refusal(
+        run_node("plant", "--ros-args", "-p", "catenary_model:=fe", "-p", f"pantograph:={bad}", env=env),
+        "invalid pantograph file",
+        "'masses[1].mass' = -9.0",
+    )
+    one_line_refusal(
+        run_node("plant", "--ros-args", "-p", "pantograph:=three_mass", env=env),
+        "'pantograph'",
+        "the paper's 2-DOF chain (2 masses; this one has 3)",
+    )
+    for node in ("observer", "controller"):
+        one_line_refusal(
+            run_node(node, "--ros-args", "-p", "nominal_pantograph:=three_mass", env=env),
+            "'nominal_pantograph'",
+            "every observer and law are built on",
+        )
