@@ -22,7 +22,7 @@ from pac_model.pantograph_file import (
     presets,
     table1_file,
 )
-from pac_model.parameters import PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_plant.catenary.pantographs import (
     LumpedPantograph,
     head_first,
@@ -235,7 +235,6 @@ def test_a_file_of_the_papers_shape_with_other_values_reaches_observer_and_contr
 
 @pytest.mark.unit
 def test_the_lumped_plant_refuses_a_chain_it_cannot_simulate_and_runs_one_it_can():
-    from pac_model.parameters import CatenaryParameters
     from pac_plant.parameters import PlantOptions
     from pac_plant.plant import Plant
 
@@ -259,7 +258,6 @@ def test_the_lumped_plant_refuses_a_chain_it_cannot_simulate_and_runs_one_it_can
 
 @pytest.mark.unit
 def test_wind_and_file_uplift_act_with_u_on_the_actuator_mass():
-    from pac_model.parameters import CatenaryParameters
     from pac_plant.parameters import PlantOptions
     from pac_plant.plant import Plant
 
@@ -399,7 +397,6 @@ def test_the_paper_preset_runs_bit_for_bit_as_the_default_pantograph(model):
 
 @pytest.mark.slow
 def test_the_three_mass_preset_runs_on_the_fe_plant_and_its_aero_uplift_follows_the_speed():
-    from pac_model.parameters import CatenaryParameters
     from pac_plant.fe_plant import FEPlant
     from pac_plant.parameters import PlantOptions
 
@@ -413,12 +410,40 @@ def test_the_three_mass_preset_runs_on_the_fe_plant_and_its_aero_uplift_follows_
             1e-3,
         )
         uplifts[v] = plant.uplift
-        for _ in range(300):
-            plant.advance(0.0)  # passive: the pantograph's own uplift and the wind press it
-        assert plant.truth().contact_force > 0.0
         assert plant.sim.panto.mass.tolist() == [7.5, 6.0, 9.0]  # z1 head, z2 frame
     assert uplifts[200.0] == 70.0 + 0.00097 * 200.0**2 + 5.0
     assert uplifts[300.0] == 70.0 + 0.00097 * 300.0**2 + 5.0
+
+
+@pytest.mark.slow
+def test_a_passive_pantograph_presses_the_wire_with_its_own_uplift_on_average():
+    """Momentum balance of the whole pantograph over whole periods of the line: the mean contact
+    force is the mean of the other forces on it, its uplift (+ wind), the roof springs carrying
+    nothing at the pressed static state (a roof spring relaxed at the touching start would take
+    k_roof x the wire's rise, ~7 N here, off the mean)."""
+    from pac_common.contact_statistics import contact_statistics
+    from pac_plant.fe_plant import FEPlant
+    from pac_plant.parameters import PlantOptions
+
+    v, span = 250.0, 55.0
+    plant = FEPlant(
+        PantographParameters(),
+        TrackParameters(speed_kmh=v),
+        CatenaryParameters(),
+        PlantOptions(catenary_model="fe", pantograph="three_mass", wind_uplift=10.0),
+        1e-3,
+    )
+    start = plant.truth().contact_position
+    force, position = [], []
+    while plant.truth().contact_position < start + 8.5 * span:
+        plant.advance(0.0)  # passive: no actuator force
+        truth = plant.truth()
+        force.append(truth.contact_force)
+        position.append(truth.contact_position)
+    stats = contact_statistics(np.array(force), np.array(position), 1e-3, start + 4 * span, start + 8 * span)
+    expected = load_pantograph_file("three_mass").uplift(v) + 10.0
+    assert stats.contact_force_mean == pytest.approx(expected, rel=0.01)
+    assert stats.contact_force_std > 10.0  # the line's stiffness varies: the force is not constant
 
 
 @pytest.mark.slow
@@ -439,3 +464,30 @@ def test_the_reference_run_with_the_preset_is_the_committed_one():
         "support_uplift_mm",
     ):
         assert run[key] == pytest.approx(committed[key], rel=1e-12, abs=1e-12), key
+
+
+@pytest.mark.live
+def test_the_nodes_refuse_a_pantograph_they_cannot_use_in_one_line(domain_id, tmp_path):
+    from test_node_cli import one_line_refusal, run_node
+
+    from pac_rig.launcher import node_env
+
+    env = node_env(domain_id)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(GOOD.replace("mass: 9.0", "mass: -9.0"))
+    one_line_refusal(
+        run_node("plant", "--ros-args", "-p", "catenary_model:=fe", "-p", f"pantograph:={bad}", env=env),
+        "invalid pantograph file",
+        "'masses[1].mass' = -9.0",
+    )
+    one_line_refusal(
+        run_node("plant", "--ros-args", "-p", "pantograph:=three_mass", env=env),
+        "'pantograph'",
+        "the paper's 2-DOF chain (2 masses; this one has 3)",
+    )
+    for node in ("observer", "controller"):
+        one_line_refusal(
+            run_node(node, "--ros-args", "-p", "nominal_pantograph:=three_mass", env=env),
+            "'nominal_pantograph'",
+            "every observer and law are built on",
+        )

@@ -1,5 +1,10 @@
 """Lumped pantographs: mass, spring and damper matrices, head DOF, input DOF.
 
+A pantograph is data: ``load_pantograph(name_or_path)`` reads a pantograph file
+(``pac_model.pantograph_file``, format in docs/catenary.md, "The pantograph file") into the chain
+the FE line runs (``LumpedPantograph``) and the file itself (its uplift at a speed);
+``head_first`` orders a chain as the rig measures it (head, actuator's mass, the rest).
+
 Positions are heights [m], positive up, in the contact wire's frame (0 = contact wire
 height at the supports). Internal springs join masses; ``ground_stiffness`` and
 ``ground_damping`` join a mass to the car roof (their rest positions are set by the
