@@ -152,14 +152,11 @@ class FEPlant(Plant):
             lag=spacings[ctrl],
             passive=passive,
         )
-        if self.uplift and np.any(self.sim.panto.ground_stiffness):
+        if np.any(self.sim.uplifts[1:]) or (self.uplift and np.any(self.sim.panto.ground_stiffness)):
             # A pantograph's static uplift is its force on the wire at its working height: its roof
             # springs are relaxed in the static state under its own uplift (not at the touching
             # start, where they would take k_roof times the wire's static rise off the force).
-            self.sim.start_static(self.uplift)
-            pressed = self.sim.roof_rest.copy()
-            self.sim.start_touching()
-            self.sim.roof_rest = pressed
+            self.sim.relax_roof_springs(self.uplift)
         # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
         # no tick pays one later.
         self.sim.prepare_contact_columns(start * data.period, self.sim.shift_at)

@@ -356,25 +356,51 @@ class ContactSimulation:
         self.in_contact = False
         self.delta = 0.0
 
-    def start_static(self, force: float) -> None:
-        """Static equilibrium of line and pantographs under the uplifts at their contact points
-        (``force`` on the controlled one, each passive one's own)."""
+    def _forces(self, force: float) -> np.ndarray:
+        """The uplift of each contact: ``force`` on the controlled one, each passive one's own."""
         forces = self.uplifts.copy()
         forces[0] = force
+        return forces
+
+    def _static(self, forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(line deviation, head heights) of the static equilibrium under ``forces`` at the contact
+        points, droppers taut (the linear static solve)."""
         f = np.zeros(self.line.n_dof)
         points = [self.line.contact_interpolation(x) for x in self.x - self.lags]
         for (dofs, n), fk in zip(points, forces, strict=True):
             f[dofs] += fk * n
-        self.d = self.line.solve_static(f)
+        d = self.line.solve_static(f)
+        heads = [
+            self.line.static_height(x) + float(n @ d[dofs]) + fk / self.kp
+            for x, (dofs, n), fk in zip(self.x - self.lags, points, forces, strict=True)
+        ]
+        return d, np.array(heads)
+
+    def relax_roof_springs(self, force: float) -> None:
+        """Each pantograph's roof springs at rest in the static state under its own uplift alone
+        (``force`` on the controlled one), the rest of the (resting) state unchanged: a pantograph's
+        static uplift is its force on the wire at working height. Each alone: no pantograph's
+        setting depends on where the others are."""
+        forces = self._forces(force)
+        heads = np.empty(len(forces))
+        for k in range(len(forces)):
+            alone = np.zeros(len(forces))
+            alone[k] = forces[k]
+            heads[k] = self._static(alone)[1][k]
+        p = self.p.copy()
+        self._place_pantographs(heads, forces)
+        self.roof_rest, self.p = self.p.copy(), p
+
+    def start_static(self, force: float) -> None:
+        """Static equilibrium of line and pantographs under the uplifts at their contact points
+        (``force`` on the controlled one, each passive one's own)."""
+        forces = self._forces(force)
+        self.d, heads = self._static(forces)
         self.v[:] = self.a[:] = 0.0
         e = self._e0 + self.d[self._dwm] - self.d[self._dwc]
         if np.any(e < 0):
             raise ValueError("static uplift slackens a dropper: start from rest instead")
-        heads = [
-            self.line.static_height(x) + float(n @ self.d[dofs]) + fk / self.kp
-            for x, (dofs, n), fk in zip(self.x - self.lags, points, forces, strict=True)
-        ]
-        self._place_pantographs(np.array(heads), forces)
+        self._place_pantographs(heads, forces)
         self.input_force = force
         self.state.touching[:] = 1
         self.state.deltas[:] = forces / self.kp
