@@ -395,20 +395,21 @@ def test_the_paper_preset_runs_bit_for_bit_as_the_default_pantograph(model):
             assert repr(a) == repr(b)  # repr: every float to the last bit, NaN equal to NaN
 
 
-@pytest.mark.slow
-def test_the_three_mass_preset_runs_on_the_fe_plant_and_its_aero_uplift_follows_the_speed():
+def three_mass_fe_plant(speed_kmh: float, wind_uplift: float):
+    """The FE plant (benchmark_55m, endless) with the 3-mass preset at ``speed_kmh``."""
     from pac_plant.fe_plant import FEPlant
     from pac_plant.parameters import PlantOptions
 
+    options = PlantOptions(catenary_model="fe", pantograph="three_mass", wind_uplift=wind_uplift)
+    track = TrackParameters(speed_kmh=speed_kmh)
+    return FEPlant(PantographParameters(), track, CatenaryParameters(), options, 1e-3)
+
+
+@pytest.mark.slow
+def test_the_three_mass_preset_runs_on_the_fe_plant_and_its_aero_uplift_follows_the_speed():
     uplifts = {}
     for v in (200.0, 300.0):
-        plant = FEPlant(
-            PantographParameters(),
-            TrackParameters(speed_kmh=v),
-            CatenaryParameters(),
-            PlantOptions(catenary_model="fe", pantograph="three_mass", wind_uplift=5.0),
-            1e-3,
-        )
+        plant = three_mass_fe_plant(v, 5.0)
         uplifts[v] = plant.uplift
         assert plant.sim.panto.mass.tolist() == [7.5, 6.0, 9.0]  # z1 head, z2 frame
     assert uplifts[200.0] == 70.0 + 0.00097 * 200.0**2 + 5.0
@@ -422,17 +423,9 @@ def test_a_passive_pantograph_presses_the_wire_with_its_own_uplift_on_average():
     nothing at the pressed static state (a roof spring relaxed at the touching start would take
     k_roof x the wire's rise, ~7 N here, off the mean)."""
     from pac_common.contact_statistics import contact_statistics
-    from pac_plant.fe_plant import FEPlant
-    from pac_plant.parameters import PlantOptions
 
     v, span = 250.0, 55.0
-    plant = FEPlant(
-        PantographParameters(),
-        TrackParameters(speed_kmh=v),
-        CatenaryParameters(),
-        PlantOptions(catenary_model="fe", pantograph="three_mass", wind_uplift=10.0),
-        1e-3,
-    )
+    plant = three_mass_fe_plant(v, 10.0)
     start = plant.truth().contact_position
     force, position = [], []
     while plant.truth().contact_position < start + 8.5 * span:
