@@ -33,7 +33,7 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, RUN_STATUS_QOS, PacNode, run_
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .fe_plant import make_plant
+from .fe_plant import FEPlant, make_plant
 from .parameters import PlantOptions
 from .plant import Plant
 
@@ -107,6 +107,16 @@ class PlantNode(PacNode):
         )
         self.truth_pub = self.create_publisher(
             self.factory.cls(messages.PLANT_TRUTH), "plant_truth", PUBLISH_QOS
+        )
+        # Every pantograph's truth, when the FE line carries several (docs/catenary.md).
+        self.spacing = self.parameters(PlantOptions).pantographs
+        self.fe_plant = self.plant if isinstance(self.plant, FEPlant) and len(self.spacing) > 1 else None
+        self.pantographs_pub = (
+            self.create_publisher(
+                self.factory.cls(messages.PANTOGRAPH_TRUTH), "pantograph_truth", PUBLISH_QOS
+            )
+            if self.fe_plant is not None
+            else None
         )
         self.run_status_pub = self.create_publisher(
             self.factory.cls(messages.RUN_STATUS), "run_status", RUN_STATUS_QOS
@@ -208,6 +218,15 @@ class PlantNode(PacNode):
                 ),
             )
         )
+        if self.pantographs_pub is not None and self.fe_plant is not None:
+            self.pantographs_pub.publish(
+                self.factory.make(
+                    messages.PANTOGRAPH_TRUTH,
+                    messages.pantograph_truth_fields(
+                        self.fe_plant.pantograph_truths(), self.spacing, k, stamp
+                    ),
+                )
+            )
 
     def publish_run_status(self, state: int) -> None:
         k = self.plant.tick
