@@ -63,7 +63,7 @@ def test_the_presets_are_the_built_in_chains_bit_for_bit():
             a, b = getattr(from_file, field), getattr(built_in, field)
             assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b), field
         assert (from_file.head, from_file.input) == (built_in.head, built_in.input)
-    assert load_pantograph_file("paper_2dof").table1() == PantographParameters()
+    assert PantographParameters(**load_pantograph_file("paper_2dof").table1()) == PantographParameters()
 
 
 @pytest.mark.unit

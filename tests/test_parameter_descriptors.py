@@ -32,7 +32,7 @@ TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGE
 
 def expected(spec):
     """(type, range bounds or None, read_only) from the declaration alone."""
-    if spec.length is not None:
+    if spec.length is not None or spec.kind is tuple:  # fixed or variable length (max_length)
         kind = ParameterType.PARAMETER_DOUBLE_ARRAY
     elif spec.kind is str:
         kind = ParameterType.PARAMETER_STRING
@@ -103,3 +103,10 @@ def test_every_live_node_describes_every_parameter_with_range_and_read_only(doma
         bad = call(controller.set_parameters([Parameter("c1", value=-5.0)])).results[0]
         assert bad.reason.startswith("invalid parameter 'c1' = -5.0: allowed")
         print(f"\n{described} descriptors over {len(NODES)} live nodes match the declarations")
+
+
+@pytest.mark.parametrize("node", sorted(NODES))
+def test_no_two_parameter_sets_of_a_node_declare_the_same_name(node):
+    """ROS has one parameter per name: a second declaration would silently take the first's value."""
+    names = [spec.name for cls in NODES[node][3] for spec in cls.specs()]
+    assert sorted({n for n in names if names.count(n) > 1}) == []

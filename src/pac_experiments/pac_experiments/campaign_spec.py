@@ -60,7 +60,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "pantographs": (0.0,),
     "controlled_pantograph": 0,
     "passive_pantograph": "three_mass",
-    "passive_uplift": 0.0,
+    "passive_pantograph_uplift": 0.0,
 }
 
 

@@ -24,13 +24,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from pac_common.data_file import DataFileError, Map, Presets, Reader, Seq
 from pac_common.parameters import ParameterError
 
-from .parameters import PantographParameters
+
+class Table1(Protocol):
+    """The paper's pantograph parameters (Table 1's symbols): ``PantographParameters`` is one."""
+
+    m1: float
+    b1: float
+    k1: float
+    m2: float
+    b2: float
 
 DEFAULT = "paper_2dof"
 PRESETS = Presets(Path("config") / "pantographs", DEFAULT, "pantograph", __file__, "docs/catenary.md")
@@ -116,9 +125,10 @@ class PantographFile:
             return "the paper's 2-DOF chain (no damper between the head and the roof)"
         return ""
 
-    def table1(self, parameter: str = "pantograph") -> PantographParameters:
-        """The paper's parameters m1, b1, k1, m2, b2 of a 2-DOF file (Table 1's symbols); a chain of
-        another shape: ParameterError naming ``parameter`` (one line)."""
+    def table1(self, parameter: str = "pantograph") -> dict[str, float]:
+        """The paper's parameters m1, b1, k1, m2, b2 of a 2-DOF file (Table 1's symbols, the fields
+        of ``PantographParameters``); a chain of another shape: ParameterError naming ``parameter``
+        (one line)."""
         why = self.table1_shape()
         if why:
             raise ParameterError(parameter, self.path or self.name, f"{why}, which {TABLE1_USERS}")
@@ -126,10 +136,10 @@ class PantographFile:
         k1 = sum(v for _, j, v in self.springs)
         b1 = sum(v for _, j, v in self.dampers if j >= 0)
         b2 = sum(v for _, j, v in self.dampers if j < 0)
-        return PantographParameters(m1=self.masses[self.head], b1=b1, k1=k1, m2=self.masses[frame], b2=b2)
+        return {"m1": self.masses[self.head], "b1": b1, "k1": k1, "m2": self.masses[frame], "b2": b2}
 
 
-def table1_file(p: PantographParameters) -> PantographFile:
+def table1_file(p: Table1) -> PantographFile:
     """The paper's 2-DOF chain with the parameters ``p`` (Table 1's by default): the chain of the
     preset ``paper_2dof`` (masses head, frame; k1 and b1 between them, b2 frame-roof)."""
     return PantographFile(

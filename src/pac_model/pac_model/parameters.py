@@ -33,7 +33,7 @@ class PantographParameters(ParameterSet):
         given here must be Table 1's default or the file's: never two answers)."""
         if not self.nominal_pantograph:
             return
-        from .pantograph_file import load_pantograph_file  # the file module imports this one
+        from .pantograph_file import load_pantograph_file  # the file module reads YAML: only when asked
 
         stated = load_pantograph_file(self.nominal_pantograph, "nominal_pantograph").table1(
             "nominal_pantograph"
@@ -41,7 +41,7 @@ class PantographParameters(ParameterSet):
         for spec in PantographParameters.specs():
             if spec.name == "nominal_pantograph":
                 continue
-            given, value = getattr(self, spec.name), getattr(stated, spec.name)
+            given, value = getattr(self, spec.name), stated[spec.name]
             if given not in (spec.default, value):
                 raise ParameterError(
                     spec.name, given, f"{value:g} or unset: the file nominal_pantograph states it"

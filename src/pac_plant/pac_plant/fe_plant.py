@@ -19,8 +19,9 @@ and at the nearest support.
 
 ``pantographs:=[0.0, 200.0]``: more pantographs on the same line, each this far behind the first;
 ``controlled_pantograph`` is the one above (u, measurement, truth), the others are passive
-(``passive_pantograph``, ``passive_uplift``); ``pantograph_truths()`` gives every one's contact, and
-the window grows by the spacing (``window_periods``; docs/catenary.md, "Several pantographs").
+(``passive_pantograph``, ``passive_pantograph_uplift``); ``pantograph_truths()`` gives every
+one's contact, and the window grows by the spacing (``window_periods``; docs/catenary.md,
+"Several pantographs").
 """
 
 from __future__ import annotations
@@ -62,9 +63,10 @@ def window_periods(data: CatenaryData, spacing: float = 0.0) -> tuple[int, int]:
 
 def passive_pantograph(options: PlantOptions, speed_kmh: float) -> tuple[LumpedPantograph, float]:
     """A passive pantograph (``passive_pantograph``, a pantograph file) and the constant force on its
-    actuator's mass: ``passive_uplift``, or (0) the file's uplift at ``speed_kmh``, plus the wind."""
+    actuator's mass: ``passive_pantograph_uplift``, or (0) the file's uplift at ``speed_kmh``, plus
+    the wind."""
     chain = load_pantograph_file(options.passive_pantograph, "passive_pantograph")
-    uplift = options.passive_uplift or chain.uplift(speed_kmh)
+    uplift = options.passive_pantograph_uplift or chain.uplift(speed_kmh)
     return lumped(chain), uplift + options.wind_uplift
 
 

@@ -123,7 +123,7 @@ class PlantOptions(ParameterSet):
         "fe: the passive pantographs, a pantograph file (a path) or a shipped preset's name "
         "(config/pantographs/: three_mass, paper_2dof, ...; docs/catenary.md, 'The pantograph file')",
     )
-    passive_uplift: float = parameter(
+    passive_pantograph_uplift: float = parameter(
         0.0,
         "fe: constant uplift force on each passive pantograph (0: its file's uplift at the track speed, "
         "static + aerodynamic; the wind_uplift acts too)",

@@ -147,7 +147,7 @@ class Plant:
             raise ValueError(f"sample_period must be positive, got {sample_period!r}")
         chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
         if options.pantograph:  # eq. (5) is the paper's 2-DOF: a file of that shape, or refused
-            pantograph = chain.table1("pantograph")
+            pantograph = PantographParameters(**chain.table1("pantograph"))
         self.pantograph = pantograph
         self.track = track
         self.catenary = catenary
