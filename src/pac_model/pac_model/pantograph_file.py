@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Protocol
+from typing import Protocol, TypedDict
 
 import numpy as np
 
@@ -32,14 +32,30 @@ from pac_common.data_file import DataFileError, Map, Presets, Reader, Seq
 from pac_common.parameters import ParameterError
 
 
-class Table1(Protocol):
-    """The paper's pantograph parameters (Table 1's symbols): ``PantographParameters`` is one."""
+class Table1Values(TypedDict):
+    """m1, b1, k1, m2, b2 of a 2-DOF chain: ``PantographParameters(**values)``."""
 
     m1: float
     b1: float
     k1: float
     m2: float
     b2: float
+
+
+class Table1(Protocol):
+    """The paper's pantograph parameters (Table 1's symbols): ``PantographParameters`` is one."""
+
+    @property
+    def m1(self) -> float: ...
+    @property
+    def b1(self) -> float: ...
+    @property
+    def k1(self) -> float: ...
+    @property
+    def m2(self) -> float: ...
+    @property
+    def b2(self) -> float: ...
+
 
 DEFAULT = "paper_2dof"
 PRESETS = Presets(Path("config") / "pantographs", DEFAULT, "pantograph", __file__, "docs/catenary.md")
@@ -125,7 +141,7 @@ class PantographFile:
             return "the paper's 2-DOF chain (no damper between the head and the roof)"
         return ""
 
-    def table1(self, parameter: str = "pantograph") -> dict[str, float]:
+    def table1(self, parameter: str = "pantograph") -> Table1Values:
         """The paper's parameters m1, b1, k1, m2, b2 of a 2-DOF file (Table 1's symbols, the fields
         of ``PantographParameters``); a chain of another shape: ParameterError naming ``parameter``
         (one line)."""

@@ -35,13 +35,13 @@ class PantographParameters(ParameterSet):
             return
         from .pantograph_file import load_pantograph_file  # the file module reads YAML: only when asked
 
-        stated = load_pantograph_file(self.nominal_pantograph, "nominal_pantograph").table1(
-            "nominal_pantograph"
+        stated = PantographParameters(
+            **load_pantograph_file(self.nominal_pantograph, "nominal_pantograph").table1("nominal_pantograph")
         )
         for spec in PantographParameters.specs():
             if spec.name == "nominal_pantograph":
                 continue
-            given, value = getattr(self, spec.name), stated[spec.name]
+            given, value = getattr(self, spec.name), getattr(stated, spec.name)
             if given not in (spec.default, value):
                 raise ParameterError(
                     spec.name, given, f"{value:g} or unset: the file nominal_pantograph states it"
