@@ -448,6 +448,23 @@ def campaign_rate(spec: Path, workdir: Path) -> tuple[float, float, float]:
     return float(found.group(1)) / wall, float(found.group(3)), wall
 
 
+#: What any campaign's process cannot avoid: Python, numpy, numba, the batch's modules and its
+#: compiled loop loaded from the cache (one scenario of one tick of the given line).
+CAMPAIGN_FLOOR = (
+    "from pac_rig.batch import run_batch; from pac_rig.simulate import scenario_from_flat; "
+    "run_batch([scenario_from_flat({{'duration': 0.001, 'catenary_model': '{line}'}})])"
+)
+
+
+def campaign_floor(line: str) -> tuple[float, float]:
+    """(wall s, CPU s) of :data:`CAMPAIGN_FLOOR` as a whole process, median of 3."""
+    walls, cpus = [], []
+    for _ in range(3):
+        walls.append(whole_process([sys.executable, "-c", CAMPAIGN_FLOOR.format(line=line)])[0])
+        cpus.append(LAST_PROCESS_CPU[0])
+    return median(walls), median(cpus)
+
+
 FE_CAMPAIGN = """# bench: an FE-line campaign as config/campaigns/fe_laws.yaml runs them (passive and
 # line_adaptive on the contact-force observer, EN 50318 statistics), 2 laws x 4 speeds x 10 s
 grid:
@@ -511,18 +528,26 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         print("bench: campaigns ...", flush=True)
         spec = Path(args.campaign_spec)
         whole, inner, wall = campaign_rate(spec, workdir)
+        cpu = LAST_PROCESS_CPU[0]
+        floor_wall, floor_cpu = campaign_floor("lumped")
         figures["campaign_lumped_rate"] = whole
         notes.append(
-            f"campaign {spec.name}: {wall:.1f} s as a whole command; its runs alone {inner:.0f} scenario-s "
-            "per wall-s (the campaign's own figure, cluster start and report excluded)"
+            f"campaign {spec.name}: {wall:.1f} s wall, {cpu:.1f} s CPU as a whole command; its runs alone "
+            f"{inner:.0f} scenario-s per wall-s (the campaign's own figure: start-up and report excluded); "
+            f"floor (a process that imports the batch and loads its compiled loop, one 1-tick run): "
+            f"{floor_wall:.2f} s wall, {floor_cpu:.2f} s CPU"
         )
         fe_spec = workdir / "fe_bench.yaml"
         fe_spec.write_text(FE_CAMPAIGN)
         whole, inner, wall = campaign_rate(fe_spec, workdir)
+        cpu = LAST_PROCESS_CPU[0]
+        floor_wall, floor_cpu = campaign_floor("fe")
         figures["campaign_fe_rate"] = whole
         notes.append(
             f"FE campaign (passive and line_adaptive x 4 speeds x 10 s, EN 50318 statistics, the compiled "
-            f"batch): {wall:.1f} s as a whole command, runs alone {inner:.1f} scenario-s per wall-s"
+            f"batch): {wall:.1f} s wall, {cpu:.1f} s CPU as a whole command, runs alone {inner:.1f} "
+            f"scenario-s per wall-s; floor (as above, one 1-tick FE run: the line built once): "
+            f"{floor_wall:.2f} s wall, {floor_cpu:.2f} s CPU"
         )
     print("bench: FE tick ...", flush=True)
     from .bench_fe import fe_tick_figures  # the FE line's own timing (by part, old and new step)
@@ -539,6 +564,12 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         medians = {name: median(times) for name, times in startup.items()}
         figures["startup_s"] = max(medians.values()) if all(startup.values()) else None
         notes.append("start-up medians: " + ", ".join(f"{n} {v:.2f} s" for n, v in medians.items()))
+    if "realtime" in runs:
+        for field in ("on_time_periods_percent", "commands_on_time_percent", "latency_p50_ms"):
+            figures[f"realtime_{field}"] = getattr(runs["realtime"], field)
+            if "realtime floor" in runs:
+                floor = getattr(runs["realtime floor"], field)
+                today[f"realtime_{field}"] = {"value": floor, "what": "its floor, rclpy + Fast DDS"}
     if "lockstep" in runs and "lockstep floor" in runs:
         figures["lockstep_floor_ratio"] = (
             runs["lockstep"].steps_per_second / runs["lockstep floor"].steps_per_second

@@ -163,10 +163,10 @@ def _batch_series(result: Any, i: int) -> RunSeries:
     )
 
 
-def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
+def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, Any]]:
     """Rows of the points the compiled batch runs (``pac_rig.batch.batchable``), by key.
 
-    One ``run_batch`` call for all of them (no per-tick Python); its traces equal
+    One ``run_batch`` call for all of them (no per-tick Python; ``threads`` threads); its traces equal
     ``closed_loop.run``'s bit for bit (tests/test_batch.py), so the rows equal
     :func:`run_point`'s. A run that diverges or a point that does not validate is left to
     :func:`run_point`.
@@ -182,7 +182,7 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
     if not chosen:
         return {}
     start = time.perf_counter()
-    result = run_batch([s for _, s in chosen])
+    result = run_batch([s for _, s in chosen], threads=threads)
     wall = (time.perf_counter() - start) / len(chosen)
     rows = {}
     for i, (point, scenario) in enumerate(chosen):
@@ -214,8 +214,9 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
     return rows
 
 
-def run_chunk(points: list[Point], bag_dir: str | None = None) -> list[dict]:
-    """The Dask task: several runs in one task, so the per-task overhead is paid once per chunk.
+def run_chunk(points: list[Point], bag_dir: str | None = None, threads: int = 1) -> list[dict]:
+    """The Dask task: several runs in one task, so the per-task overhead is paid once per chunk
+    (and, with ``threads`` > 1, the in-process campaign's step: ``campaign_dask.execute_in_process``).
 
     Without bags, the points the compiled batch can run go through it in one call; the rest
     (other laws, the FE line, divergences) run tick by tick. If the batch itself fails, its
@@ -226,7 +227,7 @@ def run_chunk(points: list[Point], bag_dir: str | None = None) -> list[dict]:
     batch_error = ""
     if bag_dir is None:
         try:
-            batched = run_batched(points)
+            batched = run_batched(points, threads)
         except Exception as exc:  # noqa: BLE001 - every point then runs tick by tick and reports for itself
             batch_error = f"{type(exc).__name__}: {exc}".splitlines()[0]
     rows = []

@@ -33,9 +33,24 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, RUN_STATUS_QOS, PacNode, run_
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .fe_plant import make_plant
 from .parameters import PlantOptions
 from .plant import Plant
+
+
+def make_plant(
+    pantograph: PantographParameters,
+    track: TrackParameters,
+    catenary: CatenaryParameters,
+    options: PlantOptions,
+    sample_period: float,
+) -> Plant:
+    """``fe_plant.make_plant``, its module imported only for the FE line: the FE line's modules
+    (scipy.linalg, the line kernels) are ~0.2 s of a lumped plant node's start-up otherwise."""
+    if options.catenary_model != "fe":
+        return Plant(pantograph, track, catenary, options, sample_period)
+    from .fe_plant import make_plant as make_fe_plant
+
+    return make_fe_plant(pantograph, track, catenary, options, sample_period)
 
 
 @dataclass(frozen=True)
