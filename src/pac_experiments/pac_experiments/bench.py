@@ -6,13 +6,16 @@ with and without bag writing, (4) the compiled batch closed loop (``--batch-runs
 scenarios of 10 s, ``--batch-threads`` threads), (5) the start-up time of each loop node
 (process start to its first published message), and prints one table.  Timing is
 measured, never asserted: the machine is shared and noisy.  ``--offline-only`` skips
-the live rigs (1, 2).
+the live rigs (1, 2); ``--live-only`` runs only them and prints their tables.  Each live
+configuration runs ``--live-repeats`` times, pac and its floor in turn, and every figure is
+the median of its runs, so that a load that comes and goes falls on both.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import itertools
 import json
 import math
@@ -95,6 +98,19 @@ def live_run(
     return loop_timing(bag), cpu, quality
 
 
+def median_timing(timings: list[Any]) -> Any:
+    """One LoopTiming whose every figure is the median of ``timings`` (runs of one configuration)."""
+    first = timings[0]
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(first):
+        got = [getattr(t, f.name) for t in timings]
+        if isinstance(got[0], dict):
+            values[f.name] = {k: statistics.median(g[k] for g in got) for k in got[0]}
+        else:
+            values[f.name] = type(got[0])(statistics.median(got))
+    return dataclasses.replace(first, **values)
+
+
 @contextlib.contextmanager
 def busy_loops(n: int) -> Iterator[list[subprocess.Popen]]:
     """``n`` processes spinning at normal priority (the load), killed by PID on exit."""
@@ -135,6 +151,26 @@ def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
         rows.append([f"CPU {node}", *(number(c, "{:.2f}") for c in cells)])
     header = ["pac / floor", *(p for p, _ in pairs)]
     return markdown.table(header, rows, ["l"] + ["r"] * len(pairs)) + "\n"
+
+
+def live_table(runs: dict, cpus: dict, quality: dict, pairs: list[tuple[str, str]]) -> str:
+    """The live loop's timing table (every column) and the pac / floor table."""
+    names = list(runs)
+    extra = [
+        [f"CPU {node} [%]", *(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)]
+        for node in ("plant", "observer", "controller", "loop", "recorder")
+    ]
+    extra.append(
+        [
+            "contact-force std [N]",
+            *(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names),
+        ]
+    )
+    return (
+        timing_table(runs, extra)
+        + "\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n\n"
+        + floor_table(runs, cpus, pairs)
+    )
 
 
 def offline_speed(with_bag: bool, workdir: Path) -> float:
@@ -583,8 +619,10 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench", description=__doc__)
-    parser.add_argument("--realtime-seconds", type=float, default=30.0, help="0: no real-time rigs")
-    parser.add_argument("--lockstep-seconds", type=float, default=10.0)
+    parser.add_argument(
+        "--realtime-seconds", type=float, default=10.0, help="each real-time run (0: no real-time rigs)"
+    )
+    parser.add_argument("--lockstep-seconds", type=float, default=10.0, help="each lock-step run")
     parser.add_argument(
         "--realtime-priority",
         type=int,
@@ -602,6 +640,18 @@ def main(argv: list[str] | None = None) -> int:
         help="also run the loop composed in one process (ros2 run pac_rig composed), pac and floor",
     )
     parser.add_argument("--offline-only", action="store_true", help="skip the live rigs")
+    parser.add_argument(
+        "--live-only",
+        action="store_true",
+        help="only the live rigs, their tables printed (no reports/bench file written)",
+    )
+    parser.add_argument(
+        "--live-repeats",
+        type=int,
+        default=3,
+        help="each live configuration run this many times, pac and its floor in turn; every figure "
+        "the median over the runs (a load that comes and goes falls on both)",
+    )
     parser.add_argument("--batch-runs", type=int, default=16)
     parser.add_argument("--batch-threads", type=int, default=2)
     parser.add_argument("--startup-repeats", type=int, default=3)
@@ -625,6 +675,7 @@ def main(argv: list[str] | None = None) -> int:
         ("--batch-threads", args.batch_threads, 1, 64),
         ("--startup-repeats", args.startup_repeats, 0, 100),
         ("--repeats", args.repeats, 1, 100),
+        ("--live-repeats", args.live_repeats, 1, 100),
     ):
         if not low <= value <= high:
             print(f"bench: invalid {name} {value!r}: allowed {low}..{high}", file=sys.stderr)
@@ -650,18 +701,31 @@ def main(argv: list[str] | None = None) -> int:
             plan.append(("composed lockstep", "lockstep", args.lockstep_seconds, True, 0))
         pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
         for name, mode, seconds, composed, load in plan:
-            for relay, column in ((False, name), (True, f"{name} floor")):
-                print(f"bench: {column} rig, {seconds:g} s ...", flush=True)
-                with busy_loops(load):
-                    runs[column], cpus[column], quality[column] = live_run(
-                        mode,
-                        seconds,
-                        workdir,
-                        args.realtime_priority,
-                        relay=relay,
-                        composed=composed,
-                        label=column.replace(" ", "_"),
-                    )
+            timings: dict[str, list] = {name: [], f"{name} floor": []}
+            used: dict[str, list[dict[str, float]]] = {name: [], f"{name} floor": []}
+            for repeat in range(args.live_repeats):
+                for relay, column in ((False, name), (True, f"{name} floor")):
+                    turn = f"{repeat + 1}/{args.live_repeats}"
+                    print(f"bench: {column} rig, {seconds:g} s ({turn}) ...", flush=True)
+                    with busy_loops(load):
+                        timing, cpu, quality[column] = live_run(
+                            mode,
+                            seconds,
+                            workdir,
+                            args.realtime_priority,
+                            relay=relay,
+                            composed=composed,
+                            label=f"{column.replace(' ', '_')}_{repeat}",
+                        )
+                    timings[column].append(timing)
+                    used[column].append(cpu)
+            for column in timings:
+                runs[column] = median_timing(timings[column])
+                cpus[column] = {n: statistics.median(c[n] for c in used[column]) for n in used[column][0]}
+        if args.live_only:
+            if runs:
+                print(live_table(runs, cpus, quality, pairs), end="")
+            return 0
         print("bench: offline simulator ...", flush=True)
         speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
         print("bench: bag writing ...", flush=True)
@@ -672,6 +736,12 @@ def main(argv: list[str] | None = None) -> int:
         print("bench: node start-up ...", flush=True)
         startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
         results = goal_figures(args, workdir, runs, startup)
+        if runs:
+            results["notes"].append(
+                f"live loop: each configuration run {args.live_repeats} times, pac and its floor in turn "
+                f"(real time {args.realtime_seconds:g} s, lock step {args.lockstep_seconds:g} s each); "
+                "every figure the median of its runs"
+            )
         live_tables = ""
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
@@ -681,22 +751,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{'launcher default' if args.realtime_priority is None else args.realtime_priority}\n"
     )
     if runs:
-        names = list(runs)
-        extra = [
-            [f"CPU {node} [%]", *(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)]
-            for node in ("plant", "observer", "controller", "loop", "recorder")
-        ]
-        extra.append(
-            [
-                "contact-force std [N]",
-                *(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names),
-            ]
-        )
-        live_tables = (
-            timing_table(runs, extra)
-            + "\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n\n"
-            + floor_table(runs, cpus, pairs)
-        )
+        live_tables = live_table(runs, cpus, quality, pairs)
         print(live_tables, end="")
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
