@@ -13,7 +13,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast lint typecheck clean demo reproduce catenary fe-experiment fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast lint typecheck clean demo reproduce catenary fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -56,6 +56,11 @@ catenary: setup
 fe-experiment: setup
 	@if [[ " $(ARGS) " != *" --report-only "* ]]; then rm -f reports/catenary/laws/runs.jsonl; fi
 	scripts/with_env.sh ros2 run pac_experiments fe_experiment $(ARGS)
+
+# The FE line's response to a span-periodic command: its coupling of harmonics and what a law
+# that knew it could reach (reports/catenary/laws/response/response.md).
+line-response: setup
+	scripts/with_env.sh ros2 run pac_experiments line_response $(ARGS)
 
 # The four-process rig in real time on the FE line, line_adaptive at 300 km/h, against the
 # campaign's offline row (reports/catenary/live/live.md).

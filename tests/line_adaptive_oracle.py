@@ -49,6 +49,7 @@ class LineAdaptiveLaw:
         self.forgetting = laws.line_forgetting
         self.prior_weight = laws.line_prior_weight
         self.response_min = laws.line_response_min
+        self.effort_weight = laws.line_effort_weight
         self.runin_spans = laws.line_runin_spans
         self.guard_ratio = laws.line_guard_ratio
         self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
@@ -208,7 +209,8 @@ class LineAdaptiveLaw:
         response = np.where(
             modulus < self.response_min, self.response_min * np.exp(1j * np.angle(response)), response
         )
-        step = -self.gain * self.e_acc / response
+        mu = self.effort_weight
+        step = -self.gain * (np.conj(response) * self.e_acc + mu * realized) / (np.abs(response) ** 2 + mu)
         # A harmonic whose response has not been identified yet (only the prior F = u, which can be
         # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
         limit = np.where(self.s > 0.0, self.step_max, self.probe_step)

@@ -574,3 +574,14 @@ def test_a_whole_span_window_holds_whole_periods_of_the_span(tmp_path):
     part = campaign_run.en50318_measures(t, force, zeros, force, zeros, (2 * span_time, 9.5 * span_time), dt)
     assert abs(part["en50318_contact_force_mean"] - 150.0) > 0.5  # the half span biases the mean by ~1 %
     assert whole["force_hat_error_percent"] == 0.0 and whole["du_dt_max_abs"] == 0.0
+
+
+CAMPAIGN_SPECS = Path(__file__).resolve().parents[1] / "config" / "campaigns"
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("spec", sorted(p.name for p in CAMPAIGN_SPECS.glob("*.yaml")))
+def test_every_committed_campaign_spec_expands(spec):
+    """A committed SPEC that no longer passes validation is found here, not when a user runs it."""
+    path = CAMPAIGN_SPECS / spec
+    assert campaign_spec.expand(campaign_spec.load_spec(path))

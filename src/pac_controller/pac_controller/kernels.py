@@ -90,6 +90,7 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_forgetting", "f8"),
         ("line_prior_weight", "f8"),
         ("line_response_min", "f8"),
+        ("line_effort_weight", "f8"),
         ("line_runin_spans", "i8"),
         ("line_guard_ratio", "f8"),
         ("line_guard_after", "i8"),

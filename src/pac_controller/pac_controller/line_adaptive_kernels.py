@@ -289,7 +289,7 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
 def _learn(p, s, table, memory) -> None:
     """One secant step per harmonic (module docstring)."""
     n = p.line_period
-    lam, prior, floor = p.line_forgetting, p.line_prior_weight, p.line_response_min
+    lam, prior, floor, mu = p.line_forgetting, p.line_prior_weight, p.line_response_min, p.line_effort_weight
     for j in range(p.line_harmonics):
         # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
         real_r, real_i = _cdiv(
@@ -310,8 +310,13 @@ def _learn(p, s, table, memory) -> None:
         if _cabs(r_r, r_i) < floor:
             angle = math.atan2(r_i, r_r)
             r_r, r_i = _cmul(floor, 0.0, math.cos(angle), math.sin(angle))
-        g_r, g_i = _cmul(-p.line_gain, 0.0, e_r, e_i)
-        st_r, st_i = _cdiv(g_r, g_i, r_r, r_i)
+        # The step towards min |E_h|^2 + mu |U_h|^2 on the identified response (module docstring):
+        # -gamma (conj(D) E + mu U) / (|D|^2 + mu).
+        c_r, c_i = _cmul(r_r, -r_i, e_r, e_i)
+        w_r, w_i = _cmul(mu, 0.0, real_r, real_i)
+        modulus = _cabs(r_r, r_i)
+        g_r, g_i = _cmul(-p.line_gain, 0.0, c_r + w_r, c_i + w_i)
+        st_r, st_i = _cdiv(g_r, g_i, modulus * modulus + mu, 0.0)
         # A harmonic whose response has not been identified yet (only the prior F = u, which can be
         # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
         limit = p.line_step_max if s_h > 0.0 else p.line_probe_step
