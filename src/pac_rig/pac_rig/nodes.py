@@ -29,7 +29,7 @@ class RigNode:
         return getattr(importlib.import_module(module), name)
 
     def module(self, relay: bool = False) -> str:
-        """The module whose ``python -m`` runs the node (its executable's ``main``; ``relay``: its relay's)."""
+        """The module whose ``python -m`` runs the node (its ``main``; ``relay``: its relay's)."""
         path = self.relay_class if relay and self.relay_class else self.node_class
         return path.partition(":")[0]
 
