@@ -24,6 +24,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from rclpy.timer import Timer
 
@@ -37,20 +38,16 @@ from .parameters import PlantOptions
 from .plant import Plant
 
 
-def make_plant(
-    pantograph: PantographParameters,
-    track: TrackParameters,
-    catenary: CatenaryParameters,
-    options: PlantOptions,
-    sample_period: float,
-) -> Plant:
-    """``fe_plant.make_plant``, its module imported only for the FE line: the FE line's modules
-    (scipy.linalg, the line kernels) are ~0.2 s of a lumped plant node's start-up otherwise."""
+def make_plant(*args: Any) -> Plant:
+    """``fe_plant.make_plant`` (same arguments), its module imported only for the FE line: the
+    FE line's modules (scipy.linalg, the line kernels) are ~0.2 s of a lumped plant node's
+    start-up otherwise. The plant options (``catenary_model``) are the fourth argument."""
+    options: PlantOptions = args[3]
     if options.catenary_model != "fe":
-        return Plant(pantograph, track, catenary, options, sample_period)
+        return Plant(*args)
     from .fe_plant import make_plant as make_fe_plant
 
-    return make_fe_plant(pantograph, track, catenary, options, sample_period)
+    return make_fe_plant(*args)
 
 
 @dataclass(frozen=True)
