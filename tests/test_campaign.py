@@ -199,7 +199,8 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch, statistics):
     )
     points = campaign_spec.expand(spec)
     batched = campaign_run.run_batched(points)
-    assert len(batched) == len(points) - 1  # all but the divergence
+    assert len(batched) == len(points)  # the divergence too: its row from the batch's tick and reason
+    assert sum(r["status"] == "diverged" for r in batched.values()) == 1
     chunk = campaign_run.run_chunk(points, None, 2)  # two threads, as a campaign in process runs it
     with monkeypatch.context() as m:
         m.setattr(closed_loop, "compile_loop", lambda *args: None)  # closed_loop.run: core objects

@@ -168,8 +168,9 @@ def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, An
 
     One ``run_batch`` call for all of them (no per-tick Python; ``threads`` threads); its traces equal
     ``closed_loop.run``'s bit for bit (tests/test_batch.py), so the rows equal
-    :func:`run_point`'s. A run that diverges or a point that does not validate is left to
-    :func:`run_point`.
+    :func:`run_point`'s. A run that diverges is its ``diverged`` row, as :func:`run_point` writes
+    it from the ``DivergenceError`` (the same tick and reason; not run a second time); a point that
+    does not validate is left to :func:`run_point`.
     """
     chosen: list[tuple[Point, Scenario]] = []
     for point in points:
@@ -186,7 +187,18 @@ def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, An
     wall = (time.perf_counter() - start) / len(chosen)
     rows = {}
     for i, (point, scenario) in enumerate(chosen):
-        if result.diverged[i] is not None:
+        reached, diverged = int(result.ticks[i]), result.diverged[i]
+        if diverged is not None:
+            reason = str(DivergenceError(reached, diverged)).splitlines()[0]
+            rows[point.key] = {
+                "key": point.key,
+                "status": STATUS_DIVERGED,
+                "reason": reason,
+                **scenario_to_flat(scenario),
+                "ticks_run": reached,
+                "simulated_seconds": reached / scenario.loop.rate_hz,
+                "wall_seconds": wall,
+            }
             continue
         series = _batch_series(result, i)
         m = metrics_from_series(series, point.window[0], point.window[1])
