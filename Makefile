@@ -13,7 +13,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast lint typecheck clean demo reproduce catenary fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast lint typecheck clean demo reproduce catenary two-pantographs fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -50,6 +50,10 @@ catenary: setup
 	scripts/with_env.sh ros2 run pac_experiments catenary $(ARGS)
 	$(MAKE) fe-experiment ARGS=
 	$(MAKE) fe-live ARGS=
+
+# Two pantographs 200 m apart on the FE line at 250-320 km/h (reports/catenary/two_pantographs/).
+two-pantographs: setup
+	scripts/with_env.sh ros2 run pac_experiments two_pantographs $(ARGS)
 
 # The control laws on the FE line: the campaign config/campaigns/fe_laws.yaml from fresh (Dask),
 # then its goals and figures (reports/catenary/laws/laws.md); ARGS="--report-only" rewrites them.

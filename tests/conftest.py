@@ -194,3 +194,22 @@ def parameter_tester(domain_id: int, procs: dict[str, subprocess.Popen]):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+def simulate_refusal(bag: Path, *overrides: str) -> str:
+    """``simulate`` run with ``-p`` overrides that it must refuse: exit status 2, one line on stderr,
+    no bag written; returns that line."""
+    import sys
+
+    args = [arg for override in overrides for arg in ("-p", override)]
+    run = subprocess.run(
+        [sys.executable, "-m", "pac_rig.simulate", str(bag), *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 2, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1, run.stderr
+    assert not bag.exists()
+    return lines[0]

@@ -11,8 +11,9 @@ import math
 import numpy as np
 
 from pac_controller.controller import Errors
+from pac_controller.line_adaptive import line_model_rows
 from pac_controller.parameters import LawParameters
-from pac_model.parameters import TrackParameters
+from pac_model.parameters import PantographParameters, TrackParameters
 
 #: An update smaller than this [N] in a harmonic says nothing about its response.
 MIN_INFORMATIVE_STEP = 0.5
@@ -31,6 +32,7 @@ class LineAdaptiveLaw:
         track: TrackParameters,
         laws: LawParameters,
         sample_period: float,
+        pantograph: PantographParameters | None = None,
     ) -> None:
         dt = sample_period
         self.dt = dt
@@ -50,6 +52,11 @@ class LineAdaptiveLaw:
         self.prior_weight = laws.line_prior_weight
         self.response_min = laws.line_response_min
         self.effort_weight = laws.line_effort_weight
+        self.model_below = laws.line_model_below
+        self.model_c, self.model_b, self.model_det, hold, omega = line_model_rows(
+            pantograph or PantographParameters(), orders * w, dt
+        )
+        self.model_hold, self.model_omega = hold.real, omega.real
         self.runin_spans = laws.line_runin_spans
         self.guard_ratio = laws.line_guard_ratio
         self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
@@ -95,6 +102,9 @@ class LineAdaptiveLaw:
         self.recent_var = np.zeros(GUARD_SPANS)  # band variance of F_hat over the last learning spans
         self.last_sigma_ratio = 0.0
         self.tripped = False
+        self.line_stiffness = 0.0  # the line model Z = k_s + i c w
+        self.line_damping = 0.0
+        self.model_valid = False
 
     @property
     def mode(self) -> str:
@@ -204,11 +214,31 @@ class LineAdaptiveLaw:
             lam = self.forgetting
             self.s = np.where(informative, lam * self.s + np.abs(d_u) ** 2, self.s)
             self.z = np.where(informative, lam * self.z + np.conj(d_u) * d_e, self.z)
-        response = (self.z - self.prior_weight) / (self.s + self.prior_weight)
-        modulus = np.abs(response)
+        identified = (self.z - self.prior_weight) / (self.s + self.prior_weight)
+        modulus = np.abs(identified)
         response = np.where(
-            modulus < self.response_min, self.response_min * np.exp(1j * np.angle(response)), response
+            modulus < self.response_min, self.response_min * np.exp(1j * np.angle(identified)), identified
         )
+        if self.model_below > 0.0:
+            c, b, det, omega = self.model_c, self.model_b, self.model_det, self.model_omega
+            d = -identified / self.model_hold
+            samples = d * det / (c - d * b)
+            q = (self.line_stiffness + 1j * (self.line_damping * omega)) * b + det
+            g = np.abs(c * det / (q * q))
+            weight = self.s * (g * g)
+            finite = np.isfinite(samples) & np.isfinite(weight)
+            weight, samples = np.where(finite, weight, 0.0), np.where(finite, samples, 0.0)
+            total = np.sum(weight)
+            if total > 0.0:
+                stiffness = np.sum(weight * samples.real) / total
+                damping = np.sum(weight * omega * samples.imag) / np.sum(weight * (omega * omega))
+                self.line_stiffness, self.line_damping = max(stiffness, 0.0), max(damping, 0.0)
+            z = self.line_stiffness + 1j * (self.line_damping * omega)
+            model = z * c / (z * b + det) * self.model_hold
+            if total > 0.0:
+                self.model_valid = bool(np.abs(model[0]) >= self.model_below)
+            if self.model_valid:
+                response = np.where(np.abs(model) < self.model_below, -model, response)
         mu = self.effort_weight
         step = -self.gain * (np.conj(response) * self.e_acc + mu * realized) / (np.abs(response) ** 2 + mu)
         # A harmonic whose response has not been identified yet (only the prior F = u, which can be

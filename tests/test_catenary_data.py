@@ -9,12 +9,11 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import simulate_refusal
 from scipy.linalg import eigh
 
 from pac_plant.catenary.catenary_file import CatenaryFileError, load_catenary, parse_catenary, presets
@@ -311,20 +310,9 @@ def test_a_missing_file_or_preset_is_refused_by_name():
 def test_simulate_refuses_a_bad_catenary_file_with_one_line_exit_2_and_runs_nothing(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text(GOOD.replace("tension: 16000.0", "tension: 0.0"))
-    bag = tmp_path / "bag"
-    args = ["-p", "catenary_model:=fe", "-p", f"catenary:={bad}", "-p", "duration:=0.01"]
-    run = subprocess.run(
-        [sys.executable, "-m", "pac_rig.simulate", str(bag), *args],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert run.returncode == 2
-    lines = run.stderr.strip().splitlines()
-    assert len(lines) == 1, run.stderr
-    assert "'messenger_wire.tension' = 0.0: allowed a finite number in (0, 1e+06] N" in lines[0]
-    assert "line 14, column" in lines[0]
-    assert not bag.exists()
+    line = simulate_refusal(tmp_path / "bag", "catenary_model:=fe", f"catenary:={bad}", "duration:=0.01")
+    assert "'messenger_wire.tension' = 0.0: allowed a finite number in (0, 1e+06] N" in line
+    assert "line 14, column" in line
 
 
 # -- physics, per line ------------------------------------------------------------------------------------

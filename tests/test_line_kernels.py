@@ -68,15 +68,23 @@ def test_compiled_law_resumes_after_a_fallback_as_the_numpy_law(episode):
     np.testing.assert_array_equal(compiled.u_ff, reference.u_ff)
 
 
+#: The law on its identified responses alone (no line model).
+OWN = {"line_model_below": 0.0}
+
+
 @pytest.mark.parametrize(
     "speed, seed, u_max, gain_sign, laws",
     [
-        (300.0, 1, math.inf, 1.0, {}),
-        (250.0, 2, 200.0, 1.0, {}),  # the limits clip: anti-windup and the mean given back
-        (360.0, 3, math.inf, -1.0, {}),  # forced to harm: the guard trips
-        (200.0, 4, 190.0, 1.0, {"line_max_frequency": 60.0, "design_delay_ticks": 2}),  # H > 8: blocks
-        (160.0, 6, math.inf, 1.0, {"line_max_frequency": 200.0}),  # H > 128: numpy's sums recurse
-        (330.0, 5, math.inf, 1.0, {"line_response_min": 0.9, "line_forgetting": 0.3}),  # the floor applies
+        (300.0, 1, math.inf, 1.0, OWN),
+        (250.0, 2, 200.0, 1.0, OWN),  # the limits clip: anti-windup and the mean given back
+        (360.0, 3, math.inf, -1.0, OWN),  # forced to harm: the guard trips
+        (200.0, 4, 190.0, 1.0, {**OWN, "line_max_frequency": 60.0, "design_delay_ticks": 2}),  # H > 8
+        (160.0, 6, math.inf, 1.0, {**OWN, "line_max_frequency": 200.0}),  # H > 128: numpy's sums recurse
+        (330.0, 5, math.inf, 1.0, {**OWN, "line_response_min": 0.9, "line_forgetting": 0.3}),  # the floor
+        # The line model is fitted every span (drive's force follows the command with one gain at
+        # every harmonic, which no pantograph does: the fit finds no line, and stands in for none).
+        (300.0, 7, math.inf, 1.0, {}),
+        (220.0, 8, 180.0, 1.0, {"line_max_frequency": 60.0}),  # ... with H > 8 and the limits clipping
     ],
 )
 def test_compiled_law_gives_the_numpy_laws_commands(speed, seed, u_max, gain_sign, laws):
@@ -176,3 +184,41 @@ def test_contact_force_observer_matches_the_numpy_bank(mass_scale):
         np.testing.assert_array_equal(est.innovation, innovation)
     if mass_scale != 1.0:
         assert len(switched) > 1  # the case did exercise the selection
+
+
+def test_the_line_model_is_the_pantograph_on_an_impedance_and_its_fit_recovers_the_line():
+    """line_model_rows' F/u for a spring line equals an independent solve of eqs. (3)-(4); secant data
+    made from a known impedance k_s + i c w give back k_s and c; a line of zero impedance is no model."""
+    from numba import njit
+    from test_line_response import spring_response
+
+    from pac_controller import line_adaptive_kernels as kern
+    from pac_controller.line_adaptive import line_model_rows
+    from pac_model.parameters import PantographParameters
+
+    pantograph = PantographParameters()
+    omega = 2 * math.pi * np.linspace(1.5, 19.5, 12)
+    c, b, det, hold, _ = line_model_rows(pantograph, omega, 1e-3)
+    expected = spring_response(pantograph, 5000.0, omega)
+    np.testing.assert_allclose(5000.0 * c / (5000.0 * b + det), expected, rtol=1e-12)
+
+    @njit
+    def fit(params, states, table, memory):
+        kern._fit_line(params[0], states[0], table, memory)
+
+    law = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), LawParameters(), 1e-3)
+    n, h = law.period_ticks, law.harmonics
+    w = law.table[n + kern.MODEL_OMEGA].real
+    prior = law.params[0]["line_prior_weight"]
+    for stiffness, damping, valid in ((1500.0, 270.0, True), (0.0, 0.0, False)):
+        z = stiffness + 1j * damping * w
+        rows = law.table[n + 1 :]
+        response = -(z * rows[0] / (z * rows[1] + rows[2])) * rows[3].real  # dE/dU: E = F_r - F_hat
+        law.memory[kern.S] = 1e4
+        law.memory[kern.Z] = response * (1e4 + prior) + prior
+        law.state[0]["line_stiffness"] = law.state[0]["line_damping"] = 0.0
+        fit(law.params, law.state, law.table, law.memory)
+        assert law.state[0]["line_stiffness"] == pytest.approx(stiffness, rel=1e-9, abs=1e-6)
+        assert law.state[0]["line_damping"] == pytest.approx(damping, rel=1e-9, abs=1e-6)
+        assert bool(law.state[0]["line_model_valid"]) is valid
+        assert h == len(w)

@@ -35,8 +35,13 @@ def parse_msg(typename: str) -> tuple[list[str], dict[str, int]]:
     return fields, constants
 
 
+#: The pac message types of the watched topics (the loop's, run_status, pantograph_truth).
+PAC_TYPES = {t for t in messages.WATCHED_TOPICS.values() if t.startswith("pac_interfaces/")}
+
+
 def test_every_topic_type_has_its_msg_file_and_every_msg_file_a_topic():
-    assert {f"pac_interfaces/msg/{p.stem}" for p in MSG_DIR.glob("*.msg")} == set(messages.TOPICS.values())
+    assert {f"pac_interfaces/msg/{p.stem}" for p in MSG_DIR.glob("*.msg")} == PAC_TYPES
+    assert set(messages.TOPICS.values()) <= PAC_TYPES
 
 
 def test_constants_are_the_msg_files_constants():
@@ -90,8 +95,22 @@ def test_field_dictionaries_have_exactly_the_msg_fields():
         messages.OBSERVER_ESTIMATE: messages.estimate_fields(core, 0),
         messages.ACTUATOR_COMMAND: messages.command_fields(core, 0),
         messages.RUN_STATUS: messages.run_status_fields(0, messages.RUN_RUNNING, 1.0, 0),
+        messages.PANTOGRAPH_TRUTH: messages.pantograph_truth_fields(
+            [
+                SimpleNamespace(
+                    **vars(core),
+                    contact_position=1.0,
+                    contact_uplift=0.0,
+                    support_uplift=0.0,
+                    controlled=True,
+                )
+            ],
+            (0.0,),
+            3,
+            0,
+        ),
     }
-    assert set(built) == set(messages.TOPICS.values())
+    assert set(built) == PAC_TYPES
     for typename, fields in built.items():
         assert list(fields) == parse_msg(typename)[0], typename
         assert list(fields["header"]) == ["stamp", "frame_id"]

@@ -161,6 +161,71 @@ def compute_metrics(bag: BagData, window_from: float = 3.0, window_to: float | N
     return metrics_from_series(series_from_bag(bag), window_from, window_to)
 
 
+def pantograph_statistics(
+    bag: BagData, window_from: float = 3.0, window_to: float | None = None
+) -> list[dict[str, Any]]:
+    """EN 50318 statistics of every pantograph of ``pantograph_truth`` (none: an empty list): each
+    one's force (20 Hz zero-phase low-pass) over the whole spans its contact point covers in the
+    time window (spans of the ``run_status`` span length; supports at its multiples). One dict per
+    pantograph: spacing, controlled, the stretch [m] and ``ContactStatistics``' fields. Raises
+    ValueError when a pantograph covers no whole span in the window."""
+    data = bag.topics.get("pantograph_truth")
+    if data is None or not len(data):
+        return []
+    status = bag.topics.get("run_status")
+    span = float(status["span_length"][0]) if status is not None and len(status) else 0.0
+    t = stamp_seconds(data)
+    end = float(t.max()) if window_to is None else window_to
+    win = _in_window(t, window_from, end)
+    force, position = np.atleast_2d(data["contact_force"]), np.atleast_2d(data["contact_position"])
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1e-3
+    out = []
+    for k in range(force.shape[1]):
+        x = position[:, k]
+        x_from, x_to = contact_statistics.whole_spans(float(x[win].min()), float(x[win].max()), span)
+        stats = contact_statistics.contact_statistics(force[:, k], x, dt, x_from, x_to)
+        out.append(
+            {
+                "spacing": float(data["spacing"][0][k]),
+                "controlled": int(data["controlled"][0]) == k,
+                "x_from": x_from,
+                "x_to": x_to,
+                **stats.as_dict(),
+            }
+        )
+    return out
+
+
+def pantograph_table(rows: list[dict[str, Any]]) -> str:
+    """One row per pantograph: where it runs, which one is controlled, its EN 50318 statistics."""
+    return markdown.table(
+        [
+            "pantograph",
+            "behind the first [m]",
+            "spans [m]",
+            "Fm [N]",
+            "σ [N]",
+            "min [N]",
+            "max [N]",
+            "loss [%]",
+        ],
+        [
+            [
+                f"{k}{' (controlled)' if r['controlled'] else ''}",
+                f"{r['spacing']:g}",
+                f"{r['x_from']:g} to {r['x_to']:g}",
+                f"{r['contact_force_mean']:.1f}",
+                f"{r['contact_force_std']:.1f}",
+                f"{r['contact_force_min']:.1f}",
+                f"{r['contact_force_max']:.1f}",
+                f"{r['contact_loss_percent']:.2f}",
+            ]
+            for k, r in enumerate(rows)
+        ],
+        "r",
+    )
+
+
 #: Which measures each topic feeds (for saying what a missing topic costs).
 NEEDS = {
     "plant_truth": "contact-force measures, k_hat error, tracking RMS",

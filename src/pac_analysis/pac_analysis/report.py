@@ -18,7 +18,15 @@ from typing import Any
 from pac_bag.reader import BagData, BagError, read_bag
 from pac_common import jsonio
 
-from .metrics import compute_metrics, loop_timing, markdown_table, missing_inputs, timing_table
+from .metrics import (
+    compute_metrics,
+    loop_timing,
+    markdown_table,
+    missing_inputs,
+    pantograph_statistics,
+    pantograph_table,
+    timing_table,
+)
 from .plots import overlay_figure, run_figure
 
 
@@ -40,7 +48,7 @@ def report(
         return {}, problems
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, Any] = {}
-    metrics, timings = {}, {}
+    metrics, timings, pantographs = {}, {}, {}
     for name, bag in loaded.items():
         entry: dict[str, Any] = {"bag": str(bag.path), "source": bag.metadata.get("source", "unknown")}
         try:
@@ -48,6 +56,13 @@ def report(
             entry["metrics"] = metrics[name].as_dict()
         except ValueError as exc:
             problems.append(f"{bag.path}: {exc}")
+        try:
+            rows = pantograph_statistics(bag, window_from, window_to)
+        except ValueError as exc:
+            problems.append(f"{bag.path}: pantographs: {exc}")
+            rows = []
+        if rows:
+            pantographs[name] = entry["pantographs"] = rows
         if "plant_truth" in bag.topics and bag.metadata.get("source") != "offline":
             try:
                 timings[name] = loop_timing(bag)
@@ -63,6 +78,12 @@ def report(
     text = [f"# Report: {', '.join(loaded) or '(no readable bag)'}", ""]
     if metrics:
         text += ["## Contact force", "", markdown_table(metrics)]
+    for name, rows in pantographs.items():
+        text += [
+            f"## Every pantograph: {name} (EN 50318: 20 Hz low-pass, whole spans)",
+            "",
+            pantograph_table(rows),
+        ]
     if timings:
         text += ["## Loop timing", "", timing_table(timings)]
     if problems:

@@ -22,6 +22,7 @@ PLANT_TRUTH = "pac_interfaces/msg/PlantTruth"
 OBSERVER_ESTIMATE = "pac_interfaces/msg/ObserverEstimate"
 ACTUATOR_COMMAND = "pac_interfaces/msg/ActuatorCommand"
 RUN_STATUS = "pac_interfaces/msg/RunStatus"
+PANTOGRAPH_TRUTH = "pac_interfaces/msg/PantographTruth"
 
 #: The loop's topics, one message per tick each: relative names (a namespace moves the whole rig).
 LOOP_TOPICS: dict[str, str] = {
@@ -38,8 +39,17 @@ DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: What the recorder records (``-a``) and the live view serves, by the name it has in a bag:
 #: the pac topics and ``diagnostics``; :data:`GRAPH_NAMES` gives each one's name on the graph.
-WATCHED_TOPICS: dict[str, str] = {**TOPICS, "diagnostics": DIAGNOSTIC_ARRAY}
-GRAPH_NAMES: dict[str, str] = {**{t: t for t in TOPICS}, "diagnostics": DIAGNOSTICS_TOPIC}
+#: ``pantograph_truth`` (every pantograph of an FE line with several) is published only then.
+WATCHED_TOPICS: dict[str, str] = {
+    **TOPICS,
+    "pantograph_truth": PANTOGRAPH_TRUTH,
+    "diagnostics": DIAGNOSTIC_ARRAY,
+}
+GRAPH_NAMES: dict[str, str] = {
+    **{t: t for t in TOPICS},
+    "pantograph_truth": "pantograph_truth",
+    "diagnostics": DIAGNOSTICS_TOPIC,
+}
 
 # The .msg files' constants (tests/test_messages.py checks each against its .msg file, and every
 # field dictionary below against the message's fields).
@@ -101,6 +111,25 @@ def truth_fields(
         "contact_uplift": float(getattr(t, "contact_uplift", math.nan)),
         "support_uplift": float(getattr(t, "support_uplift", math.nan)),
         "contact_position": float(getattr(t, "contact_position", math.nan)),
+    }
+
+
+def pantograph_truth_fields(truths: Any, spacing: Any, tick: int, stamp_ns: int) -> dict[str, Any]:
+    """PantographTruth from pac_plant.fe_plant.PantographTruth, one per pantograph, in the order of
+    the plant's ``pantographs`` (``spacing``)."""
+
+    def column(name: str) -> np.ndarray:
+        return np.array([getattr(t, name) for t in truths], dtype=np.float64)
+
+    return {
+        "header": header(stamp_ns),
+        "tick": tick,
+        "controlled": next(k for k, t in enumerate(truths) if t.controlled),
+        "spacing": np.array(spacing, dtype=np.float64),
+        "contact_force": column("contact_force"),
+        "contact_position": column("contact_position"),
+        "contact_uplift": column("contact_uplift"),
+        "support_uplift": column("support_uplift"),
     }
 
 

@@ -59,10 +59,11 @@ class ParameterSpec:
     choices: tuple[str, ...] | None = None
     length: int | None = None  # fixed-length float array when set
     runtime: bool = False  # may be changed while the node runs (validated like at start)
+    max_length: int | None = None  # float array of 1 .. max_length values when set
 
     @property
     def kind(self) -> type:
-        if self.length is not None:
+        if self.length is not None or self.max_length is not None:
             return tuple
         return type(self.default)
 
@@ -81,6 +82,8 @@ class ParameterSpec:
         rng = f"{left}{lo}, {hi}{right}"
         if self.length is not None:
             rng = f"{self.length} finite values, each in {rng}"
+        elif self.max_length is not None:
+            rng = f"1 to {self.max_length} finite values, each in {rng}"
         elif self.kind is int:
             rng = f"an integer in {rng}"
         elif self.kind is float:
@@ -97,12 +100,16 @@ class ParameterSpec:
             if not isinstance(value, bool):
                 raise ParameterError(self.name, value, "true or false")
             return value
-        if self.length is not None:
+        if self.kind is tuple:
             try:
                 items = tuple(float(v) for v in value)
             except (TypeError, ValueError):
                 raise ParameterError(self.name, value, self.allowed()) from None
-            if len(items) != self.length or not all(self._in_range(v) for v in items):
+            if self.length is not None:
+                count_ok = len(items) == self.length
+            else:
+                count_ok = 1 <= len(items) <= (self.max_length or 0)
+            if not count_ok or not all(self._in_range(v) for v in items):
                 raise ParameterError(self.name, value, self.allowed())
             return items
         if self.kind is int:
@@ -186,6 +193,7 @@ def parameter(
     choices: tuple[str, ...] | None = None,
     length: int | None = None,
     runtime: bool = False,
+    max_length: int | None = None,
 ) -> Any:
     """Declare a dataclass field as a validated parameter (see :class:`ParameterSpec`).
 
@@ -202,6 +210,7 @@ def parameter(
         "choices": choices,
         "length": length,
         "runtime": runtime,
+        "max_length": max_length,
     }
     return field(default=default, metadata={"pac_parameter": meta})
 

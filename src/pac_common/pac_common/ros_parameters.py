@@ -29,7 +29,7 @@ INTEGER_LIMIT = 2**63 - 1
 
 def ros_type(spec: ParameterSpec) -> int:
     """The ``rcl_interfaces/ParameterType`` of a pac parameter."""
-    if spec.length is not None:
+    if spec.kind is tuple:
         return ParameterType.PARAMETER_DOUBLE_ARRAY
     return {
         bool: ParameterType.PARAMETER_BOOL,

@@ -91,6 +91,7 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_prior_weight", "f8"),
         ("line_response_min", "f8"),
         ("line_effort_weight", "f8"),
+        ("line_model_below", "f8"),
         ("line_runin_spans", "i8"),
         ("line_guard_ratio", "f8"),
         ("line_guard_after", "i8"),
@@ -131,6 +132,9 @@ CONTROLLER_STATE = np.dtype(
         ("line_passive_spans", "i8"),
         ("line_recent_var", "f8", 3),  # line_adaptive_kernels.GUARD_SPANS
         ("line_last_sigma_ratio", "f8"),
+        ("line_stiffness", "f8"),  # k_s of the fitted line impedance Z = k_s + i c w
+        ("line_damping", "f8"),  # c
+        ("line_model_valid", "b1"),  # the model has the first harmonic strong: it may stand in for weak ones
         ("line_tripped", "b1"),
         ("line_pending_error", "f8"),
         ("line_pending_reference", "f8"),

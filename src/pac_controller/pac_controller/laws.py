@@ -53,7 +53,7 @@ def _passive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
 
 
 def _line_adaptive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
-    return LineAdaptiveLaw(track, laws, dt)
+    return LineAdaptiveLaw(track, laws, dt, pantograph)
 
 
 LAWS: dict[str, Callable[..., Law]] = {

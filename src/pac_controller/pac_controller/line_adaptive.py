@@ -23,6 +23,7 @@ At the end of span j (j >= ``line_runin_spans`` - 1) each harmonic takes a secan
     S_h <- lam S_h + |dU_h|^2,   Z_h <- lam Z_h + conj(dU_h) dE_h       (dU, dE: last span's changes)
     D_h = (Z_h - s0) / (S_h + s0)                (prior D = -1: F = u at low frequency, weight s0)
     |D_h| floored at ``line_response_min``
+    D_h = -M_h(Z) where |M_h(Z)| < ``line_model_below``               (the line model, below)
     U_h^{j+1} = U_h^j - gamma (conj(D_h) E_h^j + mu U_h^j) / (|D_h|^2 + mu),
                 each step clipped to ``line_step_max`` in modulus
                 (``line_probe_step`` until D_h has been identified)
@@ -35,6 +36,20 @@ leaves a harmonic's error where cancelling it would cost more than mu per unit: 
 passive with the line's true responses, and with mu = 0.01 -77 % (docs/laws.md, measured with
 ``pac_experiments.line_response``).  Where |D_h|^2 >> mu it is the secant (Newton) step
 -gamma E_h / D_h.
+
+The line model: the secant identifies a harmonic by what its own step did to its own error,
+which on the FE line holds only for the harmonics that move the force: the line is periodic in
+space, a command at one harmonic moves the force at the others (measured: 69 % of the
+response matrix off its diagonal at 280 km/h), and a step of a weak harmonic (|D| of 0.04-0.1
+at 12-20 Hz) shows mostly what the strong ones' steps did to it (identified 0.3-1.4).  So every
+span the law fits a line impedance Z(w) = k_s + i c w (spring and wave damping, k_s, c >= 0)
+to all the identified responses at once, each turned into an impedance sample through the
+nominal pantograph (eqs. 3-4 with the line as Z at the head: M_h(Z) = Z C / (Z B + det)
+times the hold's gain, ``line_model_rows``) and weighted by its information S_h and by
+|dM/dZ|^2 there, so the strong harmonics decide it; a harmonic the model calls weak takes
+the model's response.  With the line's true responses the fit of this model is within
+10-20 % in gain and ~10 deg in phase at every harmonic (docs/laws.md).  A model that calls
+the first harmonic weak has fitted no line and stands in for none.
 
 Anti-windup: U_h^j in the step and in the secant is the harmonic the actuator *applied*
 over span j (the Fourier coefficients of the command ``commit`` reports, on the
@@ -88,7 +103,7 @@ import math
 import numpy as np
 from numba import njit
 
-from pac_model.parameters import TrackParameters
+from pac_model.parameters import PantographParameters, TrackParameters
 
 from .kernels import KernelLaw
 from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's constants and steps
@@ -100,6 +115,7 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     MEMORY_ROWS,
     MIN_INFORMATIVE_STEP,
     SCRATCH,
+    TABLE_EXTRA_ROWS,
     U_FF,
     U_PREV,
     S,
@@ -111,6 +127,24 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     line_restart,
 )
 from .parameters import LawParameters
+
+
+def line_model_rows(pantograph: PantographParameters, omega: np.ndarray, dt: float) -> np.ndarray:
+    """The line model's constants at the angular frequencies ``omega`` (rows C, B, det, hold, omega).
+
+    Eqs. (3)-(4) in the frequency domain with the line as an impedance Z(w) at the head:
+    (A + Z) z1 - C z2 = 0, -C z1 + B z2 = u, F = Z z1, with A = m1 s^2 + b1 s + k1,
+    B = m2 s^2 + (b1 + b2) s + k1, C = b1 s + k1 (s = i w), so that
+    F / u = Z C / (Z B + det), det = A B - C^2; times the zero-order hold's gain sinc(w dt / 2)
+    (its half-tick lag the feedforward advances).
+    """
+    p = pantograph
+    s = 1j * omega
+    a = p.m1 * s * s + p.b1 * s + p.k1
+    b = p.m2 * s * s + (p.b1 + p.b2) * s + p.k1
+    c = p.b1 * s + p.k1
+    hold = np.sinc(omega * dt / (2.0 * math.pi))
+    return np.array([c, b, a * b - c * c, hold + 0j, omega + 0j])
 
 
 class LineAdaptiveLaw(KernelLaw):
@@ -126,7 +160,9 @@ class LineAdaptiveLaw(KernelLaw):
         track: TrackParameters,
         laws: LawParameters,
         sample_period: float,
+        pantograph: PantographParameters | None = None,
     ) -> None:
+        """``pantograph``: the nominal one (Table 1 if not given), for the line model."""
         dt = sample_period
         speed = track.speed_kmh / 3.6
         n = max(2, round(track.span_length / speed / dt))
@@ -134,10 +170,11 @@ class LineAdaptiveLaw(KernelLaw):
         h = max(1, min(int(laws.line_max_frequency * 2.0 * math.pi / w), n // 2 - 1))
         orders = np.arange(1, h + 1)
         # table[p, h-1] = exp(i h w p dt): one span of every harmonic, by phase index p = tick mod N;
-        # table[N] = exp(i h w dt / 2): the hold's half period.
-        table = np.empty((n + 1, h), dtype=np.complex128)
+        # table[N] = exp(i h w dt / 2): the hold's half period; then the line model's rows.
+        table = np.empty((n + TABLE_EXTRA_ROWS, h), dtype=np.complex128)
         table[:n] = np.exp(1j * np.outer(np.arange(n), orders) * w * dt)
         table[n] = np.exp(1j * orders * w * 0.5 * dt)
+        table[n + 1 :] = line_model_rows(pantograph or PantographParameters(), orders * w, dt)
         self.table = table
         self.memory = np.zeros((MEMORY_ROWS, h), dtype=np.complex128)
         super().__init__("line_adaptive", dt)
@@ -148,6 +185,7 @@ class LineAdaptiveLaw(KernelLaw):
         p["line_forgetting"], p["line_prior_weight"] = laws.line_forgetting, laws.line_prior_weight
         p["line_response_min"], p["line_runin_spans"] = laws.line_response_min, laws.line_runin_spans
         p["line_effort_weight"] = laws.line_effort_weight
+        p["line_model_below"] = laws.line_model_below
         p["line_guard_ratio"] = laws.line_guard_ratio
         p["line_guard_after"] = max(laws.line_guard_spans, GUARD_SPANS)
         self.dt = dt

@@ -23,8 +23,14 @@ GUARD_HARD_FACTOR = 3.0
 
 
 #: Rows of the ``memory`` table (complex, one column per harmonic); S_h is stored as real parts.
-U_FF, U_PREV, E_ACC, A_ACC, E_PREV, Z, S, SCRATCH = range(8)
-MEMORY_ROWS = 8
+#: REAL: the span's applied harmonics; FIT_W, FIT_Z: the line model fit's weights and samples.
+U_FF, U_PREV, E_ACC, A_ACC, E_PREV, Z, S, SCRATCH, REAL, FIT_W, FIT_Z = range(11)
+MEMORY_ROWS = 11
+#: Rows of the ``table`` after the span's N phases (row N: the hold's advance): the nominal
+#: pantograph's dynamic stiffnesses at each harmonic (line_adaptive.line_model_rows), the hold's
+#: gain and the harmonic's angular frequency.
+MODEL_C, MODEL_B, MODEL_DET, MODEL_HOLD, MODEL_OMEGA = range(1, 6)
+TABLE_EXTRA_ROWS = 6
 
 
 # -- complex arithmetic as numpy performs it (module docstring) ---------------------------------
@@ -170,6 +176,7 @@ def line_forget(s, memory) -> None:
     s.line_passive_var, s.line_passive_spans = 0.0, 0
     s.line_recent_var[:] = 0.0
     s.line_last_sigma_ratio, s.line_tripped = 0.0, False
+    s.line_stiffness, s.line_damping, s.line_model_valid = 0.0, 0.0, False
     s.line_pending_error, s.line_pending_reference = 0.0, 0.0
 
 
@@ -287,10 +294,10 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
 
 @njit(cache=True, error_model="numpy")
 def _learn(p, s, table, memory) -> None:
-    """One secant step per harmonic (module docstring)."""
-    n = p.line_period
-    lam, prior, floor, mu = p.line_forgetting, p.line_prior_weight, p.line_response_min, p.line_effort_weight
-    for j in range(p.line_harmonics):
+    """The secant update of every harmonic, the line model's fit, then one step per harmonic
+    (module docstring)."""
+    n, h, lam = p.line_period, p.line_harmonics, p.line_forgetting
+    for j in range(h):
         # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
         real_r, real_i = _cdiv(
             memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag
@@ -306,31 +313,116 @@ def _learn(p, s, table, memory) -> None:
                 zr, zi = _cmul(lam, 0.0, z_r, z_i)
                 cr, ci = _cmul(du_r, -du_i, de_r, de_i)
                 z_r, z_i = zr + cr, zi + ci
-        r_r, r_i = _cdiv(z_r - prior, z_i, s_h + prior, 0.0)
-        if _cabs(r_r, r_i) < floor:
-            angle = math.atan2(r_i, r_r)
-            r_r, r_i = _cmul(floor, 0.0, math.cos(angle), math.sin(angle))
-        # The step towards min |E_h|^2 + mu |U_h|^2 on the identified response (module docstring):
-        # -gamma (conj(D) E + mu U) / (|D|^2 + mu).
-        c_r, c_i = _cmul(r_r, -r_i, e_r, e_i)
-        w_r, w_i = _cmul(mu, 0.0, real_r, real_i)
-        modulus = _cabs(r_r, r_i)
-        g_r, g_i = _cmul(-p.line_gain, 0.0, c_r + w_r, c_i + w_i)
-        st_r, st_i = _cdiv(g_r, g_i, modulus * modulus + mu, 0.0)
-        # A harmonic whose response has not been identified yet (only the prior F = u, which can be
-        # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
-        limit = p.line_step_max if s_h > 0.0 else p.line_probe_step
-        shrink = _cabs(st_r, st_i) / limit
-        if not shrink <= 1.0:  # np.maximum(1.0, x): NaN propagates
-            st_r, st_i = _cdiv(st_r, st_i, shrink, 0.0)
-        else:
-            st_r, st_i = _cdiv(st_r, st_i, 1.0, 0.0)
         memory[S, j] = complex(s_h, 0.0)
         memory[Z, j] = complex(z_r, z_i)
         memory[U_PREV, j] = complex(real_r, real_i)
         memory[E_PREV, j] = complex(e_r, e_i)
-        memory[U_FF, j] = complex(real_r + st_r, real_i + st_i)
+        memory[REAL, j] = complex(real_r, real_i)
+    if p.line_model_below > 0.0:
+        _fit_line(p, s, table, memory)
+    for j in range(h):
+        _step(p, s, table, memory, j)
     s.line_has_prev = True
     s.line_u_mean += p.line_gain * s.line_e_mean
     # C: the mean the limits took off is known exactly from the applied command (module docstring).
     s.line_clip_offset = -s.line_a_mean
+
+
+@njit(cache=True, error_model="numpy")
+def _identified(p, memory, j: int) -> tuple[float, float]:
+    """D_h = (Z_h - s0) / (S_h + s0), unfloored."""
+    prior = p.line_prior_weight
+    return _cdiv(memory[Z, j].real - prior, memory[Z, j].imag, memory[S, j].real + prior, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def _fit_line(p, s, table, memory) -> None:
+    """k_s, c of the line impedance Z(w) = k_s + i c w that, on the nominal pantograph, gives the
+    identified responses: each harmonic's D_h turned into an impedance sample, weighted by its
+    information S_h and by how much D moves with Z there (|dD/dZ|^2 at the last fit)."""
+    n, h = p.line_period, p.line_harmonics
+    for j in range(h):
+        c_r, c_i = table[n + MODEL_C, j].real, table[n + MODEL_C, j].imag
+        b_r, b_i = table[n + MODEL_B, j].real, table[n + MODEL_B, j].imag
+        t_r, t_i = table[n + MODEL_DET, j].real, table[n + MODEL_DET, j].imag
+        hold, omega = table[n + MODEL_HOLD, j].real, table[n + MODEL_OMEGA, j].real
+        r_r, r_i = _identified(p, memory, j)
+        d_r, d_i = _cdiv(-r_r, -r_i, hold, 0.0)  # the force's response, the hold's gain taken off
+        nr, ni = _cmul(d_r, d_i, t_r, t_i)
+        pr, pi = _cmul(d_r, d_i, b_r, b_i)
+        zs_r, zs_i = _cdiv(nr, ni, c_r - pr, c_i - pi)
+        # |dD/dZ|^2 = |C det / (Z B + det)^2|^2 at the last fit's Z
+        q_r, q_i = _cmul(s.line_stiffness + 0.0, s.line_damping * omega, b_r, b_i)
+        q_r, q_i = q_r + t_r, q_i + t_i
+        qq_r, qq_i = _cmul(q_r, q_i, q_r, q_i)
+        g_r, g_i = _cmul(c_r, c_i, t_r, t_i)
+        g_r, g_i = _cdiv(g_r, g_i, qq_r, qq_i)
+        g = _cabs(g_r, g_i)
+        weight = memory[S, j].real * (g * g)
+        finite = math.isfinite(zs_r) and math.isfinite(zs_i) and math.isfinite(weight)
+        memory[FIT_W, j] = complex(weight if finite else 0.0, 0.0)
+        memory[FIT_Z, j] = complex(zs_r, zs_i) if finite else 0.0
+    total = 0.0 + _pairwise(s, memory[FIT_W], h, True)
+    if not total > 0.0:
+        return
+    for j in range(h):
+        memory[SCRATCH, j] = complex(memory[FIT_W, j].real * memory[FIT_Z, j].real, 0.0)
+    stiffness = (0.0 + _pairwise(s, memory[SCRATCH], h, True)) / total
+    for j in range(h):
+        omega = table[n + MODEL_OMEGA, j].real
+        memory[SCRATCH, j] = complex(memory[FIT_W, j].real * omega * memory[FIT_Z, j].imag, 0.0)
+    moment = 0.0 + _pairwise(s, memory[SCRATCH], h, True)
+    for j in range(h):
+        omega = table[n + MODEL_OMEGA, j].real
+        memory[SCRATCH, j] = complex(memory[FIT_W, j].real * (omega * omega), 0.0)
+    s.line_stiffness = max(stiffness, 0.0)
+    s.line_damping = max(moment / (0.0 + _pairwise(s, memory[SCRATCH], h, True)), 0.0)
+    # A model that calls the first harmonic weak (near F = u at low frequency on any real line) has
+    # not fitted the line (e.g. Z = 0): it stands in for no harmonic.
+    m_r, m_i = _model_response(s, table, n, 0)
+    s.line_model_valid = _cabs(m_r, m_i) >= p.line_model_below
+
+
+@njit(cache=True, error_model="numpy")
+def _model_response(s, table, n: int, j: int) -> tuple[float, float]:
+    """The force's response to U_h on the line model (with the hold): Z C / (Z B + det) sinc."""
+    omega, hold = table[n + MODEL_OMEGA, j].real, table[n + MODEL_HOLD, j].real
+    z_r, z_i = s.line_stiffness + 0.0, s.line_damping * omega
+    m_r, m_i = _cmul(z_r, z_i, table[n + MODEL_C, j].real, table[n + MODEL_C, j].imag)
+    q_r, q_i = _cmul(z_r, z_i, table[n + MODEL_B, j].real, table[n + MODEL_B, j].imag)
+    m_r, m_i = _cdiv(m_r, m_i, q_r + table[n + MODEL_DET, j].real, q_i + table[n + MODEL_DET, j].imag)
+    return _cmul(m_r, m_i, hold, 0.0)
+
+
+@njit(cache=True, error_model="numpy")
+def _step(p, s, table, memory, j: int) -> None:
+    """U_h <- A_h - gamma (conj(D_h) E_h + mu A_h) / (|D_h|^2 + mu), clipped (module docstring)."""
+    n = p.line_period
+    floor, mu = p.line_response_min, p.line_effort_weight
+    real_r, real_i = memory[REAL, j].real, memory[REAL, j].imag
+    e_r, e_i = memory[E_ACC, j].real, memory[E_ACC, j].imag
+    r_r, r_i = _identified(p, memory, j)
+    if _cabs(r_r, r_i) < floor:
+        angle = math.atan2(r_i, r_r)
+        r_r, r_i = _cmul(floor, 0.0, math.cos(angle), math.sin(angle))
+    if p.line_model_below > 0.0 and s.line_model_valid:
+        # The line model's response where it says the harmonic is weak (module docstring).
+        m_r, m_i = _model_response(s, table, n, j)
+        if _cabs(m_r, m_i) < p.line_model_below:
+            r_r, r_i = -m_r, -m_i
+    # The step towards min |E_h|^2 + mu |U_h|^2 on the response (module docstring):
+    # -gamma (conj(D) E + mu U) / (|D|^2 + mu).
+    c_r, c_i = _cmul(r_r, -r_i, e_r, e_i)
+    w_r, w_i = _cmul(mu, 0.0, real_r, real_i)
+    modulus = _cabs(r_r, r_i)
+    g_r, g_i = _cmul(-p.line_gain, 0.0, c_r + w_r, c_i + w_i)
+    st_r, st_i = _cdiv(g_r, g_i, modulus * modulus + mu, 0.0)
+    # A harmonic whose response has not been identified yet (only the prior F = u, which can be
+    # off by 180 deg) takes a probing step of at most probe_step: it identifies more than it risks.
+    limit = p.line_step_max if memory[S, j].real > 0.0 else p.line_probe_step
+    shrink = _cabs(st_r, st_i) / limit
+    if not shrink <= 1.0:  # np.maximum(1.0, x): NaN propagates
+        st_r, st_i = _cdiv(st_r, st_i, shrink, 0.0)
+    else:
+        st_r, st_i = _cdiv(st_r, st_i, 1.0, 0.0)
+    memory[U_FF, j] = complex(real_r + st_r, real_i + st_i)

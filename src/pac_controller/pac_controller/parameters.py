@@ -266,6 +266,15 @@ class LawParameters(ParameterSet):
         low=0.0,
         high=10.0,
     )
+    line_model_below: float = parameter(
+        0.1,
+        "line_adaptive: a harmonic whose response on the line model (the nominal pantograph on the "
+        "impedance k_s + i c w fitted to every harmonic's identified response) is below this takes "
+        "the model's response instead of its own identification (0: every harmonic its own)",
+        "",
+        low=0.0,
+        high=10.0,
+    )
     line_runin_spans: int = parameter(
         3,
         "line_adaptive: spans run passive at the start (spans 1.. give the guard's passive sigma)",

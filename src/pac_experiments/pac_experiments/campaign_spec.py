@@ -54,6 +54,13 @@ KEY_NEUTRAL_DEFAULTS = {
     "fe_height_error": 0.0,
     "fe_wear": 0.0,
     "fe_imperfection_seed": 0,
+    "pantograph": "",
+    "nominal_pantograph": "",
+    "wind_uplift": 0.0,
+    "pantographs": (0.0,),
+    "controlled_pantograph": 0,
+    "passive_pantograph": "three_mass",
+    "passive_uplift": 0.0,
 }
 
 

@@ -28,7 +28,7 @@ from pac_plant.catenary.catenary_file import DEFAULT, load_catenary, presets
 from pac_plant.catenary.data import CatenaryData, NumericalOptions
 from pac_plant.catenary.integrator import ContactSimulation
 from pac_plant.catenary.line import Line
-from pac_plant.catenary.pantographs import three_mass_pantograph
+from pac_plant.catenary.pantographs import load_pantograph
 
 DATA = CatenaryData()
 SPAN = DATA.span
@@ -43,6 +43,9 @@ EN50318_BANDS = {
     "support_uplift_mm": {250: (48, 55), 300: (55, 65)},
     "contact_loss_percent": {250: (0, 0), 300: (0, 0)},
 }
+#: The pantograph of the reference runs (config/pantographs/): pressed by its uplift, static + aerodynamic
+#: = the EN 50367 target Fm(v) (``target_mean_force``).
+REFERENCE_PANTOGRAPH = "three_mass"
 #: Speeds of the reference runs (those of the EN 50318:2002 bands) [km/h].
 REFERENCE_SPEEDS = (250, 300)
 EXPERIMENT_SPEEDS = (250, 300, 320, 360)
@@ -106,9 +109,10 @@ def passive_reference(
     )
     line = Line(cat.data, numerics)
     v = speed_kmh / 3.6
-    force = target_mean_force(speed_kmh) if force is None else force
+    pantograph, chain = load_pantograph(REFERENCE_PANTOGRAPH)
+    force = chain.uplift(speed_kmh) if force is None else force
     support_x = line.layout.support_x
-    sim = ContactSimulation(line, three_mass_pantograph(), dt, v, float(support_x[1]), damping=damping)
+    sim = ContactSimulation(line, pantograph, dt, v, float(support_x[1]), damping=damping)
     sim.start_static(force)
     x_from, x_to = float(support_x[4]), float(support_x[6])
     supports = (x_from, float(support_x[5]), x_to)
@@ -276,7 +280,7 @@ def cost_breakdown(n_steps: int = 2000) -> dict[str, float]:
     from pac_plant.catenary.kernels import band_chol_solve, band_matvec2
 
     line = Line(DATA, NumericalOptions())
-    sim = ContactSimulation(line, three_mass_pantograph(), 1e-3, 300 / 3.6, SPAN)
+    sim = ContactSimulation(line, load_pantograph(REFERENCE_PANTOGRAPH)[0], 1e-3, 300 / 3.6, SPAN)
     sim.start_static(157.3)
     for _ in range(200):
         sim.step(157.3)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pac_common.parameters import ParameterSet, parameter
+from pac_common.parameters import ParameterError, ParameterSet, parameter
 
 
 @dataclass(frozen=True)
@@ -19,6 +19,34 @@ class PantographParameters(ParameterSet):
     k1: float = parameter(10000.0, "head suspension stiffness", "N/m", low=0.0, low_open=True)
     m2: float = parameter(12.0, "lower frame mass", "kg", low=0.0, low_open=True)
     b2: float = parameter(30.0, "lower frame damping to the car body", "N*s/m", low=0.0)
+    nominal_pantograph: str = parameter(
+        "",
+        "the pantograph the observer and controller are told, as a pantograph file (a path) or a "
+        "preset's name (config/pantographs/: paper_2dof, ...): its chain must have the paper's 2-DOF "
+        "shape and replaces m1, b1, k1, m2, b2 (also the plant's pantograph unless the plant's "
+        "'pantograph' names another); '' = m1, b1, k1, m2, b2 as given. Format: docs/catenary.md, "
+        "'The pantograph file'",
+    )
+
+    def check_consistency(self) -> None:
+        """A ``nominal_pantograph`` file states m1, b1, k1, m2, b2: they take its values (a value also
+        given here must be Table 1's default or the file's: never two answers)."""
+        if not self.nominal_pantograph:
+            return
+        from .pantograph_file import load_pantograph_file  # the file module imports this one
+
+        stated = load_pantograph_file(self.nominal_pantograph, "nominal_pantograph").table1(
+            "nominal_pantograph"
+        )
+        for spec in PantographParameters.specs():
+            if spec.name == "nominal_pantograph":
+                continue
+            given, value = getattr(self, spec.name), getattr(stated, spec.name)
+            if given not in (spec.default, value):
+                raise ParameterError(
+                    spec.name, given, f"{value:g} or unset: the file nominal_pantograph states it"
+                )
+            object.__setattr__(self, spec.name, value)
 
 
 @dataclass(frozen=True)

@@ -3,6 +3,9 @@
 ``catenary_model:=fe``: the pantograph of Table 1 (eqs. 3-4 with the actuator force u on
 the lower mass m2) runs on the FE simple catenary of ``pac_plant.catenary`` at the track
 speed instead of on the spring k(t) of eq. (7). The observer and controller are unchanged.
+``pantograph:=NAME|PATH`` replaces that pantograph by any chain of a pantograph file
+(docs/catenary.md, "The pantograph file"), its degrees of freedom ordered head, actuator's mass,
+the rest (z1, z2 below are those two); its uplift and the wind act with u on the actuator's mass.
 
 Coordinates: z1, z2 are the head and frame heights measured from the static contact-wire
 height at the start point (a support, where the pre-sag is 0), i.e. from a fixed datum,
@@ -13,6 +16,11 @@ everything is at rest, as in the lumped plant. The line is endless (a moving win
 Truth: ``stiffness`` is the line's static point stiffness at the contact point (droppers
 taut), ``contact_force`` the penalty force, plus the wire uplift at the contact point
 and at the nearest support.
+
+``pantographs:=[0.0, 200.0]``: more pantographs on the same line, each this far behind the first;
+``controlled_pantograph`` is the one above (u, measurement, truth), the others are passive
+(``passive_pantograph``, ``passive_uplift``); ``pantograph_truths()`` gives every one's contact, and
+the window grows by the spacing (``window_periods``; docs/catenary.md, "Several pantographs").
 """
 
 from __future__ import annotations
@@ -24,15 +32,16 @@ import math
 import numpy as np
 
 from pac_common.parameters import ParameterError
+from pac_model.pantograph_file import load_pantograph_file
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
 from .catenary import kernels
 from .catenary.catenary_file import load_catenary
 from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.imperfections import apply_imperfections
-from .catenary.integrator import ContactSimulation
+from .catenary.integrator import ContactSimulation, PassivePantograph, rear_periods
 from .catenary.line import Line
-from .catenary.pantographs import paper_pantograph
+from .catenary.pantographs import LumpedPantograph, head_first, lumped, plant_chain
 from .parameters import PlantOptions
 from .plant import Plant, Truth
 
@@ -41,12 +50,22 @@ WINDOW_SPANS = 10
 START_SPAN = 4
 
 
-def window_periods(data: CatenaryData) -> tuple[int, int]:
-    """(periods in the endless window, the period the run starts at): the window shifts by whole
-    periods of the line, so it holds at least WINDOW_SPANS spans and 3 periods (one behind the
-    contact point, one it runs in, one ahead); one span per period gives 10 and 4."""
-    p = len(data.spans)
-    return max(3, math.ceil(WINDOW_SPANS / p)), max(1, START_SPAN // p)
+def window_periods(data: CatenaryData, spacing: float = 0.0) -> tuple[int, int]:
+    """(periods in the endless window, the period the first pantograph starts at): the window shifts
+    by whole periods of the line, so it holds at least WINDOW_SPANS spans and 3 periods (one behind
+    the contact point, one it runs in, one ahead); one span per period gives 10 and 4. Pantographs
+    up to ``spacing`` [m] behind the first add ceil(spacing / period) periods at the rear (and the
+    start moves as far forward): the last one then runs as far from the rear end as the first."""
+    p, rear = len(data.spans), rear_periods(data.period, spacing)
+    return max(3, math.ceil(WINDOW_SPANS / p)) + rear, max(1, START_SPAN // p) + rear
+
+
+def passive_pantograph(options: PlantOptions, speed_kmh: float) -> tuple[LumpedPantograph, float]:
+    """A passive pantograph (``passive_pantograph``, a pantograph file) and the constant force on its
+    actuator's mass: ``passive_uplift``, or (0) the file's uplift at ``speed_kmh``, plus the wind."""
+    chain = load_pantograph_file(options.passive_pantograph, "passive_pantograph")
+    uplift = options.passive_uplift or chain.uplift(speed_kmh)
+    return lumped(chain), uplift + options.wind_uplift
 
 
 @functools.lru_cache(maxsize=4)
@@ -59,6 +78,18 @@ def line_and_flexibility(
     would otherwise pay per run."""
     line = Line(data, numerics, n_spans=n_spans)
     return line, line.element_flexibility()
+
+
+@dataclasses.dataclass(frozen=True)
+class PantographTruth:
+    """One pantograph's contact at a tick: force [N], position along the line [m], the wire's uplift
+    there and at the nearest support [m], and whether it is the rig's controlled one."""
+
+    contact_force: float
+    contact_position: float
+    contact_uplift: float
+    support_uplift: float
+    controlled: bool
 
 
 class FEPlant(Plant):
@@ -89,7 +120,8 @@ class FEPlant(Plant):
             data, options.fe_height_error, options.fe_wear, options.fe_imperfection_seed
         )
         self.data = data
-        periods, start = window_periods(data)
+        spacings = options.pantographs
+        periods, start = window_periods(data, spacings[-1])
         self.line, self._flex = line_and_flexibility(self.data, numerics, periods * len(data.spans))
         pushing = int(np.count_nonzero(self.line.droppers.static_tension <= 0.0))
         if pushing:  # the static state assumes taut droppers: a dropper cannot push
@@ -104,18 +136,31 @@ class FEPlant(Plant):
                 f"a line whose droppers all hang in tension at rest ({pushing} of "
                 f"{len(self.line.droppers.node)} would be compressed)",
             )
+        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
+        ctrl = options.controlled_pantograph
+        model, force = passive_pantograph(options, track.speed_kmh)
+        passive = tuple(PassivePantograph(model, lag, force) for k, lag in enumerate(spacings) if k != ctrl)
+        #: contact of each pantograph of ``pantographs`` in the simulation (the controlled one is 0)
+        self.contact_of = [0 if k == ctrl else 1 + k - (k > ctrl) for k in range(len(spacings))]
         self.sim = ContactSimulation(
             self.line,
-            paper_pantograph(pantograph),
+            head_first(lumped(chain)),  # z1 = the head, z2 = the actuator's mass
             sample_period / options.fe_substeps,
             track.speed_kmh / 3.6,
             start * data.period,
             endless=True,
+            lag=spacings[ctrl],
+            passive=passive,
         )
+        if np.any(self.sim.uplifts[1:]) or (self.uplift and np.any(self.sim.panto.ground_stiffness)):
+            # A pantograph's static uplift is its force on the wire at its working height: its roof
+            # springs are relaxed in the static state under its own uplift (not at the touching
+            # start, where they would take k_roof times the wire's static rise off the force).
+            self.sim.relax_roof_springs(self.uplift)
         # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
         # no tick pays one later.
-        self.sim.prepare_contact_columns(start * data.period, (periods // 2 + 1) * data.period)
-        self.datum = self.line.static_height(self.sim.x)
+        self.sim.prepare_contact_columns(start * data.period, self.sim.shift_at)
+        self.datum = self.line.static_height(self.sim.x - self.sim.lags[0])
         self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
         self.sim.readings(self._flex, self._readings)
         self.tick = 0
@@ -160,14 +205,32 @@ class FEPlant(Plant):
             u_applied=self.u_applied,
             contact_uplift=r[kernels.CONTACT_UPLIFT],
             support_uplift=r[kernels.SUPPORT_UPLIFT],  # at the support nearest x
-            contact_position=s.position,
+            contact_position=s.position - s.lags[0],
         )
+
+    def pantograph_truths(self) -> list[PantographTruth]:
+        """What each pantograph of ``pantographs`` (in that order) feels at this tick."""
+        s, out, r = self.sim, [], np.zeros(5)
+        forces, positions = s.contact_forces, s.contact_positions
+        for k in self.contact_of:
+            s.readings_at(self._flex, s.x - s.lags[k], r)
+            out.append(
+                PantographTruth(
+                    contact_force=float(forces[k]),
+                    contact_position=float(positions[k]),
+                    contact_uplift=float(r[kernels.CONTACT_UPLIFT]),
+                    support_uplift=float(r[kernels.SUPPORT_UPLIFT]),
+                    controlled=k == 0,
+                )
+            )
+        return out
 
     def advance(self, u: float) -> None:
         """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
         if not math.isfinite(u):
             raise ValueError(f"actuator force must be finite, got {u!r}")
-        self.sim.advance(u, self.options.fe_substeps, self._flex, self._readings)
+        # The pantograph's own uplift and the wind act with u on the actuator's mass.
+        self.sim.advance(u + self.uplift, self.options.fe_substeps, self._flex, self._readings)
         self.tick += 1
         self.u_applied = float(u)
 

@@ -4,7 +4,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pac_common.parameters import ParameterSet, parameter
+from pac_common.parameters import ParameterError, ParameterSet, parameter
+
+#: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
+#: moving window grows by that distance (its cost with it).
+MAX_PANTOGRAPHS = 4
+MAX_PANTOGRAPH_SPACING = 1000.0
 
 
 @dataclass(frozen=True)
@@ -46,6 +51,22 @@ class PlantOptions(ParameterSet):
         "fe: the line, a catenary file (a path) or a shipped preset's name (config/catenaries/: "
         "benchmark_55m, ...); the file format is documented in docs/catenary.md, 'The catenary file'",
     )
+    pantograph: str = parameter(
+        "",
+        "the simulated pantograph, a pantograph file (a path) or a shipped preset's name "
+        "(config/pantographs/: paper_2dof, three_mass, ...): any chain of masses, springs and dampers "
+        "with its static and aerodynamic uplift (the lumped plant takes the paper's 2-DOF shape only); "
+        "'' = the nominal pantograph (m1, b1, k1, m2, b2 or nominal_pantograph). The file format is "
+        "documented in docs/catenary.md, 'The pantograph file'",
+    )
+    wind_uplift: float = parameter(
+        0.0,
+        "steady wind uplift on the pantograph, added to the actuator force on the actuator's mass "
+        "(0: no wind; docs/catenary.md, 'The pantograph file')",
+        "N",
+        low=-200.0,
+        high=200.0,
+    )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
     )
@@ -80,7 +101,63 @@ class PlantOptions(ParameterSet):
         0, "fe: seed of the height errors (the same seed gives the same line)", low=0
     )
 
+    pantographs: tuple = parameter(
+        (0.0,),
+        "fe: the pantographs on the line, each one's distance behind the first (0: one pantograph; "
+        "0, 200: a second, passive one 200 m behind; increasing; the window grows by the spacing, "
+        "docs/catenary.md: Several pantographs)",
+        "m",
+        low=0.0,
+        high=MAX_PANTOGRAPH_SPACING,
+        max_length=MAX_PANTOGRAPHS,
+    )
+    controlled_pantograph: int = parameter(
+        0,
+        "fe: which of 'pantographs' (0: the first) the rig controls, the one observer and controller "
+        "see; every other one is passive",
+        low=0,
+        high=MAX_PANTOGRAPHS - 1,
+    )
+    passive_pantograph: str = parameter(
+        "three_mass",
+        "fe: the passive pantographs, a pantograph file (a path) or a shipped preset's name "
+        "(config/pantographs/: three_mass, paper_2dof, ...; docs/catenary.md, 'The pantograph file')",
+    )
+    passive_uplift: float = parameter(
+        0.0,
+        "fe: constant uplift force on each passive pantograph (0: its file's uplift at the track speed, "
+        "static + aerodynamic; the wind_uplift acts too)",
+        "N",
+        low=0.0,
+        high=500.0,
+    )
+
     def check_consistency(self) -> None:
+        from pac_model.pantograph_file import load_pantograph_file
+
         from .catenary.catenary_file import load_catenary
 
         load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)
+        if self.pantograph:
+            chain = load_pantograph_file(self.pantograph)
+            if self.catenary_model == "lumped":  # eq. (5): the paper's 2-DOF shape, else one line
+                chain.table1("pantograph")
+        spacings = self.pantographs
+        if spacings[0] != 0.0 or any(b <= a for a, b in zip(spacings, spacings[1:], strict=False)):
+            raise ParameterError(
+                "pantographs", spacings, "distances behind the first pantograph: 0 first, then increasing"
+            )
+        if len(spacings) > 1 and self.catenary_model != "fe":
+            raise ParameterError(
+                "pantographs",
+                spacings,
+                "one pantograph (0) on the lumped line; several need catenary_model fe",
+            )
+        if self.controlled_pantograph >= len(spacings):
+            raise ParameterError(
+                "controlled_pantograph",
+                self.controlled_pantograph,
+                f"an index into pantographs, an integer in [0, {len(spacings) - 1}]",
+            )
+        if len(spacings) > 1:
+            load_pantograph_file(self.passive_pantograph, "passive_pantograph")

@@ -12,6 +12,7 @@ from numba import njit
 from pac_model import model
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
+from .catenary.pantographs import plant_chain
 from .parameters import PlantOptions
 
 
@@ -144,6 +145,9 @@ class Plant:
     ) -> None:
         if not (math.isfinite(sample_period) and sample_period > 0.0):
             raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
+        if options.pantograph:  # eq. (5) is the paper's 2-DOF: a file of that shape, or refused
+            pantograph = chain.table1("pantograph")
         self.pantograph = pantograph
         self.track = track
         self.catenary = catenary
@@ -175,7 +179,8 @@ class Plant:
         """f(t, z) with the actuator force u held: eq. (5) (or its unilateral variant)."""
         p = self.pantograph
         z = np.asarray(z, dtype=np.float64)
-        return plant_rhs(t, z, float(u), self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
+        f = float(u) + self.uplift  # the pantograph's own uplift and the wind act with u
+        return plant_rhs(t, z, f, self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
 
     def measurement(self) -> Measurement:
         """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
@@ -243,7 +248,7 @@ class Plant:
             self.time,
             self.sample_period,
             self.options.substeps,
-            float(u),
+            float(u) + self.uplift,  # the pantograph's own uplift and the wind act with u
             self._a,
             self._theta,
             self._omega,

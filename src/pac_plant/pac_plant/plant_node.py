@@ -24,7 +24,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rclpy.timer import Timer
 
@@ -36,6 +36,9 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .parameters import PlantOptions
 from .plant import Plant
+
+if TYPE_CHECKING:
+    from .fe_plant import FEPlant
 
 
 def make_plant(*args: Any) -> Plant:
@@ -119,6 +122,20 @@ class PlantNode(PacNode):
         )
         self.truth_pub = self.create_publisher(
             self.factory.cls(messages.PLANT_TRUTH), "plant_truth", PUBLISH_QOS
+        )
+        # Every pantograph's truth, when the FE line carries several (docs/catenary.md).
+        self.spacing = self.parameters(PlantOptions).pantographs
+        self.fe_plant: FEPlant | None = None
+        if len(self.spacing) > 1 and self.parameters(PlantOptions).catenary_model == "fe":
+            from .fe_plant import FEPlant  # here: a lumped plant node does not load the FE line
+
+            self.fe_plant = self.plant if isinstance(self.plant, FEPlant) else None
+        self.pantographs_pub = (
+            self.create_publisher(
+                self.factory.cls(messages.PANTOGRAPH_TRUTH), "pantograph_truth", PUBLISH_QOS
+            )
+            if self.fe_plant is not None
+            else None
         )
         self.run_status_pub = self.create_publisher(
             self.factory.cls(messages.RUN_STATUS), "run_status", RUN_STATUS_QOS
@@ -220,6 +237,15 @@ class PlantNode(PacNode):
                 ),
             )
         )
+        if self.pantographs_pub is not None and self.fe_plant is not None:
+            self.pantographs_pub.publish(
+                self.factory.make(
+                    messages.PANTOGRAPH_TRUTH,
+                    messages.pantograph_truth_fields(
+                        self.fe_plant.pantograph_truths(), self.spacing, k, stamp
+                    ),
+                )
+            )
 
     def publish_run_status(self, state: int) -> None:
         k = self.plant.tick

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from pac_common.parameters import LoopParameters, ParameterSet, parameter
+from pac_common.parameters import LoopParameters, ParameterError, ParameterSet, parameter
 from pac_controller.controller import Command, Controller
 from pac_controller.kernels import MODES
 from pac_controller.laws import make_controller
@@ -90,6 +90,12 @@ class DivergenceError(RuntimeError):
 
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
     dt = s.loop.sample_period
+    if (s.plant.pantograph or s.pantograph.nominal_pantograph) and s.mismatch.plant_mass_scale != 1.0:
+        raise ParameterError(
+            "plant_mass_scale",
+            s.mismatch.plant_mass_scale,
+            "1 when a pantograph file is given (scale the masses in a copy of the file instead)",
+        )
     plant = make_plant(
         s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt
     )  # lumped | fe

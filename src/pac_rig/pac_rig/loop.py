@@ -76,6 +76,7 @@ PLANT_PARAMS = np.dtype(
         # FE line (fe_plant.FEPlant): the fixed datum, or the static wire under the contact point
         ("static_wire", "b1"),
         ("datum", "f8"),
+        ("uplift", "f8"),  # the pantograph's own uplift + wind, acting with u (Plant.uplift)
     ]
 )
 
@@ -144,7 +145,7 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
         stiff = readings[fe.STATIC_STIFFNESS]
         force = c.numbers[4] * st.scalars[fe.DELTA] if st.counters[fe.IN_CONTACT] else 0.0
         out.contact_uplift, out.support_uplift = readings[fe.CONTACT_UPLIFT], readings[fe.SUPPORT_UPLIFT]
-        out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET]
+        out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[c.indices[5]]
     else:
         stiff = model.stiffness(t, pp.omega, pp.theta)
         force = model.contact_force(stiff, z[0], pp.unilateral)
@@ -167,7 +168,7 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
     if pp.kind == FE:
         cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
         c, st = fe.unpack(cf, ci, cl, sf, si, sl)
-        if fe.fe_advance(c, st, applied, pp.substeps, flexibility, readings) != fe.STEP_OK:
+        if fe.fe_advance(c, st, applied + pp.uplift, pp.substeps, flexibility, readings) != fe.STEP_OK:
             return OFF_LINE
     else:
         plant_advance_inplace(
@@ -175,7 +176,7 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
             k * pp.dt,
             pp.dt,
             pp.substeps,
-            applied,
+            applied + pp.uplift,
             pp.a,
             pp.theta,
             pp.omega,
@@ -342,7 +343,7 @@ def compile_loop(
     p["dt"] = plant.sample_period
     p["m1"], p["m2"] = plant.pantograph.m1, plant.pantograph.m2
     p["quantisation"], p["noisy"] = plant.options.quantisation, plant._noisy
-    p["substeps"], p["delay"] = plant.options.substeps, delay
+    p["substeps"], p["delay"], p["uplift"] = plant.options.substeps, delay, plant.uplift
     ps = np.zeros(1, PLANT_STATE)
     ps[0]["z"], ps[0]["u_applied"] = plant.z, plant.u_applied
     if isinstance(plant, FEPlant):

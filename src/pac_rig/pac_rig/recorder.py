@@ -41,6 +41,10 @@ from pac_common.parameters import (
 )
 
 RECORDABLE, GRAPH_NAMES = messages.WATCHED_TOPICS, messages.GRAPH_NAMES
+#: Topics a run may not have (``pantograph_truth``: only an FE line with several pantographs): the
+#: recorder looks for their publishers until OPTIONAL_GRACE [s] after every other topic had its own.
+OPTIONAL_TOPICS = {"pantograph_truth"}
+OPTIONAL_GRACE = 2.0
 
 
 @dataclass(frozen=True)
@@ -113,6 +117,7 @@ class RecorderNode(PacNode):
         self.last_message_wall: float | None = None
         self.factory = messages.RclpyFactory()
         self.unsubscribed = dict(topics)
+        self.all_but_optional_at = 0.0  # when every topic but the optional ones had publishers
         self.subscribe_timer = self.create_timer(0.01, self._subscribe_when_published)
         self.writer = threading.Thread(target=self._write_loop, name="bag-writer", daemon=True)
         self.writer.start()
@@ -147,12 +152,18 @@ class RecorderNode(PacNode):
                 self.factory.cls(typename), GRAPH_NAMES[topic], self._callback(topic), qos, raw=True
             )
             del self.unsubscribed[topic]
+            if topic in OPTIONAL_TOPICS:  # published: its last tick counts for the run's end too
+                self.last_tick[topic] = -1
             self.get_logger().info(
                 f"recording '{topic}' ({len(offered)} publisher(s), "
                 f"{'reliable, transient local' if durable else 'best effort'})"
             )
-        if not self.unsubscribed:
-            self.destroy_timer(self.subscribe_timer)
+        if set(self.unsubscribed) <= OPTIONAL_TOPICS:
+            # A plant publishes its optional topic with the others or not at all: stop looking soon.
+            now = time.monotonic()
+            self.all_but_optional_at = self.all_but_optional_at or now
+            if not self.unsubscribed or now - self.all_but_optional_at > OPTIONAL_GRACE:
+                self.destroy_timer(self.subscribe_timer)
 
     def _callback(self, topic: str):
         append = self.pending.append

@@ -217,7 +217,10 @@ def main(argv: list[str] | None = None) -> int:
         "`ros2 param dump` too), optionally after --ros-args. Ctrl-C stops the run and closes the "
         "bag with what was simulated (exit 130); a diverged run exits 1. The finite-element line: "
         "-p catenary_model:=fe -p catenary:=FILE (or a preset's name: config/catenaries/); the "
-        "catenary file's format is documented in docs/catenary.md, 'The catenary file'.",
+        "catenary file's format is documented in docs/catenary.md, 'The catenary file'. The "
+        "pantograph: -p pantograph:=FILE (or a preset's name: config/pantographs/) for the plant, "
+        "-p nominal_pantograph:=FILE for the observer and controller; the pantograph file's format "
+        "is documented in docs/catenary.md, 'The pantograph file'.",
     )
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
     add_override_arguments(parser)

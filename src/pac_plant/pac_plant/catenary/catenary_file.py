@@ -15,11 +15,8 @@ import math
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
 
-import yaml
-
-from pac_common.parameters import ParameterError
+from pac_common.data_file import DataFileError, Map, Presets, Reader, Seq
 
 from .data import GRAVITY, CatenaryData, NumericalOptions, SpanData, StitchData, WireData
 
@@ -28,16 +25,10 @@ PRESET_FOLDER = Path("config") / "catenaries"
 DEFAULT = "benchmark_55m"
 
 
-class CatenaryFileError(ParameterError):
+class CatenaryFileError(DataFileError):
     """A catenary file that cannot be used; the message is one line."""
 
-    def __init__(self, source: str, key: str, value: Any, allowed: str, where: str = "") -> None:
-        self.name = key
-        self.value = value
-        self.allowed = allowed
-        ValueError.__init__(
-            self, f"invalid catenary file '{source}'{where}: '{key}' = {value!r}: allowed {allowed}"
-        )
+    KIND = "catenary"
 
 
 @dataclass(frozen=True)
@@ -47,152 +38,6 @@ class CatenaryFile:
     path: Path
     data: CatenaryData
     numerics: NumericalOptions
-
-
-# -- YAML with positions --------------------------------------------------------------------------
-class _Map(dict):
-    """A mapping that knows where each of its values starts in the file."""
-
-    marks: dict[Any, tuple[int, int]]
-    start: tuple[int, int]
-
-
-class _Seq(list):
-    marks: list[tuple[int, int]]
-    start: tuple[int, int]
-
-
-def _mark(node: yaml.Node) -> tuple[int, int]:
-    return node.start_mark.line + 1, node.start_mark.column + 1
-
-
-class _Loader(yaml.SafeLoader):
-    pass
-
-
-class _DuplicateKey(Exception):
-    def __init__(self, key: Any, mark: tuple[int, int]) -> None:
-        self.key, self.mark = key, mark
-
-
-def _construct_map(loader: _Loader, node: yaml.MappingNode) -> _Map:
-    loader.flatten_mapping(node)
-    out = _Map()
-    out.marks, out.start = {}, _mark(node)
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if key in out:
-            raise _DuplicateKey(key, _mark(key_node))
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.marks[key] = _mark(value_node)
-    return out
-
-
-def _construct_seq(loader: _Loader, node: yaml.SequenceNode) -> _Seq:
-    out = _Seq(loader.construct_object(child, deep=True) for child in node.value)
-    out.marks, out.start = [_mark(child) for child in node.value], _mark(node)
-    return out
-
-
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _construct_seq)
-
-
-# -- checking ---------------------------------------------------------------------------------------
-class _Reader:
-    """Reads values out of the parsed file, each check naming its key path and position."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def fail(self, key: str, value: Any, allowed: str, mark: tuple[int, int] | None) -> CatenaryFileError:
-        where = f", line {mark[0]}, column {mark[1]}" if mark else ""
-        return CatenaryFileError(self.source, key, value, allowed, where)
-
-    def mapping(
-        self, parent: _Map, name: str, path: str, keys: tuple[str, ...], optional: bool = False
-    ) -> _Map:
-        key = f"{path}{name}"
-        if name not in parent:
-            if optional:
-                empty = _Map()
-                empty.marks, empty.start = {}, getattr(parent, "start", (0, 0))
-                return empty
-            raise self.fail(key, None, f"a mapping with {', '.join(keys)} (it is missing)", parent.start)
-        value = parent[name]
-        if not isinstance(value, _Map):
-            raise self.fail(key, value, f"a mapping with {', '.join(keys)}", parent.marks[name])
-        self.known(value, key + ".", keys)
-        return value
-
-    def known(self, mapping: _Map, path: str, keys: tuple[str, ...]) -> None:
-        for k in mapping:
-            if k not in keys:
-                raise self.fail(
-                    f"{path}{k}", mapping[k], f"one of the keys {', '.join(keys)}", mapping.marks[k]
-                )
-
-    def number(
-        self,
-        parent: _Map,
-        name: str,
-        path: str,
-        unit: str,
-        low: float = 0.0,
-        high: float = math.inf,
-        *,
-        low_open: bool = True,
-        default: float | None = None,
-    ) -> float:
-        key = f"{path}{name}"
-        if name not in parent:
-            if default is not None:
-                return default
-            raise self.fail(
-                key, None, f"{_range(low, high, low_open)} {unit} (it is missing)".strip(), parent.start
-            )
-        return self.check_number(parent[name], key, unit, low, high, low_open, parent.marks[name])
-
-    def check_number(
-        self, value: Any, key: str, unit: str, low: float, high: float, low_open: bool, mark: tuple[int, int]
-    ) -> float:
-        ok = isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-        if ok:
-            ok = (value > low if low_open else value >= low) and value <= high
-        if not ok:
-            raise self.fail(
-                key, value, f"a finite number in {_range(low, high, low_open)} {unit}".strip(), mark
-            )
-        return float(value)
-
-    def numbers(
-        self,
-        parent: _Map,
-        name: str,
-        path: str,
-        unit: str,
-        low: float,
-        high: float,
-        *,
-        low_open: bool,
-        count: int | None,
-    ) -> tuple[float, ...]:
-        key = f"{path}{name}"
-        size = "a non-empty list" if count is None else f"a list of {count}"
-        what = f"{size} of finite numbers in {_range(low, high, low_open)} {unit}".strip()
-        value = parent.get(name)
-        if not isinstance(value, _Seq) or not value or (count is not None and len(value) != count):
-            raise self.fail(key, value, what, parent.marks.get(name, parent.start))
-        return tuple(
-            self.check_number(v, f"{key}[{i}]", unit, low, high, low_open, m)
-            for i, (v, m) in enumerate(zip(value, value.marks, strict=True))
-        )
-
-
-def _range(low: float, high: float, low_open: bool) -> str:
-    left = "(" if low_open or low == -math.inf else "["
-    right = ")" if high == math.inf else "]"
-    return f"{left}{low:g}, {high:g}{right}"
 
 
 TOP_KEYS = (
@@ -223,23 +68,10 @@ DAMPING_KEYS = ("rayleigh_alpha", "rayleigh_beta")
 
 def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptions]:
     """``CatenaryData`` and ``NumericalOptions`` of a catenary file's text (``source`` names it)."""
-    r = _Reader(source)
-    try:
-        raw = yaml.load(text, Loader=_Loader)  # safe: _Loader is a SafeLoader
-    except _DuplicateKey as exc:
-        raise r.fail(str(exc.key), "given twice", "each key once", exc.mark) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        problem = getattr(exc, "problem", None) or type(exc).__name__
-        raise r.fail(
-            "(YAML)", problem, "valid YAML", (mark.line + 1, mark.column + 1) if mark else None
-        ) from None
-    if not isinstance(raw, _Map):
-        raise r.fail("(file)", raw, f"a mapping with the keys {', '.join(TOP_KEYS)}", None)
-    r.known(raw, "", TOP_KEYS)
+    r = Reader(source, CatenaryFileError)
+    raw = r.parse(text, TOP_KEYS)
     for key in ("name", "source"):
-        if not isinstance(raw.get(key), str) or not raw[key].strip():
-            raise r.fail(key, raw.get(key), "a non-empty string", raw.marks.get(key, raw.start))
+        r.text(raw, key)
     wires = []
     for name in ("contact_wire", "messenger_wire"):
         w = r.mapping(raw, name, "", WIRE_KEYS)
@@ -254,7 +86,7 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
     dr = r.mapping(raw, "droppers", "", DROPPER_KEYS)
     sp = r.mapping(raw, "supports", "", SUPPORT_KEYS)
     spans_raw = raw.get("spans")
-    if not isinstance(spans_raw, _Seq) or not spans_raw or not all(isinstance(s, _Map) for s in spans_raw):
+    if not isinstance(spans_raw, Seq) or not spans_raw or not all(isinstance(s, Map) for s in spans_raw):
         raise r.fail(
             "spans", spans_raw, "a non-empty list of spans (mappings)", raw.marks.get("spans", raw.start)
         )
@@ -295,7 +127,7 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
     return data, options
 
 
-def _span(r: _Reader, s: _Map, i: int) -> SpanData:
+def _span(r: Reader, s: Map, i: int) -> SpanData:
     p = f"spans[{i}]."
     r.known(s, p, SPAN_KEYS)
     length = r.number(s, "length", p, "m", 5.0, 200.0)
@@ -347,7 +179,7 @@ def _span(r: _Reader, s: _Map, i: int) -> SpanData:
     return SpanData(length, encumbrance, droppers, presag, stitch)
 
 
-def _increasing(r: _Reader, values: tuple[float, ...], key: str, mark: tuple[int, int]) -> None:
+def _increasing(r: Reader, values: tuple[float, ...], key: str, mark: tuple[int, int]) -> None:
     for j in range(1, len(values)):
         if values[j] <= values[j - 1]:
             raise r.fail(
@@ -358,7 +190,7 @@ def _increasing(r: _Reader, values: tuple[float, ...], key: str, mark: tuple[int
             )
 
 
-def _check_stitches(r: _Reader, raw: _Seq, spans: tuple[SpanData, ...]) -> None:
+def _check_stitches(r: Reader, raw: Seq, spans: tuple[SpanData, ...]) -> None:
     """A stitch wire must end inside the spans next to its support (the period is cycled), and its
     droppers must not fall on the spans' own droppers."""
     n = len(spans)
@@ -382,53 +214,31 @@ def _check_stitches(r: _Reader, raw: _Seq, spans: tuple[SpanData, ...]) -> None:
                 )
 
 
+PRESETS = Presets(PRESET_FOLDER, DEFAULT, "catenary", __file__, "docs/catenary.md")
+
+
 def preset_path(name: str) -> Path | None:
     """The shipped preset ``name`` (``config/catenaries/<name>.yaml`` of the repository holding this
     package, from its source tree or its install tree), or None."""
-    for folder in Path(__file__).resolve().parents:
-        candidate = folder / PRESET_FOLDER / f"{name}.yaml"
-        if candidate.is_file():
-            return candidate
-    return None
+    return PRESETS.path(name)
 
 
 def presets() -> list[str]:
     """The names of the shipped presets."""
-    path = preset_path(DEFAULT)
-    return sorted(p.stem for p in path.parent.glob("*.yaml")) if path else []
+    return PRESETS.names()
 
 
 def resolve(catenary: str) -> Path:
     """The file ``catenary`` names: a path (with ``/`` or a .yaml/.yml ending) or a preset's name."""
-    if "/" in catenary or catenary.endswith((".yaml", ".yml")):
-        return Path(catenary)
-    path = preset_path(catenary)
-    if path is None:
-        raise ParameterError(
-            "catenary",
-            catenary,
-            f"a catenary file or a preset: one of {', '.join(presets())} (docs/catenary.md)",
-        )
-    return path
+    return PRESETS.resolve(catenary)
 
 
 def load_catenary(catenary: str = DEFAULT) -> CatenaryFile:
     """Read and check a catenary file (a path or a preset's name); cached per file and its mtime."""
-    path = resolve(catenary)
-    try:
-        stat = path.stat()
-    except OSError as exc:
-        raise ParameterError(
-            "catenary", catenary, f"a readable catenary file ({exc.strerror or exc})"
-        ) from None
-    return _load(str(path), stat.st_mtime_ns, stat.st_size)
+    return _load(*PRESETS.read(catenary))
 
 
 @lru_cache(maxsize=32)
 def _load(path: str, mtime_ns: int, size: int) -> CatenaryFile:
-    try:
-        text = Path(path).read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ParameterError("catenary", path, f"a readable catenary file ({exc})") from None
-    data, numerics = parse_catenary(text, path)
+    data, numerics = parse_catenary(PRESETS.text(path), path)
     return CatenaryFile(Path(path), data, numerics)

@@ -34,8 +34,11 @@ lanes, A^-1 e_i and A^-1 g_j stored on the 20 nodes around i (the rest is below 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import block_diag
 
 from . import kernels as kn
 from .kernels import (
@@ -52,6 +55,22 @@ from .line import DOFS_PER_NODE, Line
 from .pantographs import LumpedPantograph
 
 
+@dataclass(frozen=True)
+class PassivePantograph:
+    """A pantograph that runs ``lag`` [m] behind the reference point x (0: at it) with the constant
+    ``uplift`` [N] on its input DOF (a passive pantograph: no actuator)."""
+
+    pantograph: LumpedPantograph
+    lag: float
+    uplift: float
+
+
+def rear_periods(period: float, lag: float) -> int:
+    """Periods (of ``period`` [m]) an endless window needs behind the one-pantograph window so that a
+    pantograph ``lag`` [m] behind x is as far from the window's rear end as x is in that window."""
+    return math.ceil(lag / period - 1e-9) if lag > 0.0 else 0
+
+
 class ContactSimulation:
     """Line + pantograph moving at ``speed`` [m/s] from ``x0`` [m], time step ``dt`` [s].
 
@@ -59,6 +78,15 @@ class ContactSimulation:
     middle of the window by one span, every state vector is shifted back by one span
     (the matrices are span-periodic, so nothing is refactorised) and the new last span
     starts at rest in static equilibrium. ``position`` is then the distance travelled.
+
+    Several pantographs: ``pantograph`` (the controlled one: ``step``'s input force acts on it)
+    touches the wire ``lag`` [m] behind the reference point x, each of ``passive`` its own ``lag``
+    behind x with its constant uplift. They move together; each has its own contact (contact 0 is
+    the controlled one, contact k the passive k - 1) and sees the waves the others leave. On an
+    endless line the window shifts when x passes the middle of the part of the window in front of
+    ``rear_periods`` (the periods added behind for the largest lag, or for ``window_lag``): every
+    contact point then keeps at least the one-pantograph window's distance to the rear end, x the
+    same distance ahead.
     """
 
     def __init__(
@@ -71,11 +99,29 @@ class ContactSimulation:
         *,
         damping: bool = True,
         endless: bool = False,
+        lag: float = 0.0,
+        passive: Sequence[PassivePantograph] = (),
+        window_lag: float | None = None,
     ) -> None:
         if not (math.isfinite(dt) and dt > 0.0):
             raise ValueError(f"dt must be positive, got {dt!r}")
+        lags = [float(lag)] + [float(q.lag) for q in passive]
+        if not all(math.isfinite(q) and q >= 0.0 for q in lags):
+            raise ValueError(f"pantograph lags must be finite and >= 0 m, got {lags}")
+        if x0 - max(lags) < 0.0:
+            raise ValueError(f"a pantograph {max(lags)} m behind x0 = {x0} m starts off the line")
         self.line = line
         self.panto = pantograph
+        self.passive = tuple(passive)
+        self.pantographs = (pantograph,) + tuple(q.pantograph for q in passive)
+        self.lags = np.array(lags)
+        # Each pantograph's DOFs in the stacked pantograph vector: the controlled one's first.
+        sizes = [q.n for q in self.pantographs]
+        self.dof_start = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        heads = self.dof_start + np.array([q.head for q in self.pantographs], dtype=np.int64)
+        inputs = self.dof_start + np.array([q.input for q in self.pantographs], dtype=np.int64)
+        self.uplifts = np.array([0.0] + [float(q.uplift) for q in passive])
+        n_contacts = len(self.pantographs)
         self.dt = dt
         self.speed = speed
         self.kp = line.options.contact_stiffness
@@ -87,9 +133,21 @@ class ContactSimulation:
         a_line = line.K.ab * (1.0 + self.c1 * self.beta) + line.M.ab * (self.c0 + self.c1 * self.alpha)
         self._chol = chol_factor(a_line)
         self._m, self._k = np.ascontiguousarray(line.M.ab), np.ascontiguousarray(line.K.ab)
-        pm = np.diag(pantograph.mass)
-        self._pk = pantograph.stiffness + np.diag(pantograph.ground_stiffness)
-        self._pc = pantograph.damping if damping else np.zeros_like(pantograph.damping)
+        if n_contacts == 1:
+            ground = pantograph.ground_stiffness
+            pm = np.diag(pantograph.mass)
+            self._pk = pantograph.stiffness + np.diag(pantograph.ground_stiffness)
+            self._pc = pantograph.damping if damping else np.zeros_like(pantograph.damping)
+            self._pstiff = pantograph.stiffness
+        else:
+            ground = np.concatenate([q.ground_stiffness for q in self.pantographs])
+            pm = np.diag(np.concatenate([q.mass for q in self.pantographs]))
+            self._pstiff = block_diag(*[q.stiffness for q in self.pantographs])
+            self._pk = self._pstiff + np.diag(ground)
+            self._pc = block_diag(*[q.damping for q in self.pantographs])
+            if not damping:
+                self._pc = np.zeros_like(self._pc)
+        self._pground = np.asarray(ground, dtype=float)
         self._pm = pm
         self._ap_inv = np.linalg.inv(self._pk + self.c0 * pm + self.c1 * self._pc)
         # Droppers: A^-1 g_j for every dropper (line part only) and D = G^T A^-1 G.
@@ -108,6 +166,8 @@ class ContactSimulation:
         # The window shifts by whole periods of the line (one span where the spans are equal).
         self._drop_per_span = line.droppers_per_period
         span = line.period_length
+        rear = rear_periods(span, float(self.lags.max()) if window_lag is None else window_lag)
+        self.shift_at = ((line.n_periods - rear) // 2 + 1 + rear) * span
         factors, starts, bounds = kn.chunk_factor(a_line)
         # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
         # is < 1e-18 of the peak), what the update adds for a slack dropper.
@@ -135,7 +195,7 @@ class ContactSimulation:
             p_mass=np.ascontiguousarray(pm),
             p_damping=np.ascontiguousarray(self._pc, dtype=float),
             p_ainv=np.ascontiguousarray(self._ap_inv),
-            p_ground=np.ascontiguousarray(pantograph.ground_stiffness, dtype=float),
+            p_ground=np.ascontiguousarray(self._pground),
             numbers=np.array(
                 [
                     dt,
@@ -147,7 +207,7 @@ class ContactSimulation:
                     self.c1,
                     line.length,
                     span,
-                    (line.n_periods // 2 + 1) * span,
+                    self.shift_at,
                 ]
             ),
             indices=np.array(
@@ -157,27 +217,35 @@ class ContactSimulation:
                     int(endless),
                     DOFS_PER_NODE * line.nodes_per_period,
                     self._drop_per_span,
+                    0,  # the controlled contact
                 ],
                 dtype=np.int64,
             ),
+            p_heads=heads,
+            p_inputs=inputs,
+            p_lag=self.lags.copy(),
+            p_uplift=self.uplifts.copy(),
         )
         # State: the arrays the compiled step mutates in place (the attributes below are views).
         self.state = StepState(
             d=np.zeros(n),
             v=np.zeros(n),
             a=np.zeros(n),
-            p=np.zeros(pantograph.n),
-            vp=np.zeros(pantograph.n),
-            ap=np.zeros(pantograph.n),
-            roof_rest=np.zeros(pantograph.n),
+            p=np.zeros(len(pm)),
+            vp=np.zeros(len(pm)),
+            ap=np.zeros(len(pm)),
+            roof_rest=np.zeros(len(pm)),
             scalars=np.zeros(4),
             counters=np.zeros(7, dtype=np.int64),
             slack=np.zeros(nd, dtype=np.int64),
             unit_patches=np.zeros((line.n_nodes, 2, width)),
             unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
-            work=np.zeros((2, n)),
+            work=np.zeros((1 + n_contacts, n)),
             padded=np.zeros((2, n + 2 * kn.KD)),
             chunk_work=np.zeros((factors.shape[0], factors.shape[2])),
+            deltas=np.zeros(n_contacts),
+            touching=np.zeros(n_contacts, dtype=np.int64),
+            yc_range=np.zeros((n_contacts, 2), dtype=np.int64),
         )
         # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
         self._cf, self._ci, self._cl, views = kn.pack(tuple(self.constants), kn.CONSTANT_KINDS)
@@ -221,14 +289,40 @@ class ContactSimulation:
     roof_rest = _vector("roof_rest")
     x = _number(kn.X)
     offset = _number(kn.OFFSET)  # distance already shifted out of the window (endless)
-    delta = _number(kn.DELTA)
     input_force = _number(kn.INPUT_FORCE)
-    in_contact = _number(kn.IN_CONTACT, True, bool)
     steps = _number(kn.STEPS, True, int)
     active_set_passes_max = _number(kn.PASSES_MAX, True, int)
     #: steps whose active set did not settle (see step)
     active_set_unconverged = _number(kn.UNCONVERGED, True, int)
     del _vector, _number
+
+    # The controlled contact's penetration and contact flag (contact 0; the state keeps a copy of
+    # both where the compiled loop reads them).
+    @property
+    def delta(self) -> float:
+        return float(self.state.deltas[0])
+
+    @delta.setter
+    def delta(self, value: float) -> None:
+        self.state.deltas[0] = self.state.scalars[kn.DELTA] = value
+
+    @property
+    def in_contact(self) -> bool:
+        return bool(self.state.touching[0])
+
+    @in_contact.setter
+    def in_contact(self, value: bool) -> None:
+        self.state.touching[0] = self.state.counters[kn.IN_CONTACT] = int(value)
+
+    @property
+    def contact_positions(self) -> np.ndarray:
+        """Each contact point's distance from the line's start (plus what an endless line shifted)."""
+        return self.x + self.offset - self.lags
+
+    @property
+    def contact_forces(self) -> np.ndarray:
+        """Each contact's penalty force [N] (0 where it does not touch)."""
+        return np.where(self.state.touching != 0, self.kp * self.state.deltas, 0.0)
 
     @property
     def slack(self) -> np.ndarray:
@@ -242,32 +336,74 @@ class ContactSimulation:
         self.state.counters[kn.N_SLACK] = len(value)
 
     # -- initial states ------------------------------------------------------------------------
-    def start_touching(self) -> None:
-        """Line at static equilibrium, pantograph at rest with the head just touching (F = 0)."""
-        self.d[:] = self.v[:] = self.a[:] = 0.0
-        head = self.line.static_height(self.x)
-        self.p = self.panto.static_positions(head, 0.0)
+    def _place_pantographs(self, heads: np.ndarray, forces: np.ndarray) -> None:
+        """Every pantograph at rest with its head at ``heads[k]`` pressed by ``forces[k]``."""
+        p = np.empty(len(self.p))
+        for k, panto in enumerate(self.pantographs):
+            p[self.dof_start[k] : self.dof_start[k] + panto.n] = panto.static_positions(heads[k], forces[k])
+        self.p = p
         self.vp[:] = self.ap[:] = 0.0
-        self.roof_rest = self.p.copy()
+        self.roof_rest = self.p.copy()  # roof springs unloaded in the static state
+
+    def start_touching(self) -> None:
+        """Line at static equilibrium, pantographs at rest with the heads just touching (F = 0)."""
+        self.d[:] = self.v[:] = self.a[:] = 0.0
+        xs = self.x - self.lags
+        self._place_pantographs(np.array([self.line.static_height(x) for x in xs]), np.zeros(len(xs)))
         self.input_force = 0.0
+        self.state.touching[:] = 0
+        self.state.deltas[:] = 0.0
         self.in_contact = False
         self.delta = 0.0
 
-    def start_static(self, force: float) -> None:
-        """Static equilibrium of line and pantograph under uplift ``force`` at the start point."""
-        dofs, n = self.line.contact_interpolation(self.x)
+    def _forces(self, force: float) -> np.ndarray:
+        """The uplift of each contact: ``force`` on the controlled one, each passive one's own."""
+        forces = self.uplifts.copy()
+        forces[0] = force
+        return forces
+
+    def _static(self, forces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(line deviation, head heights) of the static equilibrium under ``forces`` at the contact
+        points, droppers taut (the linear static solve)."""
         f = np.zeros(self.line.n_dof)
-        f[dofs] = force * n
-        self.d = self.line.solve_static(f)
+        points = [self.line.contact_interpolation(x) for x in self.x - self.lags]
+        for (dofs, n), fk in zip(points, forces, strict=True):
+            f[dofs] += fk * n
+        d = self.line.solve_static(f)
+        heads = [
+            self.line.static_height(x) + float(n @ d[dofs]) + fk / self.kp
+            for x, (dofs, n), fk in zip(self.x - self.lags, points, forces, strict=True)
+        ]
+        return d, np.array(heads)
+
+    def relax_roof_springs(self, force: float) -> None:
+        """Each pantograph's roof springs at rest in the static state under its own uplift alone
+        (``force`` on the controlled one), the rest of the (resting) state unchanged: a pantograph's
+        static uplift is its force on the wire at working height. Each alone: no pantograph's
+        setting depends on where the others are."""
+        forces = self._forces(force)
+        heads = np.empty(len(forces))
+        for k in range(len(forces)):
+            alone = np.zeros(len(forces))
+            alone[k] = forces[k]
+            heads[k] = self._static(alone)[1][k]
+        p = self.p.copy()
+        self._place_pantographs(heads, forces)
+        self.roof_rest, self.p = self.p.copy(), p
+
+    def start_static(self, force: float) -> None:
+        """Static equilibrium of line and pantographs under the uplifts at their contact points
+        (``force`` on the controlled one, each passive one's own)."""
+        forces = self._forces(force)
+        self.d, heads = self._static(forces)
         self.v[:] = self.a[:] = 0.0
         e = self._e0 + self.d[self._dwm] - self.d[self._dwc]
         if np.any(e < 0):
             raise ValueError("static uplift slackens a dropper: start from rest instead")
-        head = self.line.static_height(self.x) + float(n @ self.d[dofs]) + force / self.kp
-        self.p = self.panto.static_positions(head, force)
-        self.vp[:] = self.ap[:] = 0.0
-        self.roof_rest = self.p.copy()  # roof spring unloaded in the static state
+        self._place_pantographs(heads, forces)
         self.input_force = force
+        self.state.touching[:] = 1
+        self.state.deltas[:] = forces / self.kp
         self.in_contact = True
         self.delta = force / self.kp
 
@@ -278,8 +414,9 @@ class ContactSimulation:
         self.d[self.line.fixed] = self.v[self.line.fixed] = 0.0
         f = np.empty_like(self.d)
         band_matvec2(self._m, -self.alpha * self.v, self._k, -self.d - self.beta * self.v, f)  # M a
-        dofs, n = self.line.contact_interpolation(self.x)
-        f[dofs] += self.contact_force * n
+        for x, force in zip(self.x - self.lags, self.contact_forces, strict=True):
+            dofs, n = self.line.contact_interpolation(x)
+            f[dofs] += force * n
         m = self._m.copy()
         m[0, self.line.fixed] = 1.0  # anchored DOFs carry no mass: keep M invertible there
         f[self.line.fixed] = 0.0
@@ -293,7 +430,8 @@ class ContactSimulation:
 
     @property
     def position(self) -> float:
-        """Distance of the contact point from the line's start (plus what an endless line shifted)."""
+        """Distance of the reference point x from the line's start (plus what an endless line
+        shifted): the contact point of a pantograph with no lag."""
         return self.x + self.offset
 
     @property
@@ -316,10 +454,11 @@ class ContactSimulation:
         e += 0.5 * float(self.d @ tmp)
         dp = self.p - self.roof_rest
         e += 0.5 * float(self.vp @ (self._pm @ self.vp))
-        e += 0.5 * float(self.p @ (self.panto.stiffness @ self.p))
-        e += 0.5 * float(dp @ (np.diag(self.panto.ground_stiffness) @ dp))
-        if self.in_contact:
-            e += 0.5 * self.kp * self.delta**2
+        e += 0.5 * float(self.p @ (self._pstiff @ self.p))
+        e += 0.5 * float(dp @ (np.diag(self._pground) @ dp))
+        for touching, delta in zip(self.state.touching, self.state.deltas, strict=True):
+            if touching:
+                e += 0.5 * self.kp * delta**2
         # A slack dropper stores nothing, where the linear K (about static) counts k e^2 / 2.
         for j in self.slack:
             ej = self._e0[j] + self.d[self._dwm[j]] - self.d[self._dwc[j]]
@@ -343,11 +482,16 @@ class ContactSimulation:
         return kn.fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
 
     def prepare_contact_columns(self, x_from: float, x_to: float) -> None:
-        """Solve the contact columns (A^-1 e_i, 2 solves per node) of the stretch [x_from, x_to] now:
-        a run over it then never pays them (``step`` otherwise does at each node's first use)."""
-        e_from, _ = self.line.locate(x_from)
+        """Solve the contact columns (A^-1 e_i, 2 solves per node) of the stretch the contact points
+        sweep while x runs over [x_from, x_to] now: a run over it then never pays them (``step``
+        otherwise does at each node's first use)."""
+        e_from, _ = self.line.locate(max(x_from - float(self.lags.max()), 0.0))
         e_to, _ = self.line.locate(x_to)
         kn.prepare_unit_patches(self.constants, self.state, e_from, e_to + 1)
+
+    def readings_at(self, flexibility: np.ndarray, x: float, readings: np.ndarray) -> None:
+        """``kernels.readings_at`` window position x (a contact point: x - lag) into ``readings``."""
+        kn.readings_at(self.constants, self.state, flexibility, x, readings)
 
     def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
         """``kernels.contact_readings`` of the present state into ``readings``."""
@@ -355,7 +499,9 @@ class ContactSimulation:
 
     def step_reference(self, input_force: float) -> None:
         """``step`` in numpy (the implementation the compiled ``fe_step`` replaced): the reference
-        of the equality tests and of the benchmark's old path."""
+        of the equality tests and of the benchmark's old path; one pantograph only."""
+        if len(self.pantographs) > 1:
+            raise NotImplementedError("step_reference runs one pantograph (the compiled step runs several)")
         dt, c0, c1 = self.dt, self.c0, self.c1
         d, v, a = self.d, self.v, self.a
         x_new = self.x + self.speed * dt

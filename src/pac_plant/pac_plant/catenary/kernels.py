@@ -336,7 +336,11 @@ class StepConstants(NamedTuple):
     0..width-1 (the update adds it for a slack dropper; outside, the column is < 1e-18 of its
     peak), ``ddrop`` = G^T A^-1 G.
     ``numbers`` = (dt, speed, alpha, beta, kp, c0, c1, length, span, shift_at);
-    ``indices`` = (head, input, endless, shift_dofs, droppers_per_span).
+    ``indices`` = (head, input, endless, shift_dofs, droppers_per_span, controlled contact) (head
+    and input: the controlled pantograph's, in the stacked pantograph vector).
+    Contact k (one per pantograph, the pantographs' DOFs stacked with the controlled one's first):
+    ``p_heads[k]`` / ``p_inputs[k]`` its head and input DOF, ``p_lag[k]`` its distance behind x
+    [m], ``p_uplift[k]`` the force held on its input (ignored for the controlled one) [N].
     """
 
     m_pad: np.ndarray
@@ -360,6 +364,10 @@ class StepConstants(NamedTuple):
     p_ground: np.ndarray
     numbers: np.ndarray
     indices: np.ndarray
+    p_heads: np.ndarray
+    p_inputs: np.ndarray
+    p_lag: np.ndarray
+    p_uplift: np.ndarray
 
 
 class StepState(NamedTuple):
@@ -369,7 +377,10 @@ class StepState(NamedTuple):
     active_set_passes_max, active_set_unconverged, n_slack, the range of ``work[1]`` that is
     not zero); ``slack[:n_slack]`` the slack droppers (ascending); ``unit_patches[i, r]`` =
     A^-1 e_(4i+r) on the rows ``unit_start(i)`` + 0..width-1 (``unit_ready[i]``: computed);
-    ``work`` (2, n), ``padded`` (2, n + 2 KD), ``chunk_work``: scratch.
+    ``work`` (1 + contacts, n): scratch and A^-1 g_k of contact k in row 1 + k, not zero on
+    ``yc_range[k]`` only; ``padded`` (2, n + 2 KD), ``chunk_work``: scratch. ``deltas[k]``,
+    ``touching[k]``: penetration and contact of contact k (the controlled one's also in
+    scalars[DELTA], counters[IN_CONTACT]).
     """
 
     d: np.ndarray
@@ -387,6 +398,9 @@ class StepState(NamedTuple):
     work: np.ndarray
     padded: np.ndarray
     chunk_work: np.ndarray
+    deltas: np.ndarray
+    touching: np.ndarray
+    yc_range: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -457,18 +471,19 @@ def shift_window(c: StepConstants, s: StepState) -> None:
 def _woodbury_coefficients(
     c: StepConstants,
     slack: np.ndarray,
-    contact: bool,
-    gc_y: float,
-    gc_yc: float,
+    active: np.ndarray,
+    gc_y: np.ndarray,
+    gc_yc: np.ndarray,
     gc_ydrop: np.ndarray,
     gd_y: np.ndarray,
     gd_yc: np.ndarray,
-    ws_x: float,
+    ws_x: np.ndarray,
 ) -> np.ndarray:
-    """r - z of q = y + Y (r - z), z = cap^-1 U^T (y + Y r), cap = S^-1 + U^T A^-1 U."""
+    """r - z of q = y + Y (r - z), z = cap^-1 U^T (y + Y r), cap = S^-1 + U^T A^-1 U: U = the slack
+    droppers' g_j, then the contacts in ``active`` (contact k: its row k of the gc_ arrays)."""
     kp = c.numbers[4]
     ns = slack.shape[0]
-    m = ns + (1 if contact else 0)
+    m = ns + active.shape[0]
     cap = np.zeros((m, m))
     uy = np.zeros(m)
     r = np.zeros(m)
@@ -481,14 +496,17 @@ def _woodbury_coefficients(
         uy[i] = gd_y[si]
         r[i] = c.kdrop[si] * c.e0[si]
         sinv[i] = -1.0 / c.kdrop[si]
-    if contact:
-        cap[ns, ns] = gc_yc + 1.0 / kp
+    for a in range(active.shape[0]):
+        k, ia = active[a], ns + a
+        for b in range(active.shape[0]):
+            cap[ia, ns + b] = gc_yc[k, active[b]]
+        cap[ia, ia] += 1.0 / kp
         for j in range(ns):
-            cap[ns, j] = gc_ydrop[slack[j]]
-            cap[j, ns] = gd_yc[slack[j]]
-        uy[ns] = gc_y
-        r[ns] = kp * ws_x
-        sinv[ns] = 1.0 / kp
+            cap[ia, j] = gc_ydrop[k, slack[j]]
+            cap[j, ia] = gd_yc[k, slack[j]]
+        uy[ia] = gc_y[k]
+        r[ia] = kp * ws_x[k]
+        sinv[ia] = 1.0 / kp
     rhs = uy.copy()
     for i in range(m):
         acc = 0.0
@@ -501,10 +519,14 @@ def _woodbury_coefficients(
 
 @numba.njit(cache=True)
 def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
-    """One Newmark step of line + pantograph with ``input_force`` [N] at the new time (see
+    """One Newmark step of line + pantographs with ``input_force`` [N] at the new time (see
     ``integrator``): the window shift, right-hand side, banded solve, contact columns, active
     set with the Woodbury capacitance solve, update. Returns STEP_OK or STEP_OFF_LINE (the
-    pantograph would leave the line; nothing but a due window shift has happened then)."""
+    pantograph would leave the line; nothing but a due window shift has happened then).
+
+    Contact k (``p_lag``, ``p_heads``, ``p_inputs``) touches the wire at x - p_lag[k]; the
+    controlled one (``indices[5]``) takes ``input_force``, every other one its held ``p_uplift``.
+    With one contact the arithmetic is the single-pantograph step's, operation for operation."""
     dt, speed, alpha, beta, kp, c0, c1 = (
         c.numbers[0],
         c.numbers[1],
@@ -515,7 +537,7 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         c.numbers[6],
     )
     length, shift_at = c.numbers[7], c.numbers[9]
-    head, inp, endless = c.indices[0], c.indices[1], c.indices[2]
+    endless, ctrl = c.indices[2], c.indices[5]
     x_new = s.scalars[X] + speed * dt
     if endless != 0 and x_new > shift_at:
         shift_window(c, s)
@@ -524,34 +546,44 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         return STEP_OFF_LINE
     d, v, a = s.d, s.v, s.a
     n = d.shape[0]
-    y_l, yc_l = s.work[0], s.work[1]
-    e, nsh = hermite_weights(c.x_nodes, x_new)
-    dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
-    _unit_patches(c, s, e)  # (before the solve: they use y_l as scratch)
-    _unit_patches(c, s, e + 1)
+    npc = c.p_lag.shape[0]
+    elem = np.empty(npc, dtype=np.int64)
+    nsh = np.empty((npc, 4))
+    dofs = np.empty((npc, 4), dtype=np.int64)
+    for k in range(npc):
+        e, w = hermite_weights(c.x_nodes, x_new - c.p_lag[k])
+        elem[k] = e
+        nsh[k] = w
+        dofs[k, 0], dofs[k, 1], dofs[k, 2], dofs[k, 3] = 4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5
+        _unit_patches(c, s, e)  # (before the solve: they use y_l as scratch)
+        _unit_patches(c, s, e + 1)
+    y_l = s.work[0]
     z, tail = s.padded[0], s.padded[1, :n]
     newmark_rhs_mass(c.m_pad, d, v, a, dt, alpha, beta, z, tail, y_l)
     chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work, tail)
-    # Contact column A^-1 g_c (line part) from the stored patches; zero outside [lo, hi).
-    yc_l[s.counters[YC_LO] : s.counters[YC_HI]] = 0.0
+    # Contact columns A^-1 g_k (line part) from the stored patches; zero outside their [lo, hi).
     width = s.unit_patches.shape[2]
-    for i in range(4):
-        node = e + i // 2
-        lo = unit_start(n, width, node)
-        col = s.unit_patches[node, i % 2]
-        for k in range(width):
-            yc_l[lo + k] -= col[k] * nsh[i]
-    yc_lo, yc_hi = unit_start(n, width, e), unit_start(n, width, e + 1) + width
-    s.counters[YC_LO], s.counters[YC_HI] = yc_lo, yc_hi
-    # Pantograph.
+    for k in range(npc):
+        yc_l = s.work[1 + k]
+        yc_l[s.yc_range[k, 0] : s.yc_range[k, 1]] = 0.0
+        for i in range(4):
+            node = elem[k] + i // 2
+            lo = unit_start(n, width, node)
+            col = s.unit_patches[node, i % 2]
+            for q in range(width):
+                yc_l[lo + q] -= col[q] * nsh[k, i]
+        s.yc_range[k, 0] = unit_start(n, width, elem[k])
+        s.yc_range[k, 1] = unit_start(n, width, elem[k] + 1) + width
+    # Pantographs (stacked: one block of the matrices each).
     npn = s.p.shape[0]
     bp = np.empty(npn)
     u1 = c0 * s.p + (4.0 / dt) * s.vp + s.ap
     u2 = c1 * s.p + s.vp
     for i in range(npn):
         fi = c.p_ground[i] * s.roof_rest[i]
-        if i == inp:
-            fi += input_force
+        for k in range(npc):
+            if i == c.p_inputs[k]:
+                fi += input_force if k == ctrl else c.p_uplift[k]
         acc1 = 0.0
         acc2 = 0.0
         for j in range(npn):
@@ -562,67 +594,88 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     for i in range(npn):
         for j in range(npn):
             y_p[i] += c.p_ainv[i, j] * bp[j]
-    yc_p = c.p_ainv[:, head].copy()
-    ws_x = 0.0
-    gc_y = y_p[head]
-    gc_yc = yc_p[head]
-    for i in range(4):
-        ws_x += nsh[i] * c.w_static[dofs[i]]
-        gc_y -= nsh[i] * y_l[dofs[i]]
-        gc_yc -= nsh[i] * yc_l[dofs[i]]
+    # Projections on the contact directions g_k and on the dropper directions g_j.
     nd = c.e0.shape[0]
-    gc_ydrop = np.empty(nd)
-    gd_y = np.empty(nd)
-    gd_yc = np.empty(nd)
-    for j in range(nd):
-        acc = 0.0
+    ws_x = np.zeros(npc)
+    gc_y = np.empty(npc)
+    gc_yc = np.empty((npc, npc))
+    gc_ydrop = np.empty((npc, nd))
+    gd_yc = np.empty((npc, nd))
+    for k in range(npc):
+        hk = c.p_heads[k]
+        gc_y[k] = y_p[hk]
+        for j in range(npc):
+            gc_yc[k, j] = c.p_ainv[hk, c.p_heads[j]]
         for i in range(4):
-            acc += nsh[i] * c.ydrop[dofs[i], j]
-        gc_ydrop[j] = -acc
+            ws_x[k] += nsh[k, i] * c.w_static[dofs[k, i]]
+            gc_y[k] -= nsh[k, i] * y_l[dofs[k, i]]
+            for j in range(npc):
+                gc_yc[k, j] -= nsh[k, i] * s.work[1 + j, dofs[k, i]]
+    gd_y = np.empty(nd)
+    for j in range(nd):
+        for k in range(npc):
+            acc = 0.0
+            for i in range(4):
+                acc += nsh[k, i] * c.ydrop[dofs[k, i], j]
+            gc_ydrop[k, j] = -acc
+            gd_yc[k, j] = s.work[1 + k, c.dwm[j]] - s.work[1 + k, c.dwc[j]]
         gd_y[j] = y_l[c.dwm[j]] - y_l[c.dwc[j]]
-        gd_yc[j] = yc_l[c.dwm[j]] - yc_l[c.dwc[j]]
-    contact = s.counters[IN_CONTACT] != 0
+    touch = s.touching.copy()
     slack = s.slack[: s.counters[N_SLACK]].copy()
     passes = 0
     coef = np.zeros(1)
-    delta = 0.0
+    delta = np.zeros(npc)
     e_drop = np.empty(nd)
+    active = np.flatnonzero(touch)
     while passes < MAX_ACTIVE_SET_PASSES:
         passes += 1
         ns = slack.shape[0]
-        m = ns + (1 if contact else 0)
-        if ns == 0:  # the usual case, in scalars
+        active = np.flatnonzero(touch)
+        m = ns + active.shape[0]
+        if ns == 0 and active.shape[0] <= 1:  # the usual case of one pantograph, in scalars
             coef = np.zeros(m)
-            if contact:
-                r_c = kp * ws_x
-                coef[0] = r_c - (gc_y + gc_yc * r_c) / (gc_yc + 1.0 / kp)
+            if m:
+                k = active[0]
+                r_c = kp * ws_x[k]
+                coef[0] = r_c - (gc_y[k] + gc_yc[k, k] * r_c) / (gc_yc[k, k] + 1.0 / kp)
         else:
-            coef = _woodbury_coefficients(c, slack, contact, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
-        delta = gc_y - ws_x
+            coef = _woodbury_coefficients(c, slack, active, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
+        for k in range(npc):
+            delta[k] = gc_y[k] - ws_x[k]
         for j in range(nd):
             e_drop[j] = c.e0[j] + gd_y[j]
         if ns:
-            acc = 0.0
-            for q in range(ns):
-                acc += gc_ydrop[slack[q]] * coef[q]
-            delta += acc
+            for k in range(npc):
+                acc = 0.0
+                for q in range(ns):
+                    acc += gc_ydrop[k, slack[q]] * coef[q]
+                delta[k] += acc
             for j in range(nd):
                 acc = 0.0
                 for q in range(ns):
                     acc += c.ddrop[j, slack[q]] * coef[q]
                 e_drop[j] += acc
-        if contact:
-            delta += gc_yc * coef[ns]
+        for b in range(active.shape[0]):
+            kb, cb = active[b], coef[ns + b]
+            for k in range(npc):
+                delta[k] += gc_yc[k, kb] * cb
             for j in range(nd):
-                e_drop[j] += gd_yc[j] * coef[ns]
-        new_contact = delta > 0.0
+                e_drop[j] += gd_yc[kb, j] * cb
         new_slack = np.flatnonzero(e_drop < 0.0)
-        consistent = new_contact == contact and new_slack.shape[0] == ns and np.all(new_slack == slack)
+        consistent = new_slack.shape[0] == ns and np.all(new_slack == slack)
+        for k in range(npc):
+            new_touch = 1 if delta[k] > 0.0 else 0
+            consistent = consistent and new_touch == touch[k]
+            touch[k] = new_touch
         if consistent or passes == MAX_ACTIVE_SET_PASSES:
             if not consistent:  # keep the set the solution was computed for; count it
                 s.counters[UNCONVERGED] += 1
+                for k in range(npc):
+                    touch[k] = 0
+                for b in range(active.shape[0]):
+                    touch[active[b]] = 1
             break
-        contact, slack = new_contact, new_slack
+        slack = new_slack
     s.counters[PASSES_MAX] = max(s.counters[PASSES_MAX], passes)
     ns = slack.shape[0]
     d_new = y_l  # scratch, consumed by newmark_update below
@@ -632,14 +685,15 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         cq = coef[q]
         yq = c.ydrop_patches[slack[q]]
         lo = unit_start(n, width, c.dwc[slack[q]] // 4)
-        for k in range(width):
-            d_new[lo + k] += yq[k] * cq
-    if contact:
-        cc = coef[ns]
-        for k in range(yc_lo, yc_hi):
-            d_new[k] += yc_l[k] * cc
+        for r in range(width):
+            d_new[lo + r] += yq[r] * cq
+    for b in range(active.shape[0]):
+        kb, cc = active[b], coef[ns + b]
+        yc_l = s.work[1 + kb]
+        for r in range(s.yc_range[kb, 0], s.yc_range[kb, 1]):
+            d_new[r] += yc_l[r] * cc
         for i in range(npn):
-            p_new[i] += yc_p[i] * cc
+            p_new[i] += c.p_ainv[i, c.p_heads[kb]] * cc
     newmark_update(d, v, a, d_new, dt)
     for i in range(npn):
         ap_new = c0 * (p_new[i] - s.p[i]) - (4.0 / dt) * s.vp[i] - s.ap[i]
@@ -647,10 +701,13 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         s.ap[i] = ap_new
         s.p[i] = p_new[i]
     s.scalars[X] = x_new
-    s.counters[IN_CONTACT] = 1 if contact else 0
+    for k in range(npc):
+        s.touching[k] = touch[k]
+        s.deltas[k] = delta[k] if touch[k] else min(delta[k], 0.0)
+    s.counters[IN_CONTACT] = s.touching[ctrl]  # the controlled contact's, where the loop reads them
+    s.scalars[DELTA] = s.deltas[ctrl]
     s.slack[:ns] = slack
     s.counters[N_SLACK] = ns
-    s.scalars[DELTA] = delta if contact else min(delta, 0.0)
     s.scalars[INPUT_FORCE] = input_force
     s.counters[STEPS] += 1
     return STEP_OK
@@ -662,10 +719,16 @@ CONTACT_UPLIFT, SUPPORT_UPLIFT, STATIC_STIFFNESS, STATIC_HEIGHT, STATIC_SLOPE = 
 
 @numba.njit(cache=True)
 def contact_readings(c: StepConstants, s: StepState, flexibility: np.ndarray, out: np.ndarray) -> None:
-    """What the plant reports at the contact point x (``Line``'s formulas, compiled): the wire's
+    """``readings_at`` the controlled pantograph's contact point."""
+    readings_at(c, s, flexibility, s.scalars[X] - c.p_lag[c.indices[5]], out)
+
+
+@numba.njit(cache=True)
+def readings_at(c: StepConstants, s: StepState, flexibility: np.ndarray, x: float, out: np.ndarray) -> None:
+    """What the plant reports at a contact point x (``Line``'s formulas, compiled): the wire's
     uplift there and at the nearest support [m], the static point stiffness 1 / (N^T F_e N)
     from the element's 4x4 flexibility block [N/m], the static wire height [m] and slope."""
-    x, span = s.scalars[X], c.numbers[8]
+    span = c.numbers[8]
     e, n = hermite_weights(c.x_nodes, x)
     dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
     up, ws, nfn = 0.0, 0.0, 0.0
@@ -718,9 +781,12 @@ def fe_advance(
 #: Kind of each field of StepConstants / StepState: f = float64, i = int64, then the dimension.
 CONSTANT_KINDS = (
     "f2", "f2", "f3", "i1", "i1", "f1", "f1", "f2", "f2", "f2", "f1",
-    "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1",
+    "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1", "i1", "i1", "f1", "f1",
 )  # fmt: skip
-STATE_KINDS = ("f1", "f1", "f1", "f1", "f1", "f1", "f1", "f1", "i1", "i1", "f3", "i1", "f2", "f2", "f2")
+STATE_KINDS = (
+    "f1", "f1", "f1", "f1", "f1", "f1", "f1", "f1", "i1", "i1", "f3", "i1", "f2", "f2", "f2",
+    "f1", "i1", "i2",
+)  # fmt: skip
 _ALIGN = 8  # elements: every packed array starts on a 64-byte boundary
 
 
@@ -774,12 +840,14 @@ def unpack(
         _v2(cf, cl, 0), _v2(cf, cl, 1), _v3(cf, cl, 2), _v1(ci, cl, 3), _v1(ci, cl, 4), _v1(cf, cl, 5),
         _v1(cf, cl, 6), _v2(cf, cl, 7), _v2(cf, cl, 8), _v2(cf, cl, 9), _v1(cf, cl, 10), _v1(cf, cl, 11),
         _v1(ci, cl, 12), _v1(ci, cl, 13), _v1(ci, cl, 14), _v2(cf, cl, 15), _v2(cf, cl, 16),
-        _v2(cf, cl, 17), _v1(cf, cl, 18), _v1(cf, cl, 19), _v1(ci, cl, 20),
+        _v2(cf, cl, 17), _v1(cf, cl, 18), _v1(cf, cl, 19), _v1(ci, cl, 20), _v1(ci, cl, 21),
+        _v1(ci, cl, 22), _v1(cf, cl, 23), _v1(cf, cl, 24),
     )  # fmt: skip
     s = StepState(
         _v1(sf, sl, 0), _v1(sf, sl, 1), _v1(sf, sl, 2), _v1(sf, sl, 3), _v1(sf, sl, 4), _v1(sf, sl, 5),
         _v1(sf, sl, 6), _v1(sf, sl, 7), _v1(si, sl, 8), _v1(si, sl, 9), _v3(sf, sl, 10), _v1(si, sl, 11),
-        _v2(sf, sl, 12), _v2(sf, sl, 13), _v2(sf, sl, 14),
+        _v2(sf, sl, 12), _v2(sf, sl, 13), _v2(sf, sl, 14), _v1(sf, sl, 15), _v1(si, sl, 16),
+        _v2(si, sl, 17),
     )  # fmt: skip
     return c, s
 

@@ -1,5 +1,10 @@
 """Lumped pantographs: mass, spring and damper matrices, head DOF, input DOF.
 
+A pantograph is data: ``load_pantograph(name_or_path)`` reads a pantograph file
+(``pac_model.pantograph_file``, format in docs/catenary.md, "The pantograph file") into the chain
+the FE line runs (``LumpedPantograph``) and the file itself (its uplift at a speed);
+``head_first`` orders a chain as the rig measures it (head, actuator's mass, the rest).
+
 Positions are heights [m], positive up, in the contact wire's frame (0 = contact wire
 height at the supports). Internal springs join masses; ``ground_stiffness`` and
 ``ground_damping`` join a mass to the car roof (their rest positions are set by the
@@ -8,11 +13,16 @@ integrator at the start, so that the static state has no roof-spring force).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
+from pac_common.parameters import ParameterError
+from pac_model.pantograph_file import DEFAULT, PantographFile, load_pantograph_file, table1_file
 from pac_model.parameters import PantographParameters
+
+from ..parameters import PlantOptions
 
 
 @dataclass(frozen=True)
@@ -41,30 +51,78 @@ class LumpedPantograph:
         return z
 
 
-def _pair(n: int, a: int, b: int, value: float) -> np.ndarray:
-    m = np.zeros((n, n))
-    m[a, a] = m[b, b] = value
-    m[a, b] = m[b, a] = -value
-    return m
+def lumped(chain: PantographFile) -> LumpedPantograph:
+    """The ``LumpedPantograph`` of a pantograph file's chain (its matrices: ``PantographFile.matrices``)."""
+    mass, stiffness, damping, roof = chain.matrices()
+    return LumpedPantograph(
+        name=chain.name,
+        mass=mass,
+        stiffness=stiffness,
+        damping=damping,
+        ground_stiffness=roof,
+        head=chain.head,
+        input=chain.actuator,
+    )
+
+
+def load_pantograph(pantograph: str = DEFAULT) -> tuple[LumpedPantograph, PantographFile]:
+    """A pantograph file (a path or a preset's name, ``config/pantographs/``) as the chain the FE
+    line runs with, and the file itself (its uplift: ``PantographFile.uplift(speed_kmh)``)."""
+    chain = load_pantograph_file(pantograph)
+    return lumped(chain), chain
+
+
+def head_first(chain: LumpedPantograph) -> LumpedPantograph:
+    """The same chain with its DOFs reordered (head, actuator's mass, the rest): the order in which
+    the rig reads z1 (the head) and z2 (the mass the actuator drives, the paper's frame). The paper's
+    chain is already in that order (returned as it is)."""
+    if chain.head == chain.input:
+        raise ParameterError(
+            "pantograph",
+            chain.name,
+            "a chain whose actuator acts on another mass than the head (the rig measures both)",
+        )
+    order = [chain.head, chain.input] + [i for i in range(chain.n) if i not in (chain.head, chain.input)]
+    if order == list(range(chain.n)):
+        return chain
+    ix = np.ix_(order, order)
+    return LumpedPantograph(
+        name=chain.name,
+        mass=chain.mass[order],
+        stiffness=chain.stiffness[ix],
+        damping=chain.damping[ix],
+        ground_stiffness=chain.ground_stiffness[order],
+        head=0,
+        input=1,
+    )
+
+
+def plant_chain(
+    pantograph: PantographParameters, options: PlantOptions, speed_kmh: float
+) -> tuple[PantographFile, float]:
+    """The plant's pantograph and the force that acts with the actuator's u on its actuator mass [N]:
+    the file ``options.pantograph`` names, else the nominal pantograph's chain (``pantograph``'s m1,
+    b1, k1, m2, b2, with the uplift of its ``nominal_pantograph`` file if any); the force is the
+    file's uplift at ``speed_kmh`` (static + aerodynamic) plus the steady ``wind_uplift``."""
+    if options.pantograph:
+        chain = load_pantograph_file(options.pantograph)
+        pressed_by = chain
+    else:
+        chain = table1_file(pantograph)
+        named = pantograph.nominal_pantograph
+        pressed_by = load_pantograph_file(named, "nominal_pantograph") if named else chain
+    return chain, pressed_by.uplift(speed_kmh) + options.wind_uplift
 
 
 def paper_pantograph(p: PantographParameters | None = None) -> LumpedPantograph:
     """The paper's 2-DOF pantograph (Fig. 2, Table 1, eqs. 3-4): DOFs (z1 head, z2 frame).
 
     k1, b1 join head and frame; b2 damps the frame to the car body (no spring: the
-    static uplift comes from the actuator force u on the frame).
+    static uplift comes from the actuator force u on the frame). The same chain as the preset
+    ``config/pantographs/paper_2dof.yaml`` (``table1_file``).
     """
-    p = PantographParameters() if p is None else p
-    c = _pair(2, 0, 1, p.b1)
-    c[1, 1] += p.b2
-    return LumpedPantograph(
-        name="paper 2-DOF (Table 1)",
-        mass=np.array([p.m1, p.m2]),
-        stiffness=_pair(2, 0, 1, p.k1),
-        damping=c,
-        ground_stiffness=np.zeros(2),
-        head=0,
-        input=1,
+    return dataclasses.replace(
+        lumped(table1_file(PantographParameters() if p is None else p)), name="paper 2-DOF (Table 1)"
     )
 
 
@@ -80,19 +138,18 @@ def three_mass_pantograph(
     7.5 kg (head); springs 160 N/m roof-frame, 15500 N/m frame-upper frame, 7000 N/m
     upper frame-head; dampers 100 N s/m roof-frame (the typical order the data
     quotes), none between the masses (none is stated). The static uplift acts on the frame.
+    The preset ``config/pantographs/three_mass.yaml`` states the same chain (with its uplift).
     """
-    m1, m2, m3 = masses
-    k_roof, k12, k23 = stiffnesses
-    c_roof, c12, c23 = dampings
-    k = _pair(3, 0, 1, k12) + _pair(3, 1, 2, k23)
-    c = _pair(3, 0, 1, c12) + _pair(3, 1, 2, c23)
-    c[0, 0] += c_roof
-    return LumpedPantograph(
+    links = ((0, -1), (0, 1), (1, 2))
+    chain = PantographFile(
         name="3-mass (benchmark-like)",
-        mass=np.array([m1, m2, m3]),
-        stiffness=k,
-        damping=c,
-        ground_stiffness=np.array([k_roof, 0.0, 0.0]),
+        source="docs/catenary_data.md section 2",
+        mass_names=("frame", "upper_frame", "head"),
+        masses=tuple(masses),
+        springs=tuple((i, j, k) for (i, j), k in zip(links, stiffnesses, strict=True)),
+        dampers=tuple((i, j, c) for (i, j), c in zip(links, dampings, strict=True) if c != 0.0),
         head=2,
-        input=0,
+        actuator=0,
+        static_uplift=0.0,
     )
+    return lumped(chain)
