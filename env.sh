@@ -10,6 +10,7 @@
 #     re-executing every Python process once; install/<pkg>/lib (generated message libraries)
 #     comes from install/setup.bash. Child processes inherit all of it.
 #   - NUMBA_CACHE_DIR=<repo>/build/numba_cache (the compiled cores, warmed by `make setup`)
+#   - OPENBLAS_NUM_THREADS=1 unless set (small LAPACK calls: threads only cost here)
 #   - ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, RMW_IMPLEMENTATION=rmw_fastrtps_cpp,
 #     FASTRTPS_DEFAULT_PROFILES_FILE=<repo>/config/fastdds_profile.xml
 #   - <repo>/scripts/bin (a stand-in `ros2` with the daily verbs) appended to PATH, unless a real
@@ -70,6 +71,11 @@ _pac_env_main() {
     # (build/), filled by `make setup` (python -m pac_rig.warm) so no process compiles at start.
     export NUMBA_CACHE_DIR="$root/build/numba_cache"
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
+    # One OpenBLAS thread unless told otherwise: pac's LAPACK calls are small (observer and law
+    # designs at a node's start, an FE line's static solve); with OpenBLAS's default threads
+    # a 10x10 expm took 16 ms on this shared 2-core VM (its threads wait for a busy core),
+    # 0.08 ms with one (docs/numerics.md, "Where the time goes").
+    export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
     export FASTRTPS_DEFAULT_PROFILES_FILE="$root/config/fastdds_profile.xml"
 
     # The stand-in ros2 (scripts/bin/ros2) unless a real ros2cli is already on PATH.

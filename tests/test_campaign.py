@@ -199,8 +199,9 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch, statistics):
     )
     points = campaign_spec.expand(spec)
     batched = campaign_run.run_batched(points)
-    assert len(batched) == len(points) - 1  # all but the divergence
-    chunk = campaign_run.run_chunk(points)
+    assert len(batched) == len(points)  # the divergence too: its row from the batch's tick and reason
+    assert sum(r["status"] == "diverged" for r in batched.values()) == 1
+    chunk = campaign_run.run_chunk(points, None, 2)  # two threads, as a campaign in process runs it
     with monkeypatch.context() as m:
         m.setattr(closed_loop, "compile_loop", lambda *args: None)  # closed_loop.run: core objects
         reference_rows = [campaign_run.run_point(point) for point in points]
@@ -209,7 +210,7 @@ def test_batched_rows_equal_the_tick_by_tick_rows(monkeypatch, statistics):
             if name != "wall_seconds":
                 assert row[name] == value or (value != value and row[name] != row[name]), (point.values, name)
     # A failure of the batch itself costs nothing: every point then runs tick by tick.
-    monkeypatch.setattr(campaign_run, "run_batch", lambda scenarios: 1 / 0)
+    monkeypatch.setattr(campaign_run, "run_batch", lambda scenarios, threads=1: 1 / 0)
     again = campaign_run.run_chunk(points)
     assert [r["status"] for r in again] == [r["status"] for r in chunk]
     assert {r["batch_error"] for r in again} == {"ZeroDivisionError: division by zero"}  # and says why
@@ -418,11 +419,16 @@ def test_scheduler_cluster_gives_the_embedded_results(tmp_path, dask_cluster):
     assert remote.returncode == 0, remote.stderr
     embedded = _cli(str(spec), "--out", str(tmp_path / "embedded"), "--workers", "2")
     assert embedded.returncode == 0, embedded.stderr
+    assert "(in process, no cluster)" in embedded.stdout  # every point batchable: no cluster started
+    local = _cli(str(spec), "--out", str(tmp_path / "local"), "--workers", "2", "--cluster")
+    assert local.returncode == 0, local.stderr
+    assert "s cluster start)" in local.stdout
     rows = read_rows(tmp_path / "remote")
     assert len(rows) == 5 and sorted(r["status"] for r in rows) == ["diverged", "ok", "ok", "ok", "ok"]
-    assert (tmp_path / "remote" / "results.csv").read_bytes() == (
-        tmp_path / "embedded" / "results.csv"
-    ).read_bytes()
+    for other in ("embedded", "local"):
+        assert (tmp_path / "remote" / "results.csv").read_bytes() == (
+            tmp_path / other / "results.csv"
+        ).read_bytes()
     assert (tmp_path / "remote" / "report.md").exists() and list((tmp_path / "remote").glob("fig_*.png"))
     assert "5 run (1 diverged or failed), 0 lost" in remote.stdout
 
@@ -476,10 +482,15 @@ def campaign_running(spec: Path, out: Path, *extra: str):
 
 
 @pytest.mark.slow
-def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
-    """SIGINT to the whole process group (a terminal's Ctrl-C, workers included).
+@pytest.mark.parametrize(
+    ("where", "duration"), [("--cluster", 0.3), ("", 30.0)], ids=["cluster", "in_process"]
+)
+def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path, where, duration):
+    """SIGINT to the whole process group (a terminal's Ctrl-C, workers included), on the embedded
+    cluster and in process (the compiled batch, one run per chunk).
 
-    48 runs: many more than finish before the interrupt, even with much faster cores."""
+    48 runs: many more than finish before the interrupt, even with much faster cores (in process,
+    48 x 30 s take seconds of compiled work)."""
     spec = write_spec(
         tmp_path / "spec.yaml",
         {
@@ -487,12 +498,12 @@ def test_ctrl_c_keeps_finished_runs_and_the_same_command_resumes(tmp_path):
                 "speed_kmh": [160.0, 200.0, 240.0, 280.0, 320.0, 360.0, 380.0, 400.0],
                 "c1": [30.0, 35.0, 40.0, 45.0, 50.0, 55.0],
             },
-            "fixed": {"duration": 0.3},
+            "fixed": {"duration": duration},
             "window": [0.1, 0.3],
         },
     )
     out = tmp_path / "out"
-    with campaign_running(spec, out) as proc:
+    with campaign_running(spec, out, *([where] if where else [])) as proc:
         os.killpg(proc.pid, signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=60)
     assert proc.returncode == 130, stderr

@@ -16,7 +16,6 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 #: Low-pass cut-off of the contact force before its statistics (common practice for EN 50318
 #: comparisons: docs/catenary_data.md §1).
@@ -108,6 +107,8 @@ def statistics(force: np.ndarray, loss_force: np.ndarray | None = None) -> Conta
 
 def lowpass(force: np.ndarray, dt: float, cutoff: float = CUTOFF_HZ) -> np.ndarray:
     """Zero-phase Butterworth low-pass (no delay between force and position) of a record sampled every dt."""
+    from scipy.signal import butter, sosfiltfilt  # here: scipy.signal costs ~0.3 s to import
+
     sos = butter(LOWPASS_ORDER, cutoff, fs=1.0 / dt, output="sos")
     return np.asarray(sosfiltfilt(sos, np.asarray(force, dtype=float)))
 

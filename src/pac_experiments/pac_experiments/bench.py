@@ -6,13 +6,16 @@ with and without bag writing, (4) the compiled batch closed loop (``--batch-runs
 scenarios of 10 s, ``--batch-threads`` threads), (5) the start-up time of each loop node
 (process start to its first published message), and prints one table.  Timing is
 measured, never asserted: the machine is shared and noisy.  ``--offline-only`` skips
-the live rigs (1, 2).
+the live rigs (1, 2); ``--live-only`` runs only them and prints their tables.  Each live
+configuration runs ``--live-repeats`` times, pac and its floor in turn, and every figure is
+the median of its runs, so that a load that comes and goes falls on both.
 """
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import itertools
 import json
 import math
@@ -95,6 +98,19 @@ def live_run(
     return loop_timing(bag), cpu, quality
 
 
+def median_timing(timings: list[Any]) -> Any:
+    """One LoopTiming whose every figure is the median of ``timings`` (runs of one configuration)."""
+    first = timings[0]
+    values: dict[str, Any] = {}
+    for f in dataclasses.fields(first):
+        got = [getattr(t, f.name) for t in timings]
+        if isinstance(got[0], dict):
+            values[f.name] = {k: statistics.median(g[k] for g in got) for k in got[0]}
+        else:
+            values[f.name] = type(got[0])(statistics.median(got))
+    return dataclasses.replace(first, **values)
+
+
 @contextlib.contextmanager
 def busy_loops(n: int) -> Iterator[list[subprocess.Popen]]:
     """``n`` processes spinning at normal priority (the load), killed by PID on exit."""
@@ -135,6 +151,26 @@ def floor_table(runs: dict, cpus: dict, pairs: list[tuple[str, str]]) -> str:
         rows.append([f"CPU {node}", *(number(c, "{:.2f}") for c in cells)])
     header = ["pac / floor", *(p for p, _ in pairs)]
     return markdown.table(header, rows, ["l"] + ["r"] * len(pairs)) + "\n"
+
+
+def live_table(runs: dict, cpus: dict, quality: dict, pairs: list[tuple[str, str]]) -> str:
+    """The live loop's timing table (every column) and the pac / floor table."""
+    names = list(runs)
+    extra = [
+        [f"CPU {node} [%]", *(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)]
+        for node in ("plant", "observer", "controller", "loop", "recorder")
+    ]
+    extra.append(
+        [
+            "contact-force std [N]",
+            *(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names),
+        ]
+    )
+    return (
+        timing_table(runs, extra)
+        + "\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n\n"
+        + floor_table(runs, cpus, pairs)
+    )
 
 
 def offline_speed(with_bag: bool, workdir: Path) -> float:
@@ -212,6 +248,26 @@ def _note_first_arrival(first: dict[str, float], topic: str) -> Callable[[Any], 
     return note
 
 
+#: The floor of a node's start-up: a bare rclpy node that publishes a measurement once its
+#: reader is matched (no pac module, no numpy core, no numba), started as the launcher starts nodes.
+STARTUP_FLOOR = """
+import time, rclpy
+from pac_common.discovery import loopback_only
+from pac_common.qos import PUBLISH_QOS
+from pac_interfaces.msg import FrameMeasurement
+loopback_only()
+rclpy.init()
+node = rclpy.create_node("startup_floor")
+pub = node.create_publisher(FrameMeasurement, "measurement", PUBLISH_QOS)
+deadline = time.monotonic() + 60.0
+while pub.get_subscription_count() < 1 and time.monotonic() < deadline:
+    time.sleep(0.001)
+while time.monotonic() < deadline:  # re-sent, as the plant re-sends tick 0 until it is answered
+    pub.publish(FrameMeasurement())
+    time.sleep(0.005)
+"""
+
+
 def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """Seconds from ``Popen`` of each loop node to the first message it publishes.
 
@@ -224,7 +280,24 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     from pac_common.node import LOOP_QOS, PUBLISH_QOS, loopback_only, rclpy
     from pac_interfaces import msg as pac_msg
 
-    out: dict[str, list[float]] = {name: [] for name in _STARTUP}
+    plan = {**_STARTUP, "floor": ("measurement", "command", None)}
+    out: dict[str, list[float]] = {name: [] for name in plan}
+
+    def start_floor(rig: Rig) -> Any:
+        from pac_rig.launcher import Process, node_env
+
+        log = (workdir / "startup_floor.log").open("wb")
+        popen = subprocess.Popen(
+            [sys.executable, "-c", STARTUP_FLOOR],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=node_env(rig.domain_id),
+        )
+        log.close()
+        rig.processes["floor"] = proc = Process("floor", popen, workdir / "startup_floor.log")
+        return proc
+
     with domain_coordinator.domain_id() as domain_id:
         context = rclpy.Context()
         loopback_only()
@@ -245,7 +318,7 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
             pubs[topic] = node.create_publisher(cls, topic, PUBLISH_QOS)
         try:
             for _ in range(repeats):
-                for name, (answer, needs, input_type) in _STARTUP.items():
+                for name, (answer, needs, input_type) in plan.items():
                     rig = Rig(
                         workdir / f"startup_{name}",
                         duration=0.0,
@@ -255,7 +328,7 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
                     )
                     try:
                         first.pop(answer, None)
-                        proc = rig.start_node(name)
+                        proc = rig.start_node(name) if name != "floor" else start_floor(rig)
                         deadline = proc.started + 120.0
                         while answer not in first and time.monotonic() < deadline and proc.poll() is None:
                             if input_type is not None:
@@ -448,6 +521,23 @@ def campaign_rate(spec: Path, workdir: Path) -> tuple[float, float, float]:
     return float(found.group(1)) / wall, float(found.group(3)), wall
 
 
+#: What any campaign's process cannot avoid: Python, numpy, numba, the batch's modules and its
+#: compiled loop loaded from the cache (one scenario of one tick of the given line).
+CAMPAIGN_FLOOR = (
+    "from pac_rig.batch import run_batch; from pac_rig.simulate import scenario_from_flat; "
+    "run_batch([scenario_from_flat({{'duration': 0.001, 'catenary_model': '{line}'}})])"
+)
+
+
+def campaign_floor(line: str) -> tuple[float, float]:
+    """(wall s, CPU s) of :data:`CAMPAIGN_FLOOR` as a whole process, median of 3."""
+    walls, cpus = [], []
+    for _ in range(3):
+        walls.append(whole_process([sys.executable, "-c", CAMPAIGN_FLOOR.format(line=line)])[0])
+        cpus.append(LAST_PROCESS_CPU[0])
+    return median(walls), median(cpus)
+
+
 FE_CAMPAIGN = """# bench: an FE-line campaign as config/campaigns/fe_laws.yaml runs them (passive and
 # line_adaptive on the contact-force observer, EN 50318 statistics), 2 laws x 4 speeds x 10 s
 grid:
@@ -511,18 +601,26 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         print("bench: campaigns ...", flush=True)
         spec = Path(args.campaign_spec)
         whole, inner, wall = campaign_rate(spec, workdir)
+        cpu = LAST_PROCESS_CPU[0]
+        floor_wall, floor_cpu = campaign_floor("lumped")
         figures["campaign_lumped_rate"] = whole
         notes.append(
-            f"campaign {spec.name}: {wall:.1f} s as a whole command; its runs alone {inner:.0f} scenario-s "
-            "per wall-s (the campaign's own figure, cluster start and report excluded)"
+            f"campaign {spec.name}: {wall:.1f} s wall, {cpu:.1f} s CPU as a whole command; its runs alone "
+            f"{inner:.0f} scenario-s per wall-s (the campaign's own figure: start-up and report excluded); "
+            f"floor (a process that imports the batch and loads its compiled loop, one 1-tick run): "
+            f"{floor_wall:.2f} s wall, {floor_cpu:.2f} s CPU"
         )
         fe_spec = workdir / "fe_bench.yaml"
         fe_spec.write_text(FE_CAMPAIGN)
         whole, inner, wall = campaign_rate(fe_spec, workdir)
+        cpu = LAST_PROCESS_CPU[0]
+        floor_wall, floor_cpu = campaign_floor("fe")
         figures["campaign_fe_rate"] = whole
         notes.append(
             f"FE campaign (passive and line_adaptive x 4 speeds x 10 s, EN 50318 statistics, the compiled "
-            f"batch): {wall:.1f} s as a whole command, runs alone {inner:.1f} scenario-s per wall-s"
+            f"batch): {wall:.1f} s wall, {cpu:.1f} s CPU as a whole command, runs alone {inner:.1f} "
+            f"scenario-s per wall-s; floor (as above, one 1-tick FE run: the line built once): "
+            f"{floor_wall:.2f} s wall, {floor_cpu:.2f} s CPU"
         )
     print("bench: FE tick ...", flush=True)
     from .bench_fe import fe_tick_figures  # the FE line's own timing (by part, old and new step)
@@ -537,8 +635,22 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
     )
     if startup:
         medians = {name: median(times) for name, times in startup.items()}
-        figures["startup_s"] = max(medians.values()) if all(startup.values()) else None
-        notes.append("start-up medians: " + ", ".join(f"{n} {v:.2f} s" for n, v in medians.items()))
+        nodes = [startup[name] for name in _STARTUP]
+        figures["startup_s"] = max(medians[name] for name in _STARTUP) if all(nodes) else None
+        if startup.get("floor"):
+            today["startup_s"] = {"value": medians["floor"], "what": "its floor: a bare rclpy node"}
+        notes.append(
+            "start-up medians: "
+            + ", ".join(f"{n} {v:.2f} s" for n, v in medians.items() if n in _STARTUP)
+            + f"; the floor (a bare rclpy node publishing one measurement, started the same way) "
+            f"{medians.get('floor', math.nan):.2f} s"
+        )
+    if "realtime" in runs:
+        for field in ("on_time_periods_percent", "commands_on_time_percent", "latency_p50_ms"):
+            figures[f"realtime_{field}"] = getattr(runs["realtime"], field)
+            if "realtime floor" in runs:
+                floor = getattr(runs["realtime floor"], field)
+                today[f"realtime_{field}"] = {"value": floor, "what": "its floor, rclpy + Fast DDS"}
     if "lockstep" in runs and "lockstep floor" in runs:
         figures["lockstep_floor_ratio"] = (
             runs["lockstep"].steps_per_second / runs["lockstep floor"].steps_per_second
@@ -552,8 +664,10 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="bench", description=__doc__)
-    parser.add_argument("--realtime-seconds", type=float, default=30.0, help="0: no real-time rigs")
-    parser.add_argument("--lockstep-seconds", type=float, default=10.0)
+    parser.add_argument(
+        "--realtime-seconds", type=float, default=10.0, help="each real-time run (0: no real-time rigs)"
+    )
+    parser.add_argument("--lockstep-seconds", type=float, default=10.0, help="each lock-step run")
     parser.add_argument(
         "--realtime-priority",
         type=int,
@@ -571,6 +685,18 @@ def main(argv: list[str] | None = None) -> int:
         help="also run the loop composed in one process (ros2 run pac_rig composed), pac and floor",
     )
     parser.add_argument("--offline-only", action="store_true", help="skip the live rigs")
+    parser.add_argument(
+        "--live-only",
+        action="store_true",
+        help="only the live rigs, their tables printed (no reports/bench file written)",
+    )
+    parser.add_argument(
+        "--live-repeats",
+        type=int,
+        default=3,
+        help="each live configuration run this many times, pac and its floor in turn; every figure "
+        "the median over the runs (a load that comes and goes falls on both)",
+    )
     parser.add_argument("--batch-runs", type=int, default=16)
     parser.add_argument("--batch-threads", type=int, default=2)
     parser.add_argument("--startup-repeats", type=int, default=3)
@@ -594,6 +720,7 @@ def main(argv: list[str] | None = None) -> int:
         ("--batch-threads", args.batch_threads, 1, 64),
         ("--startup-repeats", args.startup_repeats, 0, 100),
         ("--repeats", args.repeats, 1, 100),
+        ("--live-repeats", args.live_repeats, 1, 100),
     ):
         if not low <= value <= high:
             print(f"bench: invalid {name} {value!r}: allowed {low}..{high}", file=sys.stderr)
@@ -619,18 +746,31 @@ def main(argv: list[str] | None = None) -> int:
             plan.append(("composed lockstep", "lockstep", args.lockstep_seconds, True, 0))
         pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
         for name, mode, seconds, composed, load in plan:
-            for relay, column in ((False, name), (True, f"{name} floor")):
-                print(f"bench: {column} rig, {seconds:g} s ...", flush=True)
-                with busy_loops(load):
-                    runs[column], cpus[column], quality[column] = live_run(
-                        mode,
-                        seconds,
-                        workdir,
-                        args.realtime_priority,
-                        relay=relay,
-                        composed=composed,
-                        label=column.replace(" ", "_"),
-                    )
+            timings: dict[str, list] = {name: [], f"{name} floor": []}
+            used: dict[str, list[dict[str, float]]] = {name: [], f"{name} floor": []}
+            for repeat in range(args.live_repeats):
+                for relay, column in ((False, name), (True, f"{name} floor")):
+                    turn = f"{repeat + 1}/{args.live_repeats}"
+                    print(f"bench: {column} rig, {seconds:g} s ({turn}) ...", flush=True)
+                    with busy_loops(load):
+                        timing, cpu, quality[column] = live_run(
+                            mode,
+                            seconds,
+                            workdir,
+                            args.realtime_priority,
+                            relay=relay,
+                            composed=composed,
+                            label=f"{column.replace(' ', '_')}_{repeat}",
+                        )
+                    timings[column].append(timing)
+                    used[column].append(cpu)
+            for column in timings:
+                runs[column] = median_timing(timings[column])
+                cpus[column] = {n: statistics.median(c[n] for c in used[column]) for n in used[column][0]}
+        if args.live_only:
+            if runs:
+                print(live_table(runs, cpus, quality, pairs), end="")
+            return 0
         print("bench: offline simulator ...", flush=True)
         speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
         print("bench: bag writing ...", flush=True)
@@ -641,6 +781,12 @@ def main(argv: list[str] | None = None) -> int:
         print("bench: node start-up ...", flush=True)
         startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
         results = goal_figures(args, workdir, runs, startup)
+        if runs:
+            results["notes"].append(
+                f"live loop: each configuration run {args.live_repeats} times, pac and its floor in turn "
+                f"(real time {args.realtime_seconds:g} s, lock step {args.lockstep_seconds:g} s each); "
+                "every figure the median of its runs"
+            )
         live_tables = ""
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
@@ -650,22 +796,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{'launcher default' if args.realtime_priority is None else args.realtime_priority}\n"
     )
     if runs:
-        names = list(runs)
-        extra = [
-            [f"CPU {node} [%]", *(number(cpus[n].get(node, math.nan), "{:.0f}") for n in names)]
-            for node in ("plant", "observer", "controller", "loop", "recorder")
-        ]
-        extra.append(
-            [
-                "contact-force std [N]",
-                *(f"{quality[n].contact_force_std:.3g}" if quality[n] else "-" for n in names),
-            ]
-        )
-        live_tables = (
-            timing_table(runs, extra)
-            + "\nFloor: the same nodes with cores that do no work (rclpy + Fast DDS only)\n\n"
-            + floor_table(runs, cpus, pairs)
-        )
+        live_tables = live_table(runs, cpus, quality, pairs)
         print(live_tables, end="")
     print(
         f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "

@@ -106,6 +106,32 @@ GOALS = (
         False,
         "{:.2f}",
     ),
+    # The live loop in real time (launcher priorities, 1 kHz); today's column: its floor (the same
+    # nodes with cores that do no work), measured in the same bench run.
+    Goal(
+        "realtime_on_time_periods_percent",
+        "real-time loop: periods <= 1.5 T",
+        "%",
+        99.9,
+        True,
+        "{:.2f}",
+    ),
+    Goal(
+        "realtime_commands_on_time_percent",
+        "real-time loop: u applied one tick after y",
+        "%",
+        90.0,
+        True,
+        "{:.1f}",
+    ),
+    Goal(
+        "realtime_latency_p50_ms",
+        "real-time loop: y -> u latency p50",
+        "ms",
+        0.8,
+        False,
+        "{:.3f}",
+    ),
     Goal(
         "lockstep_floor_ratio",
         "lock step, separate processes, over its floor",

@@ -5,9 +5,13 @@ The SPEC (YAML) is described in ``campaign_spec``: ``grid`` (or ``grids``), ``fi
 (``raw`` | ``en50318``), ``force_target`` (``en50367``). Every grid point is validated
 before anything runs; a bad SPEC stops with exit 2 and one line per error, all of them at once.
 
-By default the runs go to a Dask ``LocalCluster`` on this machine (one single-threaded
-worker process per core, bound to 127.0.0.1, no dashboard); ``--scheduler tcp://HOST:PORT``
-sends them to an existing Dask cluster instead, with identical results. Each finished
+When every point is one the compiled batch runs (every law, both lines) and no bags are
+asked for, the runs go through it in this process, one thread per core (``--workers``
+threads): no cluster starts and the compiled code and an FE line are loaded once. Otherwise
+(or with ``--cluster``) they go to a Dask ``LocalCluster`` on this machine (one
+single-threaded worker process per core, bound to 127.0.0.1, no dashboard);
+``--scheduler tcp://HOST:PORT`` sends them to an existing Dask cluster instead. The rows are
+the same on every path. Each finished
 run is appended to ``DIR/runs.jsonl`` at once, keyed by a hash of the scenario's full
 parameter set and the window, so re-running the same command skips what is done
 (after Ctrl-C or a lost worker). ``DIR/results.csv`` (one row per grid point, grid
@@ -22,14 +26,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
 
 from pac_common.parameters import ParameterError, check_output_folder
 
-from .campaign_dask import Outcome, embedded_cluster, execute
-from .campaign_report import write_report
+from .campaign_dask import Outcome, embedded_cluster, execute, execute_in_process, runs_in_process
 from .campaign_results import RESULTS_FILE, read_done, write_results
 from .campaign_spec import Point, Spec, SpecError, load_points
 
@@ -43,7 +47,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--scheduler", help="address of an existing Dask scheduler, e.g. tcp://127.0.0.1:8786"
     )
-    parser.add_argument("--workers", type=int, help="embedded cluster: worker processes (default: cores)")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        help="worker processes of the embedded cluster, or threads of a run in process (default: cores)",
+    )
+    parser.add_argument(
+        "--cluster",
+        action="store_true",
+        help="the embedded Dask cluster even when the runs could go through the batch in process",
+    )
     parser.add_argument(
         "--chunk-size", type=int, help="runs per Dask task (default: about 4 tasks per worker)"
     )
@@ -69,13 +82,18 @@ def main(argv: list[str] | None = None) -> int:
             print(f"campaign: {line}", file=sys.stderr)
         return 2
 
-    from distributed import Client
-
     cluster = client = None
     setup_start = time.perf_counter()
     done = read_done(args.out)
     if all(p.key in done for p in points):  # all done: no cluster needed
         return _finish(args, spec, points, Outcome(len(points), len(points), 0, 0, 0, 0.0, 0.0), 0.0)
+    todo = [p for p in points if p.key not in done]
+    if not (args.scheduler or args.cluster) and runs_in_process(spec, todo, args.bags):
+        threads = args.workers or os.cpu_count() or 1
+        outcome = execute_in_process(spec, points, args.out, threads, args.chunk_size)
+        return _finish(args, spec, points, outcome, None)
+    from distributed import Client
+
     try:
         if args.scheduler:
             client = Client(args.scheduler, timeout="20s")
@@ -100,13 +118,17 @@ def main(argv: list[str] | None = None) -> int:
     return _finish(args, spec, points, outcome, setup)
 
 
-def _finish(args: argparse.Namespace, spec: Spec, points: list[Point], outcome: Outcome, setup: float) -> int:
+def _finish(
+    args: argparse.Namespace, spec: Spec, points: list[Point], outcome: Outcome, setup: float | None
+) -> int:
+    """``setup``: seconds the cluster took to start; None: the runs went through the batch in process."""
     rate = outcome.simulated_seconds / outcome.wall_seconds if outcome.wall_seconds > 0 else math.nan
+    where = "in process, no cluster" if setup is None else f"+{setup:.1f} s cluster start"
     print(
         f"campaign {spec.name}: {outcome.total} runs, {outcome.skipped} already done, {outcome.ran} run "
         f"({outcome.failed} diverged or failed), {outcome.lost} lost; {outcome.simulated_seconds:.1f} "
         f"scenario-s in {outcome.wall_seconds:.1f} s = {rate:.1f} scenario-s per wall-s "
-        f"(+{setup:.1f} s cluster start)"
+        f"({where})"
     )
     if outcome.batch_error:
         print(f"campaign: the compiled batch failed ({outcome.batch_error}); its runs ran tick by tick")
@@ -117,6 +139,8 @@ def _finish(args: argparse.Namespace, spec: Spec, points: list[Point], outcome: 
     rows = write_results(spec, points, read_done(args.out), args.out)
     print(f"wrote {args.out / RESULTS_FILE}")
     if not args.no_report:
+        from .campaign_report import write_report  # matplotlib: only when a report is written
+
         print(f"wrote {write_report(spec, rows, args.out)}")
     return 1 if outcome.lost else 0
 

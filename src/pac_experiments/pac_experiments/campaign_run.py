@@ -163,13 +163,14 @@ def _batch_series(result: Any, i: int) -> RunSeries:
     )
 
 
-def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
+def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, Any]]:
     """Rows of the points the compiled batch runs (``pac_rig.batch.batchable``), by key.
 
-    One ``run_batch`` call for all of them (no per-tick Python); its traces equal
+    One ``run_batch`` call for all of them (no per-tick Python; ``threads`` threads); its traces equal
     ``closed_loop.run``'s bit for bit (tests/test_batch.py), so the rows equal
-    :func:`run_point`'s. A run that diverges or a point that does not validate is left to
-    :func:`run_point`.
+    :func:`run_point`'s. A run that diverges is its ``diverged`` row, as :func:`run_point` writes
+    it from the ``DivergenceError`` (the same tick and reason; not run a second time); a point that
+    does not validate is left to :func:`run_point`.
     """
     chosen: list[tuple[Point, Scenario]] = []
     for point in points:
@@ -182,11 +183,22 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
     if not chosen:
         return {}
     start = time.perf_counter()
-    result = run_batch([s for _, s in chosen])
+    result = run_batch([s for _, s in chosen], threads=threads)
     wall = (time.perf_counter() - start) / len(chosen)
     rows = {}
     for i, (point, scenario) in enumerate(chosen):
-        if result.diverged[i] is not None:
+        reached, diverged = int(result.ticks[i]), result.diverged[i]
+        if diverged is not None:
+            reason = str(DivergenceError(reached, diverged)).splitlines()[0]
+            rows[point.key] = {
+                "key": point.key,
+                "status": STATUS_DIVERGED,
+                "reason": reason,
+                **scenario_to_flat(scenario),
+                "ticks_run": reached,
+                "simulated_seconds": reached / scenario.loop.rate_hz,
+                "wall_seconds": wall,
+            }
             continue
         series = _batch_series(result, i)
         m = metrics_from_series(series, point.window[0], point.window[1])
@@ -214,8 +226,9 @@ def run_batched(points: list[Point]) -> dict[str, dict[str, Any]]:
     return rows
 
 
-def run_chunk(points: list[Point], bag_dir: str | None = None) -> list[dict]:
-    """The Dask task: several runs in one task, so the per-task overhead is paid once per chunk.
+def run_chunk(points: list[Point], bag_dir: str | None = None, threads: int = 1) -> list[dict]:
+    """The Dask task: several runs in one task, so the per-task overhead is paid once per chunk
+    (and, with ``threads`` > 1, the in-process campaign's step: ``campaign_dask.execute_in_process``).
 
     Without bags, the points the compiled batch can run go through it in one call; the rest
     (other laws, the FE line, divergences) run tick by tick. If the batch itself fails, its
@@ -226,7 +239,7 @@ def run_chunk(points: list[Point], bag_dir: str | None = None) -> list[dict]:
     batch_error = ""
     if bag_dir is None:
         try:
-            batched = run_batched(points)
+            batched = run_batched(points, threads)
         except Exception as exc:  # noqa: BLE001 - every point then runs tick by tick and reports for itself
             batch_error = f"{type(exc).__name__}: {exc}".splitlines()[0]
     rows = []

@@ -1,7 +1,8 @@
 """``ros2 run pac_experiments fe_experiment``: the control laws on the FE line, judged.
 
-Runs the campaign config/campaigns/fe_laws.yaml (Dask; resumes like any campaign) into
-``--out`` (default reports/catenary/laws), then writes there from its rows:
+Runs the campaign config/campaigns/fe_laws.yaml (through the compiled batch in this process,
+as any campaign whose runs it all takes; resumes like any campaign) into ``--out`` (default
+reports/catenary/laws), then writes there from its rows:
 
 - ``laws.md`` / ``goals.json``: sigma (EN 50318: 20 Hz low-pass, whole spans of the window)
   and its change against passive per law and speed, and the goals, each met / not met with
@@ -434,7 +435,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--spec", type=Path, default=SPEC)
     parser.add_argument("--out", type=Path, default=OUT)
     parser.add_argument("--law", default=JUDGED, help="the law the goals judge")
-    parser.add_argument("--workers", type=int, help="Dask workers (default: cores)")
+    parser.add_argument("--workers", type=int, help="threads (or Dask workers) (default: cores)")
     parser.add_argument("--chunk-size", type=int, help="runs per Dask task (default: the campaign's)")
     parser.add_argument("--report-only", action="store_true", help="no runs: write up the rows in --out")
     parser.add_argument(

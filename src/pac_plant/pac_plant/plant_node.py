@@ -24,6 +24,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from rclpy.timer import Timer
 
@@ -33,9 +34,23 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, RUN_STATUS_QOS, PacNode, run_
 from pac_common.parameters import LoopParameters, NodeOptions, ParameterSet, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .fe_plant import FEPlant, make_plant
 from .parameters import PlantOptions
 from .plant import Plant
+
+if TYPE_CHECKING:
+    from .fe_plant import FEPlant
+
+
+def make_plant(*args: Any) -> Plant:
+    """``fe_plant.make_plant`` (same arguments), its module imported only for the FE line: the
+    FE line's modules (scipy.linalg, the line kernels) are ~0.2 s of a lumped plant node's
+    start-up otherwise. The plant options (``catenary_model``) are the fourth argument."""
+    options: PlantOptions = args[3]
+    if options.catenary_model != "fe":
+        return Plant(*args)
+    from .fe_plant import make_plant as make_fe_plant
+
+    return make_fe_plant(*args)
 
 
 @dataclass(frozen=True)
@@ -110,7 +125,11 @@ class PlantNode(PacNode):
         )
         # Every pantograph's truth, when the FE line carries several (docs/catenary.md).
         self.spacing = self.parameters(PlantOptions).pantographs
-        self.fe_plant = self.plant if isinstance(self.plant, FEPlant) and len(self.spacing) > 1 else None
+        self.fe_plant: FEPlant | None = None
+        if len(self.spacing) > 1 and self.parameters(PlantOptions).catenary_model == "fe":
+            from .fe_plant import FEPlant  # here: a lumped plant node does not load the FE line
+
+            self.fe_plant = self.plant if isinstance(self.plant, FEPlant) else None
         self.pantographs_pub = (
             self.create_publisher(
                 self.factory.cls(messages.PANTOGRAPH_TRUTH), "pantograph_truth", PUBLISH_QOS

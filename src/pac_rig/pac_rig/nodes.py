@@ -28,6 +28,11 @@ class RigNode:
         module, _, name = path.partition(":")
         return getattr(importlib.import_module(module), name)
 
+    def module(self, relay: bool = False) -> str:
+        """The module whose ``python -m`` runs the node (its ``main``; ``relay``: its relay's)."""
+        path = self.relay_class if relay and self.relay_class else self.node_class
+        return path.partition(":")[0]
+
     def parameter_sets(self) -> list[Any]:
         """The parameter sets the node declares (its class's ``PARAMETER_SETS``)."""
         return list(self.load().PARAMETER_SETS)
