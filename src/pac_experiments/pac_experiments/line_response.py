@@ -38,8 +38,9 @@ import numpy as np
 from pac_common import markdown
 from pac_controller.line_adaptive import LineAdaptiveLaw
 from pac_controller.line_adaptive_kernels import U_FF
-from pac_rig.closed_loop import _NO_NOISE, build_cores
-from pac_rig.loop import TICK, compile_loop
+from pac_rig.batch import prepare
+from pac_rig.closed_loop import build_cores
+from pac_rig.loop import TICK
 from pac_rig.simulate import scenario_from_flat
 
 from .campaign_run import en50318_measures
@@ -83,19 +84,16 @@ class LineResponse:
 
     def run(self, u: np.ndarray) -> Run:
         """The run with U_h = ``u`` (complex, H) from the first tick on, learning off."""
-        s = self.scenario
-        plant, observer, controller = build_cores(s)
-        loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
-        if loop is None:
-            raise ValueError("the scenario has no compiled loop")
+        loop, noise = prepare(0, self.scenario)  # the batch's loop and sensor noise (one row: none)
         loop.controller_params[0]["line_gain"] = 0.0  # the span's step is then U = what was applied
         loop.controller_params[0]["line_guard_ratio"] = math.inf
         n, ticks = self.period, SPANS * self.period
+        if 1 < len(noise) < ticks:
+            raise ValueError(f"the scenario lasts {len(noise)} ticks; the measurement needs {ticks}")
         out = np.empty(ticks, TICK)
-        noise = plant.noise_rows(0, ticks) if plant._noisy else _NO_NOISE
         loop.run(0, 1, noise, out[:1])  # the first command restarts the law, which forgets U
         loop.memory[U_FF] = u
-        reached, code, value = loop.run(1, ticks, noise[1:] if plant._noisy else noise, out[1:])
+        reached, code, value = loop.run(1, ticks, noise[1:] if len(noise) > 1 else noise, out[1:])
         if code:
             raise RuntimeError(f"the run diverged at tick {reached} (code {code}, {value:.3g})")
         force = out["contact_force"]
