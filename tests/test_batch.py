@@ -8,7 +8,7 @@ import pytest
 
 from pac_controller.parameters import COMPILED_LAW_NAMES, LAW_NAMES
 from pac_experiments.reproduce import COMMON, PAPER_GAINS
-from pac_rig.batch import TRACES, batchable, run_batch
+from pac_rig.batch import TRACES, actuator_violation, batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, build_cores, run, run_cores
 from pac_rig.loop import MAX_DELAY, compile_loop
 from pac_rig.simulate import scenario_from_flat
@@ -185,6 +185,34 @@ def test_fe_line_compiled_equals_tick_by_tick_cores(fe_batch, index):
     assert reason is None and result.diverged[index] is None
     for j, name in enumerate(TRACES):
         np.testing.assert_array_equal(result.traces[name][index], want[j], err_msg=name)
+
+
+def test_a_command_the_safety_chain_cannot_give_is_found(batch):
+    """run_batch checks every run with actuator_violation (a BatchFault if one fails): the
+    "limits" runs keep it while saturated and slew limited; a garbage command written into one is
+    found at its tick (a step), and a slew-limited climb past u_max at the first tick beyond it."""
+    scenarios, result = batch
+    limited = []  # the "limits" runs in which saturation and the slew limit both bind
+    for i, (name, _) in enumerate(CASES):
+        s, u = scenarios[i], result.traces["u"][i, : result.ticks[i]]
+        step = s.controller.slew_rate_max * s.loop.sample_period
+        if name == "limits" and u.max() == s.controller.u_max and np.isclose(np.abs(np.diff(u)).max(), step):
+            limited.append((s, u, step))
+    assert limited
+    for s, u, _ in limited:
+        assert actuator_violation(u, s) is None
+    s, u, step = limited[0]
+    garbage = u.copy()
+    garbage[300] = 4.09e-98  # what an overwritten record gave (docs/numerics.md)
+    assert actuator_violation(garbage, s)[0] == 300
+    assert "stepped" in actuator_violation(garbage, s)[1]
+    climb = u.copy()
+    climb[500:] = u[499] + 0.5 * step * np.arange(1, u.size - 499)
+    beyond = int(np.argmax(climb > s.controller.u_max))
+    assert beyond > 500 and actuator_violation(climb, s) == (
+        beyond,
+        f"u = {climb[beyond]:.6g} N outside [{s.controller.u_min:g}, {s.controller.u_max:g}] N",
+    )
 
 
 def test_empty_batch_is_refused():

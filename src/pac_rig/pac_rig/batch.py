@@ -87,6 +87,37 @@ def prepare(i: int, s: Scenario) -> tuple[CompiledLoop, np.ndarray]:
     return loop, cores[0].noise_rows(0, s.loop.ticks) if noisy else np.zeros((1, 2))
 
 
+class BatchFault(RuntimeError):
+    """A run's trace broke what the safety chain guarantees: memory the run used was overwritten."""
+
+
+def actuator_violation(u: np.ndarray, s: Scenario) -> tuple[int, str] | None:
+    """(tick, what) of the first command ``u`` (one run's trace, NaN after a divergence) that
+    the safety chain cannot give: outside [u_min, u_max], or a step from the previous tick's larger
+    than ``slew_rate_max`` x period (``Controller.limit_command``, which every command passes,
+    the fallback's too). None when every tick keeps both: any correct run does.
+
+    A run whose memory was overwritten while it ran (docs/numerics.md, "The batch's threads") shows
+    it here at once: its records turn to garbage and the first garbage command breaks one of the
+    two (seen: -500 N, then 4e-98 N one tick later)."""
+    c = s.controller
+    ticks = int(np.argmax(np.isnan(u))) if np.isnan(u).any() else u.size
+    u = u[:ticks]
+    # Relative slack for rounding: the limits are applied to doubles as given.
+    tol = 1e-9 * max(abs(c.u_min), abs(c.u_max), 1.0)
+    outside = np.flatnonzero((u < c.u_min - tol) | (u > c.u_max + tol))
+    step = c.slew_rate_max * s.loop.sample_period
+    jumps = np.flatnonzero(np.abs(np.diff(u)) > step * (1.0 + 1e-9) + tol) + 1
+    first_outside = int(outside[0]) if outside.size else u.size
+    first_jump = int(jumps[0]) if jumps.size else u.size
+    if first_outside == first_jump == u.size:
+        return None
+    if first_outside <= first_jump:
+        return first_outside, f"u = {u[first_outside]:.6g} N outside [{c.u_min:g}, {c.u_max:g}] N"
+    k = first_jump
+    return k, f"u stepped {u[k] - u[k - 1]:.6g} N in one tick (the slew limit allows {step:g} N)"
+
+
 def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
     parameters without building the cores: every line, observer and law; the delay it holds."""
@@ -129,6 +160,14 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
             for future in [pool.submit(run_loop, *b) for b in built]:
                 future.result()
     wall = time.perf_counter() - start
+    for i, s in enumerate(scenarios):
+        broken = actuator_violation(out[i, TRACES.index("u"), : result_tick[i]], s)
+        if broken is not None:
+            raise BatchFault(
+                f"scenario {i}: at tick {broken[0]} {broken[1]}: the safety chain cannot give that, so "
+                "memory this run used was overwritten while it ran; no result of this batch is "
+                'trusted (rerun it; docs/numerics.md, "the batch\'s threads")'
+            )
     return BatchResult(
         traces={name: out[:, j, :] for j, name in enumerate(TRACES)},
         ticks=result_tick,
