@@ -248,7 +248,9 @@ def main(argv: list[str] | None = None) -> int:
         "catenary file's format is documented in docs/catenary.md, 'The catenary file'. The "
         "pantograph: -p pantograph:=FILE (or a preset's name: config/pantographs/) for the plant, "
         "-p nominal_pantograph:=FILE for the observer and controller; the pantograph file's format "
-        "is documented in docs/catenary.md, 'The pantograph file'.",
+        "is documented in docs/catenary.md, 'The pantograph file'. Several pantographs "
+        "(-p pantographs:=[0.0,200.0]): the bag carries pantograph_truth too, every pantograph each "
+        "tick, as the plant node publishes it (docs/catenary.md, 'Several pantographs').",
     )
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
     add_override_arguments(parser)
