@@ -164,7 +164,10 @@ def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[s
 def parameter_tester(domain_id: int, procs: dict[str, subprocess.Popen]):
     """A test node in its own rclpy context in ``domain_id`` and ``call(future)``, which spins it
     until the future is done (10 s) and returns the result. On exit, pass or fail: the node and
-    its context are gone and every process of ``procs`` is stopped (SIGINT, killed after 15 s)."""
+    its context are gone and every process of ``procs`` is stopped (SIGINT, killed after 15 s).
+
+    The nodes must outlive the calls: a plant ends its process when its run ends (10 s by
+    default), so start it with ``duration:=0`` (until stopped)."""
     import rclpy
     import rclpy.executors
 
@@ -177,7 +180,8 @@ def parameter_tester(domain_id: int, procs: dict[str, subprocess.Popen]):
 
         def call(future):
             executor.spin_until_future_complete(future, timeout_sec=10)
-            assert future.done()
+            ended = {name: p.returncode for name, p in procs.items() if p.poll() is not None}
+            assert future.done(), f"no answer within 10 s; processes ended (exit status): {ended}"
             return future.result()
 
         try:

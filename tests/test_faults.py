@@ -282,6 +282,8 @@ def test_every_node_refuses_invalid_values_at_runtime_and_stays_as_it_was(domain
     for name, entry in NODES.items():
         pkg, exe = entry.package, entry.executable
         args = ["--ros-args", "-p", f"bag_path:={tmp_path / 'bag'}"] if name == "recorder" else []
+        if name == "plant":  # its process ends with its run: it must outlive the calls
+            args = ["--ros-args", "-p", "duration:=0.0"]
         procs[name] = subprocess.Popen(
             ["ros2", "run", pkg, exe, *args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
         )

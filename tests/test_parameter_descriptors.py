@@ -22,9 +22,18 @@ from pac_rig.nodes import NODES as RIG_NODES
 # The descriptor checks are unit tests; the live one is live (it uses domain_id: conftest).
 pytestmark = pytest.mark.unit
 
-#: node name -> (package, executable, extra --ros-args, its parameter sets)
+#: node name -> (package, executable, extra --ros-args, its parameter sets); the plant runs until
+#: stopped (its process would end with a 10 s run, before the calls are done on a loaded machine)
 NODES = {
-    **{n.executable: (n.package, n.executable, [], parameter_sets(role)) for role, n in RIG_NODES.items()},
+    **{
+        n.executable: (
+            n.package,
+            n.executable,
+            ["-p", "duration:=0.0"] if role == "plant" else [],
+            parameter_sets(role),
+        )
+        for role, n in RIG_NODES.items()
+    },
     "live_view": ("pac_rig", "live_view", ["-p", "port:=0"], [LiveViewParameters]),
 }
 TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER}

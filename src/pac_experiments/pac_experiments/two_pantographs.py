@@ -333,22 +333,25 @@ precursors); after it, it grows to newtons. `tests/test_two_pantographs.py` asse
 The pantograph–catenary interaction benchmark (Bruni, Ambrosio, Carnicero, Cho, Finner, Ikeda,
 Kwon, Massat, Stichel, Tur, Zhang, "The results of the pantograph–catenary interaction
 benchmark", Vehicle System Dynamics 53(3):412–435, 2015) compares the field's codes on a simple
-catenary at 250 and 320 km/h with one and with two pantographs. Its published result tables could
-not be read here, so this report gives no number of the benchmark and no distance to it; what
-is stated in the literature we could read is qualitative: on a simple catenary the trailing
-pantograph of a pair rides a wire already set in motion by the leading one, and its contact force
-varies more than the leading one's (e.g. Shock and Vibration 2021, article 9922404, an ANCF catenary
-validated against an inspection vehicle at 378 km/h on the Chengdu–Chongqing line, whose abstract
-finds the trailing pantograph not complying with the assessment standard at 378 km/h). Read the
-table above with these differences in the data:
+catenary at 250 and 320 km/h with one and with two pantographs. Neither its input data nor its
+result tables could be read here, nor the reference model and result ranges of EN 50318:2018
+(one and two pantographs), so this report gives no number of the benchmark and no distance to
+it; what is stated in the literature we could read is qualitative: on a simple catenary the
+trailing pantograph of a pair rides a wire already set in motion by the leading one, and its
+contact force varies more than the leading one's (e.g. Shock and Vibration 2021, article
+9922404, an ANCF catenary validated against an inspection vehicle at 378 km/h on the
+Chengdu–Chongqing line, whose abstract finds the trailing pantograph not complying with the
+assessment standard at 378 km/h). Read the table above with these differences in the data:
 
-- the line is the benchmark-like parameter set of `config/catenaries/benchmark_55m.yaml` (taken
-  from a public tool's defaults, not confirmed against the paper); the benchmark's section is
-  finite, ours is an endless periodic line (no section ends, no transition spans);
-- the pantograph is our reading of the benchmark-like 3-mass data (which spring joins which
-  masses and the damping are not stated in the data we have: docs/catenary.md), the same model
-  for both, with the EN 50367 target Fm(v) as uplift rather than the benchmark's prescribed force;
-- 200 m spacing; no aerodynamic uplift, no contact-wire irregularity, 20 Hz filter.
+- the line is `config/catenaries/benchmark_55m.yaml`, the defaults of a public parameter-entry
+  tool that names no source for them (docs/catenary_data.md §2): benchmark-like, not confirmed
+  to be the benchmark's catenary; the benchmark's section is finite, ours is an endless
+  periodic line (no section ends, no transition spans);
+- the pantograph is our reading of the same tool's 3-mass defaults (which spring joins which
+  masses is not stated there and its dampings are left at 0; we add a 100 N s/m roof damper:
+  docs/catenary.md), the same model for both, pressed by the EN 50367 target
+  Fm(v) = 70 + 0.00097 v² N (v in km/h), not by the benchmark's own force (not read here);
+- 200 m spacing; no contact-wire irregularity, no wind, 20 Hz filter.
 
 Nothing here was tuned towards any published value.
 """
