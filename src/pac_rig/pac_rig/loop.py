@@ -80,7 +80,7 @@ PLANT_PARAMS = np.dtype(
         ("uplift", "f8"),  # the pantograph's own uplift + wind, acting with u (Plant.uplift)
         # Every pantograph's truth (``pantograph_truth``): how many (0: one pantograph, PlantTruth
         # is all, as the plant node publishes) and each one's contact in the simulation, in the
-        # order of ``pantographs`` (``fe_plant.reported_contacts``)
+        # order of ``pantographs`` (``FEPlant.contact_of`` where ``fe_plant.several_pantographs``)
         ("pantographs", "i8"),
         ("contact_of", "i8", MAX_PANTOGRAPHS),
     ]

@@ -90,7 +90,6 @@ WRITE_BLOCK = 10_000
 def tick_fields(rec: TickRecord, scenario: Scenario) -> dict[str, dict[str, Any]]:
     """Each topic's field dictionary of one tick, as the plant, observer and controller nodes
     build them (``pantograph_truth`` too where the record has every pantograph's truth)."""
-    """The four topics' field dictionaries of one tick, as the nodes publish them."""
     k = rec.measurement.tick
     stamp = messages.tick_stamp_ns(k, scenario.loop.rate_hz)
     applied = max(-1, k - 1 - scenario.loop.command_delay_ticks)
