@@ -127,6 +127,31 @@ class BagWriter:
         self._staged.append((entry.channel, times, message_records(entry.channel, times, data)))
         entry.count += times.size
 
+    def write_rows(self, topic: str, rows: Sequence[Mapping[str, Any]], log_times_ns: np.ndarray) -> None:
+        """Many messages of one topic as field dictionaries (pac_common.messages), staged as
+        ``write_many`` stages them: as columns when the type has a fixed CDR layout, else (a
+        sequence: ``pantograph_truth``'s arrays) serialised one by one with rosbags."""
+        if not rows:
+            return
+        try:
+            self.write_many(topic, columns_of(rows), log_times_ns)
+            return
+        except cdr.LayoutError:
+            pass
+        entry = self._topics[topic]
+        times = np.asarray(log_times_ns, dtype=np.int64).reshape(-1)
+        blobs = [
+            self.store.serialize_cdr(self.factory.make(entry.typename, fields), entry.typename)
+            for fields in rows
+        ]
+        sizes = np.array([len(b) for b in blobs])
+        for size in np.unique(sizes):  # message_records takes messages of one size
+            mine = np.flatnonzero(sizes == size)
+            data = np.frombuffer(b"".join(blobs[i] for i in mine), np.uint8).reshape(mine.size, size)
+            records = message_records(entry.channel, times[mine], data)
+            self._staged.append((entry.channel, times[mine], records))
+        entry.count += len(blobs)
+
     def _write_staged(self) -> None:
         staged, self._staged = self._staged, []
         channels, times, sizes, buf = _merge_records(staged)

@@ -39,7 +39,8 @@ DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 #: What the recorder records (``-a``) and the live view serves, by the name it has in a bag:
 #: the pac topics and ``diagnostics``; :data:`GRAPH_NAMES` gives each one's name on the graph.
-#: ``pantograph_truth`` (every pantograph of an FE line with several) is published only then.
+#: ``pantograph_truth`` (every pantograph of an FE line with several) is published (and written by
+#: the offline simulator) only then.
 WATCHED_TOPICS: dict[str, str] = {
     **TOPICS,
     "pantograph_truth": PANTOGRAPH_TRUTH,

@@ -237,6 +237,13 @@ class FEPlant(Plant):
         self.u_applied = float(u)
 
 
+def several_pantographs(plant: Plant) -> FEPlant | None:
+    """``plant`` when it reports every pantograph on ``pantograph_truth`` (``pantograph_truths()``):
+    an FE line with several; None otherwise (one pantograph: PlantTruth is all there is to say).
+    The plant node publishes that topic, and the offline simulator records it, exactly then."""
+    return plant if isinstance(plant, FEPlant) and len(plant.options.pantographs) > 1 else None
+
+
 def make_plant(
     pantograph: PantographParameters,
     track: TrackParameters,

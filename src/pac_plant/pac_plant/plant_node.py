@@ -127,9 +127,10 @@ class PlantNode(PacNode):
         self.spacing = self.parameters(PlantOptions).pantographs
         self.fe_plant: FEPlant | None = None
         if len(self.spacing) > 1 and self.parameters(PlantOptions).catenary_model == "fe":
-            from .fe_plant import FEPlant  # here: a lumped plant node does not load the FE line
+            from .fe_plant import several_pantographs  # here: a lumped plant node does not load the FE line
 
-            self.fe_plant = self.plant if isinstance(self.plant, FEPlant) else None
+            # the rule the offline simulator records the topic by (a relay's plant reports nothing)
+            self.fe_plant = several_pantographs(self.plant)
         self.pantographs_pub = (
             self.create_publisher(
                 self.factory.cls(messages.PANTOGRAPH_TRUTH), "pantograph_truth", PUBLISH_QOS

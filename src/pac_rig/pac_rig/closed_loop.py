@@ -11,7 +11,7 @@ with F_r(0) = 0).
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -25,7 +25,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from pac_observer.contact_force import ContactForceObserver, make_observer
 from pac_observer.observer import _DIVERGED_REASONS, AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_observer.parameters import ObserverParameters
-from pac_plant.fe_plant import make_plant
+from pac_plant.fe_plant import PantographTruth, make_plant, several_pantographs
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
 
@@ -71,12 +71,14 @@ class Scenario:
 
 @dataclass(frozen=True)
 class TickRecord:
-    """One tick of a run: what each of the four topics carries."""
+    """One tick of a run: what each of the four topics carries, and every pantograph's truth where
+    the plant reports them (``pantograph_truth``: an FE line with several; else empty)."""
 
     measurement: Measurement
     truth: Truth
     estimate: Estimate
     command: Command
+    pantographs: tuple[PantographTruth, ...] = ()
 
 
 class DivergenceError(RuntimeError):
@@ -117,8 +119,9 @@ def run(s: Scenario) -> Iterator[TickRecord]:
     if loop is None:
         yield from run_cores(s, plant, observer, controller)
         return
+    controlled = loop.controlled()
     for block in run_blocks(s, plant, loop):
-        yield from tick_records(block)
+        yield from tick_records(block, controlled)
 
 
 def run_blocks(s: Scenario, plant: Plant, loop: CompiledLoop) -> Iterator[np.ndarray]:
@@ -157,10 +160,34 @@ _RECORD_COLUMNS = (
 )  # fmt: skip
 
 
-def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
-    """The TickRecord of each row of a TICK block (the objects the per-tick cores return)."""
+def pantograph_truths(block: np.ndarray, controlled: Sequence[bool]) -> list[tuple[PantographTruth, ...]]:
+    """Every pantograph's truth at each row of a TICK block (what ``FEPlant.pantograph_truths`` gives
+    at that tick); ``controlled``: of each pantograph reported (``CompiledLoop.controlled``), whether
+    it is the controlled one (empty: none reported, an empty tuple per row)."""
+    n = len(controlled)
+    if not n:
+        return [()] * block.size
+    force, position, contact, support = (
+        block[f"pantograph_{name}"][:, :n].tolist()  # Python floats, as the plant gives
+        for name in ("contact_force", "contact_position", "contact_uplift", "support_uplift")
+    )
+    return [
+        tuple(
+            PantographTruth(
+                contact_force=f, contact_position=x, contact_uplift=c, support_uplift=w, controlled=b
+            )
+            for f, x, c, w, b in zip(force[i], position[i], contact[i], support[i], controlled, strict=True)
+        )
+        for i in range(block.size)
+    ]
+
+
+def tick_records(block: np.ndarray, controlled: Sequence[bool] = ()) -> Iterator[TickRecord]:
+    """The TickRecord of each row of a TICK block (the objects the per-tick cores return);
+    ``controlled`` as :func:`pantograph_truths` takes it."""
     col = {name: block[name].tolist() for name in _RECORD_COLUMNS}  # Python numbers, as the cores give
     z_hat, theta_hat, innovation = block["z_hat"], block["theta_hat"], block["innovation"]
+    pantographs = pantograph_truths(block, controlled)
     for i, (tick, t) in enumerate(zip(col["tick"], col["time"], strict=True)):
         y1, y2 = col["y"][i]
         z0, z1, z2, z3 = col["z"][i]
@@ -180,6 +207,7 @@ def tick_records(block: np.ndarray) -> Iterator[TickRecord]:
                 tick, t, col["u"][i], col["u_unsaturated"][i], col["force_reference"][i],
                 (e1, e2, e3), col["saturated"][i], MODES[col["mode"][i]],
             ),
+            pantographs[i],
         )  # fmt: skip
 
 
@@ -190,9 +218,11 @@ def run_cores(
     reference the compiled loop is checked against, ``tests/test_batch.py``)."""
     delay = s.loop.command_delay_ticks
     pending: deque[float] = deque([0.0] * delay)
+    several = several_pantographs(plant)
     for _ in range(s.loop.ticks):
         y = plant.measurement()
         truth = plant.truth()
+        pantographs = tuple(several.pantograph_truths()) if several is not None else ()
         if not (abs(y.z1) < DIVERGENCE_DISPLACEMENT and abs(y.z2) < DIVERGENCE_DISPLACEMENT):
             raise DivergenceError(y.tick, divergence_reason(DISPLACEMENT, y.z1))
         try:
@@ -202,6 +232,6 @@ def run_cores(
         cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat)
         if not abs(cmd.u_unsaturated) < DIVERGENCE_FORCE:
             raise DivergenceError(y.tick, divergence_reason(FORCE, cmd.u_unsaturated))
-        yield TickRecord(y, truth, est, cmd)
+        yield TickRecord(y, truth, est, cmd, pantographs)
         pending.append(cmd.u)
         plant.advance(pending.popleft())

@@ -42,7 +42,8 @@ from pac_model import model
 from pac_observer.contact_force import ContactForceObserver, contact_force_advance, contact_force_start
 from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
 from pac_plant.catenary import kernels as fe
-from pac_plant.fe_plant import FEPlant
+from pac_plant.fe_plant import FEPlant, several_pantographs
+from pac_plant.parameters import MAX_PANTOGRAPHS
 from pac_plant.plant import Plant, plant_advance_inplace, quantise
 
 #: |z1|, |z2| beyond this [m] is not a pantograph any more: the run is stopped as diverged.
@@ -77,6 +78,11 @@ PLANT_PARAMS = np.dtype(
         ("static_wire", "b1"),
         ("datum", "f8"),
         ("uplift", "f8"),  # the pantograph's own uplift + wind, acting with u (Plant.uplift)
+        # Every pantograph's truth (``pantograph_truth``): how many (0: one pantograph, PlantTruth
+        # is all, as the plant node publishes) and each one's contact in the simulation, in the
+        # order of ``pantographs`` (``FEPlant.contact_of`` where ``fe_plant.several_pantographs``)
+        ("pantographs", "i8"),
+        ("contact_of", "i8", MAX_PANTOGRAPHS),
     ]
 )
 
@@ -86,6 +92,7 @@ PLANT_STATE = np.dtype(
         ("u_applied", "f8"),  # force applied over the period that ends at this tick
         ("pending", "f8", MAX_DELAY),  # commands sent, not yet applied (a ring)
         ("head", "i8"),
+        ("readings", "f8", 5),  # scratch: kernels.readings_at one pantograph's contact point
     ]
 )
 
@@ -106,6 +113,12 @@ TICK = np.dtype(
         ("contact_uplift", "f8"),  # FE line only (NaN on the lumped one), as plant.Truth
         ("support_uplift", "f8"),
         ("contact_position", "f8"),
+        # every pantograph (PLANT_PARAMS.pantographs of them, in the order of ``pantographs``; NaN
+        # beyond, and everywhere with one pantograph): fe_plant.PantographTruth's fields
+        ("pantograph_contact_force", "f8", MAX_PANTOGRAPHS),
+        ("pantograph_contact_position", "f8", MAX_PANTOGRAPHS),
+        ("pantograph_contact_uplift", "f8", MAX_PANTOGRAPHS),
+        ("pantograph_support_uplift", "f8", MAX_PANTOGRAPHS),
         # estimate
         ("z_hat", "f8", 4),
         ("theta_hat", "f8", 3),
@@ -135,7 +148,7 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
     t = k * pp.dt
     z = ps.z
     if pp.kind == FE:
-        cf, ci, cl, sf, si, sl, _, readings = fe_args
+        cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
         c, st = fe.unpack(cf, ci, cl, sf, si, sl)
         if pp.static_wire:  # the datum moves with the contact point along the pre-sagged wire
             datum, rate = readings[fe.STATIC_HEIGHT], c.numbers[1] * readings[fe.STATIC_SLOPE]
@@ -146,10 +159,12 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
         force = c.numbers[4] * st.scalars[fe.DELTA] if st.counters[fe.IN_CONTACT] else 0.0
         out.contact_uplift, out.support_uplift = readings[fe.CONTACT_UPLIFT], readings[fe.SUPPORT_UPLIFT]
         out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[c.indices[5]]
+        _pantographs_output(pp, ps, c, st, flexibility, out)
     else:
         stiff = model.stiffness(t, pp.omega, pp.theta)
         force = model.contact_force(stiff, z[0], pp.unilateral)
         out.contact_uplift, out.support_uplift, out.contact_position = np.nan, np.nan, np.nan
+        _no_pantographs(out, 0)
     y1, y2 = z[0], z[1]
     if pp.noisy:
         y1, y2 = y1 + n1, y2 + n2
@@ -160,6 +175,32 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
     out.z[:] = z
     out.stiffness, out.contact_force, out.in_contact, out.u_applied = stiff, force, force > 0.0, ps.u_applied
     return y1, y2
+
+
+@njit(cache=True, error_model="numpy")
+def _pantographs_output(pp, ps, c, st, flexibility, out) -> None:
+    """Every pantograph's contact on the FE line into ``out`` (``FEPlant.pantograph_truths``, the
+    same arithmetic: force kp delta where it touches, position x + offset - lag, the readings at
+    x - lag)."""
+    r = ps.readings
+    for j in range(pp.pantographs):
+        k = pp.contact_of[j]
+        out.pantograph_contact_force[j] = c.numbers[4] * st.deltas[k] if st.touching[k] != 0 else 0.0
+        out.pantograph_contact_position[j] = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[k]
+        fe.readings_at(c, st, flexibility, st.scalars[fe.X] - c.p_lag[k], r)
+        out.pantograph_contact_uplift[j] = r[fe.CONTACT_UPLIFT]
+        out.pantograph_support_uplift[j] = r[fe.SUPPORT_UPLIFT]
+    _no_pantographs(out, pp.pantographs)
+
+
+@njit(cache=True, error_model="numpy")
+def _no_pantographs(out, first) -> None:
+    """NaN in the pantograph fields of ``out`` from pantograph ``first`` on (none reported there)."""
+    for j in range(first, MAX_PANTOGRAPHS):
+        out.pantograph_contact_force[j] = np.nan
+        out.pantograph_contact_position[j] = np.nan
+        out.pantograph_contact_uplift[j] = np.nan
+        out.pantograph_support_uplift[j] = np.nan
 
 
 @njit(cache=True, error_model="numpy")
@@ -318,6 +359,12 @@ class CompiledLoop:
             self.bank, self.controller_params, self.controller_state, self.table, self.memory,
         )  # fmt: skip
 
+    def controlled(self) -> list[bool]:
+        """Of each pantograph the ticks report (``TICK``'s pantograph fields, in the order of
+        ``pantographs``), whether it is the controlled one (contact 0); empty: none reported."""
+        p = self.plant_params[0]
+        return [int(k) == 0 for k in p["contact_of"][: p["pantographs"]]]
+
     def run(self, k0: int, k1: int, noise: np.ndarray, out: np.ndarray) -> tuple[int, int, float]:
         """Ticks k0..k1-1 into ``out`` (a TICK array); (ticks reached, divergence code, value)."""
         return run_block(k0, k1, *self.args(), noise, out)
@@ -350,6 +397,8 @@ def compile_loop(
         sim = plant.sim
         p["kind"], p["substeps"] = FE, plant.options.fe_substeps
         p["static_wire"], p["datum"] = plant.options.fe_datum == "static_wire", plant.datum
+        contacts = plant.contact_of if several_pantographs(plant) else []  # pantograph_truth's
+        p["pantographs"], p["contact_of"][: len(contacts)] = len(contacts), contacts
         fe_args = (
             sim._cf, sim._ci, sim._cl, sim._sf.copy(), sim._si.copy(), sim._sl,
             np.ascontiguousarray(plant._flex, dtype=np.float64), plant._readings.copy(),

@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from pac_bag.mcap_writer import COMPRESSIONS
-from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter, columns_of
+from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
+from pac_plant.fe_plant import several_pantographs
 
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
 from .closed_loop import (
@@ -27,6 +28,7 @@ from .closed_loop import (
     Scenario,
     TickRecord,
     build_cores,
+    pantograph_truths,
     run_blocks,
     run_cores,
     tick_records,
@@ -86,16 +88,25 @@ WRITE_BLOCK = 10_000
 
 
 def tick_fields(rec: TickRecord, scenario: Scenario) -> dict[str, dict[str, Any]]:
-    """The four topics' field dictionaries of one tick, as the nodes publish them."""
+    """Each topic's field dictionary of one tick, as the plant, observer and controller nodes
+    build them (``pantograph_truth`` too where the record has every pantograph's truth)."""
     k = rec.measurement.tick
     stamp = messages.tick_stamp_ns(k, scenario.loop.rate_hz)
     applied = max(-1, k - 1 - scenario.loop.command_delay_ticks)
-    return {
+    fields = {
         "measurement": messages.measurement_fields(rec.measurement, stamp),
         "plant_truth": messages.truth_fields(rec.truth, stamp, applied_command_tick=applied),
         "estimate": messages.estimate_fields(rec.estimate, stamp),
         "command": messages.command_fields(rec.command, stamp),
     }
+    if rec.pantographs:
+        fields["pantograph_truth"] = pantograph_truth_fields(rec.pantographs, scenario, k, stamp)
+    return fields
+
+
+def pantograph_truth_fields(truths: Any, scenario: Scenario, tick: int, stamp_ns: int) -> dict[str, Any]:
+    """``pantograph_truth`` of one tick: the plant node's message (its spacing: ``pantographs``)."""
+    return messages.pantograph_truth_fields(truths, scenario.plant.pantographs, tick, stamp_ns)
 
 
 def write_ticks(bag: BagWriter, rows: dict[str, list[dict[str, Any]]], stamps: list[int]) -> None:
@@ -103,7 +114,7 @@ def write_ticks(bag: BagWriter, rows: dict[str, list[dict[str, Any]]], stamps: l
     if stamps:
         times = np.array(stamps, dtype=np.int64)
         for topic, block in rows.items():
-            bag.write_many(topic, columns_of(block), times)
+            bag.write_rows(topic, block, times)
 
 
 def simulate_to_bag(
@@ -132,7 +143,8 @@ def simulate_to_bag(
     diverged = None
     interrupted = False
     model, span = plant_line(scenario)
-    rows: dict[str, list[dict[str, Any]]] = {topic: [] for topic in messages.LOOP_TOPICS}
+    topics = list(messages.LOOP_TOPICS)
+    rows: dict[str, list[dict[str, Any]]] = {topic: [] for topic in topics}
     stamps: list[int] = []
     with BagWriter(
         bag_path,
@@ -148,6 +160,11 @@ def simulate_to_bag(
 
         write_run_status(bag, 0, messages.RUN_RUNNING)
         plant, observer, controller = build_cores(scenario)
+        several = several_pantographs(plant) is not None
+        if several:  # every pantograph's truth, as the plant node publishes it then
+            topics.append("pantograph_truth")
+            rows["pantograph_truth"] = []
+            bag.add_topic("pantograph_truth", messages.PANTOGRAPH_TRUTH)
         delay = scenario.loop.command_delay_ticks
         loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
@@ -155,13 +172,23 @@ def simulate_to_bag(
                 blocks: Iterable[np.ndarray] = run_blocks(scenario, plant, loop)
                 if show_progress:
                     blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
+                controlled = loop.controlled()
                 for block in blocks:
+                    times = messages.tick_stamp_ns(1, rate) * block["tick"]
                     for topic, columns in messages.tick_columns(block, rate, delay).items():
-                        bag.write_many(topic, columns, messages.tick_stamp_ns(1, rate) * block["tick"])
+                        bag.write_many(topic, columns, times)
+                    if several:
+                        pantographs = [
+                            pantograph_truth_fields(truths, scenario, int(k), int(stamp))
+                            for truths, k, stamp in zip(
+                                pantograph_truths(block, controlled), block["tick"], times, strict=True
+                            )
+                        ]
+                        bag.write_rows("pantograph_truth", pantographs, times)
                     bag.flush()
                     ticks += block.size
                     if on_record is not None:
-                        for rec in tick_records(block):
+                        for rec in tick_records(block, controlled):
                             on_record(rec)
                     if stop_requested is not None and stop_requested():
                         interrupted = True
@@ -181,7 +208,7 @@ def simulate_to_bag(
                 if len(stamps) == WRITE_BLOCK:
                     write_ticks(bag, rows, stamps)
                     bag.flush()
-                    rows = {topic: [] for topic in messages.LOOP_TOPICS}
+                    rows = {topic: [] for topic in topics}
                     stamps = []
                 if stop_requested is not None and stop_requested():
                     interrupted = True
@@ -220,7 +247,9 @@ def main(argv: list[str] | None = None) -> int:
         "catenary file's format is documented in docs/catenary.md, 'The catenary file'. The "
         "pantograph: -p pantograph:=FILE (or a preset's name: config/pantographs/) for the plant, "
         "-p nominal_pantograph:=FILE for the observer and controller; the pantograph file's format "
-        "is documented in docs/catenary.md, 'The pantograph file'.",
+        "is documented in docs/catenary.md, 'The pantograph file'. Several pantographs "
+        "(-p pantographs:=[0.0,200.0]): the bag carries pantograph_truth too, every pantograph each "
+        "tick, as the plant node publishes it (docs/catenary.md, 'Several pantographs').",
     )
     parser.add_argument("bag", type=Path, nargs="?", help="output bag directory (must not exist)")
     add_override_arguments(parser)
