@@ -151,7 +151,7 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
                 "--topics",
                 "measurement",
                 "--rate",
-                "0.5",
+                "0.25",  # at 0.5 a loaded 2-core machine dropped 13 % of the samples (keep-last-1)
                 "--wait-for",
                 "2",
             ],
