@@ -228,11 +228,11 @@ def test_bag_info_play_and_record(tmp_path, domain_id):
             "--wait-for",
             "1",
             "-r",
-            "2",
+            "1",  # at twice real time a loaded CI machine's recorder missed 4 of 500 (seen)
         )
         assert play.returncode == 0, play.stderr
         assert "published 1000 messages" in play.stderr
-        time.sleep(1.0)  # let the last samples arrive: this is delivery time, not synchronisation
+        time.sleep(2.0)  # let the last samples arrive: this is delivery time, not synchronisation
         recorder.send_signal(signal.SIGINT)
         assert recorder.wait(timeout=20) == 0, log.read_text()
     finally:
