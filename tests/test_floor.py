@@ -68,9 +68,11 @@ def test_floor_rig_runs_and_records_every_tick(rigs):
     for topic in ("measurement", "plant_truth"):
         np.testing.assert_array_equal(ticks_of(bag, topic), np.arange(n), err_msg=topic)
     processed = node_stats(rig.processes["observer"].log(), "observer_node")["processed"]
-    sent = node_stats(rig.processes["controller"].log(), "controller_node")["sent"]
+    controller = node_stats(rig.processes["controller"].log(), "controller_node")
     assert ticks_of(bag, "estimate").size == processed
-    assert ticks_of(bag, "command").size == sent
+    # Answers and, under load, the watchdog's fallback commands (published, not counted in "sent":
+    # a loaded CI host gave 1411 commands in the bag for 1405 sent).
+    assert bag.topics["command"]["tick"].size == controller["sent"] + controller["fallback_commands"]
     assert ticks_of(bag, "command")[-1] == n - 1  # the run's last command is in the bag
     # A relay's physics is nothing: zero estimates, zero commands (it is not the real core).
     assert not np.any(bag.topics["estimate"]["theta_hat"])
