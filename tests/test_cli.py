@@ -228,7 +228,7 @@ def test_bag_info_play_and_record(tmp_path, domain_id):
             "--wait-for",
             "1",
             "-r",
-            "1",  # at twice real time a loaded CI machine's recorder missed 4 of 500 (seen)
+            "1",
         )
         assert play.returncode == 0, play.stderr
         assert "published 1000 messages" in play.stderr
