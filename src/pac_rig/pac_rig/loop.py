@@ -179,14 +179,13 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
 
 @njit(cache=True, error_model="numpy")
 def _pantographs_output(pp, ps, c, st, flexibility, out) -> None:
-    """Every pantograph's contact on the FE line into ``out`` (``FEPlant.pantograph_truths``, the
-    same arithmetic: force kp delta where it touches, position x + offset - lag, the readings at
-    x - lag)."""
+    """Every pantograph's contact on the FE line into ``out``: what ``FEPlant.pantograph_truths``
+    reports, by the same kernels (``pantograph_contact``, ``readings_at`` its contact point)."""
     r = ps.readings
     for j in range(pp.pantographs):
         k = pp.contact_of[j]
-        out.pantograph_contact_force[j] = c.numbers[4] * st.deltas[k] if st.touching[k] != 0 else 0.0
-        out.pantograph_contact_position[j] = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[k]
+        force, position = fe.pantograph_contact(c, st, k)
+        out.pantograph_contact_force[j], out.pantograph_contact_position[j] = force, position
         fe.readings_at(c, st, flexibility, st.scalars[fe.X] - c.p_lag[k], r)
         out.pantograph_contact_uplift[j] = r[fe.CONTACT_UPLIFT]
         out.pantograph_support_uplift[j] = r[fe.SUPPORT_UPLIFT]

@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import block_diag
 
+from pac_model.parameters import positive_period
+
 from . import kernels as kn
 from .kernels import (
     MAX_ACTIVE_SET_PASSES,
@@ -103,8 +105,7 @@ class ContactSimulation:
         passive: Sequence[PassivePantograph] = (),
         window_lag: float | None = None,
     ) -> None:
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"dt must be positive, got {dt!r}")
+        positive_period(dt, "dt")
         lags = [float(lag)] + [float(q.lag) for q in passive]
         if not all(math.isfinite(q) and q >= 0.0 for q in lags):
             raise ValueError(f"pantograph lags must be finite and >= 0 m, got {lags}")
@@ -317,12 +318,16 @@ class ContactSimulation:
     @property
     def contact_positions(self) -> np.ndarray:
         """Each contact point's distance from the line's start (plus what an endless line shifted)."""
-        return self.x + self.offset - self.lags
+        return np.array(
+            [kn.pantograph_contact(self.constants, self.state, k)[1] for k in range(len(self.lags))]
+        )
 
     @property
     def contact_forces(self) -> np.ndarray:
         """Each contact's penalty force [N] (0 where it does not touch)."""
-        return np.where(self.state.touching != 0, self.kp * self.state.deltas, 0.0)
+        return np.array(
+            [kn.pantograph_contact(self.constants, self.state, k)[0] for k in range(len(self.lags))]
+        )
 
     @property
     def slack(self) -> np.ndarray:

@@ -724,6 +724,15 @@ def contact_readings(c: StepConstants, s: StepState, flexibility: np.ndarray, ou
 
 
 @numba.njit(cache=True)
+def pantograph_contact(c: StepConstants, s: StepState, k: int) -> tuple[float, float]:
+    """Contact k (pantograph k's head): its penalty force kp delta_k where it touches, else 0 [N],
+    and its contact point's distance from the line's start (x plus what an endless line shifted,
+    minus its lag) [m]. The one home of both: the compiled loop and ``ContactSimulation`` call it."""
+    force = c.numbers[4] * s.deltas[k] if s.touching[k] != 0 else 0.0
+    return force, s.scalars[X] + s.scalars[OFFSET] - c.p_lag[k]
+
+
+@numba.njit(cache=True)
 def readings_at(c: StepConstants, s: StepState, flexibility: np.ndarray, x: float, out: np.ndarray) -> None:
     """What the plant reports at a contact point x (``Line``'s formulas, compiled): the wire's
     uplift there and at the nearest support [m], the static point stiffness 1 / (N^T F_e N)
