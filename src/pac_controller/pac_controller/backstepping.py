@@ -15,11 +15,9 @@ and theta_hat.  Choices the paper leaves open (docs/design.md):
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
 from . import kernels
 from .backstepping_equations import (  # noqa: F401 - the equations, re-exported where they lived
@@ -55,8 +53,7 @@ class BacksteppingController(KernelLaw):
         reference: ReferenceParameters,
         sample_period: float,
     ) -> None:
-        if not (math.isfinite(sample_period) and sample_period > 0.0):
-            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        positive_period(sample_period)
         super().__init__(self.NAME, sample_period)
         self.pantograph = pantograph
         self.omega = track.omega

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 
 from pac_model import model
+from pac_model.parameters import positive_period
 
 from .parameters import ControllerParameters, ReferenceParameters
 from .reference import ForceReference
@@ -122,8 +123,7 @@ class Controller:
         sample_period: float,
         name: str = "",
     ) -> None:
-        if not (math.isfinite(sample_period) and sample_period > 0.0):
-            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        positive_period(sample_period)
         self.law = law
         self.name = name
         self.params = params

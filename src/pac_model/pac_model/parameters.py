@@ -10,6 +10,14 @@ import numpy as np
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
 
+def positive_period(value: float, name: str = "sample_period") -> float:
+    """``value`` when it is a finite time step > 0 [s]; else ValueError naming it. Every core
+    (plant, observer, controller, law, FE integrator) checks its step here."""
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"{name} must be positive, got {value!r}")
+    return value
+
+
 @dataclass(frozen=True)
 class PantographParameters(ParameterSet):
     """Lumped 2-DOF pantograph (Fig. 2, Table 1). Known to the observer and controller."""

@@ -50,7 +50,7 @@ import numpy as np
 from numba import njit
 
 from pac_model import model
-from pac_model.parameters import PantographParameters, TrackParameters
+from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
 from .observer import (
     _DIVERGED_REASONS,
@@ -207,8 +207,7 @@ class ContactForceObserver:
         params: ObserverParameters,
         sample_period: float,
     ) -> None:
-        if not (math.isfinite(sample_period) and sample_period > 0.0):
-            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        positive_period(sample_period)
         self.pantograph = pantograph
         self.params = params
         self.sample_period = sample_period

@@ -34,7 +34,7 @@ import numpy as np
 
 from pac_common.parameters import ParameterError
 from pac_model.pantograph_file import load_pantograph_file
-from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
 from .catenary import kernels
 from .catenary.catenary_file import load_catenary
@@ -106,8 +106,7 @@ class FEPlant(Plant):
         sample_period: float,
         data: CatenaryData | None = None,
     ) -> None:
-        if not (math.isfinite(sample_period) and sample_period > 0.0):
-            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        positive_period(sample_period)
         self.pantograph = pantograph
         self.track = track
         self.options = options

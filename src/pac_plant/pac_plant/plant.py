@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit
 
 from pac_model import model
-from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
 from .catenary.pantographs import plant_chain
 from .parameters import PlantOptions
@@ -143,8 +143,7 @@ class Plant:
         sample_period: float,
         z0: np.ndarray | None = None,
     ) -> None:
-        if not (math.isfinite(sample_period) and sample_period > 0.0):
-            raise ValueError(f"sample_period must be positive, got {sample_period!r}")
+        positive_period(sample_period)
         chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
         if options.pantograph:  # eq. (5) is the paper's 2-DOF: a file of that shape, or refused
             pantograph = PantographParameters(**chain.table1("pantograph"))
