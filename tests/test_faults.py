@@ -6,7 +6,9 @@ recovery time) are measurements; the assertions are the safety properties and lo
 
 import math
 import os
+import signal
 import subprocess
+import sys
 import time
 
 import numpy as np
@@ -25,7 +27,7 @@ from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.reference import ForceReference
 from pac_plant.plant_node import PlantNodeOptions
 from pac_rig.configs import parameter_sets
-from pac_rig.launcher import NODES
+from pac_rig.launcher import NODES, Process
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 pytestmark = pytest.mark.live
@@ -188,6 +190,43 @@ def test_recorder_sigkill_loses_at_most_one_second(rigs, tmp_path):
     lost = (killed_at - last) * 1e-9
     print(f"\nrecorder killed: recovered bag ends {lost * 1e3:.0f} ms before the kill; {counts}")
     assert lost <= 1.0 and counts["plant_truth"] > 2000
+
+
+def test_sigusr1_shows_where_every_thread_of_a_node_is_and_the_node_goes_on(rigs):
+    rig = running_rig(rigs, "sigusr1")
+    recorder = rig.processes["recorder"]
+    rig.signal("recorder", signal.SIGUSR1)
+    wait_for_log(recorder, "most recent call first", timeout=10.0)
+    assert "bag-writer" in recorder.log() or "_write_loop" in recorder.log()  # every thread
+    time.sleep(0.5)
+    assert rig.stop() == {**dict.fromkeys(NODES, 0), "recorder": 0}
+    assert (rig.bag_path / "metadata.yaml").exists()
+
+
+def test_the_rig_kills_what_does_not_stop_and_shows_where_it_hung(rigs, capfd):
+    # A stand-in for a recorder whose bag close hangs: it ignores SIGINT, as a hung close would.
+    rig = rigs("stuck", duration=0.0)
+    log = rig.log_dir / "recorder.log"
+    log.parent.mkdir(parents=True, exist_ok=True)
+    script = (
+        "import faulthandler, signal, time\n"
+        "faulthandler.register(signal.SIGUSR1, all_threads=True)\n"
+        "signal.signal(signal.SIGINT, signal.SIG_IGN)\n"
+        "print('ready', flush=True)\n"
+        "def closing_the_bag():\n"
+        "    time.sleep(600)\n"
+        "closing_the_bag()\n"
+    )
+    with open(log, "wb") as out:
+        popen = subprocess.Popen([sys.executable, "-c", script], stdout=out, stderr=subprocess.STDOUT)
+    rig.processes["recorder"] = proc = Process("recorder", popen, log)
+    wait_for_log(proc, "ready", timeout=30.0)
+    started = time.monotonic()
+    assert rig.stop(grace=1.0, recorder_grace=1.0) == {"recorder": -9}
+    assert time.monotonic() - started < 10.0
+    err = capfd.readouterr().err
+    assert f"rig: recorder (pid {popen.pid}) did not stop within 1 s of SIGINT: killed" in err
+    assert "closing_the_bag" in err  # where it hung, from its own traceback
 
 
 def test_non_finite_data_never_reaches_the_actuator(rigs, domain_id):

@@ -7,15 +7,15 @@ and exit status 2; SIGINT / SIGTERM are a clean shutdown with exit status 0.
 from __future__ import annotations
 
 import faulthandler
-import os
+import signal
 import sys
-import threading
 import time
 from collections.abc import Sequence
 
 from .command_line import UsageError, check_domain_id, check_ros_arguments, set_process_arguments
 from .discovery import loopback_only
 from .executor import make_executor
+from .exit_guard import exit_after
 from .node_help import node_help, print_help
 from .parameters import ParameterError
 from .scheduling import normal_scheduling
@@ -50,6 +50,9 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
         print(f"{program}: {exc}", file=sys.stderr)
         return 2
     loopback_only()
+    # `kill -USR1 <pid>` prints every thread's traceback on stderr, the process going on: how a
+    # stop that hangs shows where (the rig sends it before it kills a process that did not stop).
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -96,19 +99,16 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
                     node.health.final_report()
                 node.health.print_stats()
                 status = status or node.exit_status
-            # Tearing down rclpy (EventsExecutor) in these wheels was seen to hang once in ~50
-            # stops; everything that matters is done, so a stuck teardown ends the process. The
-            # guard must be able to run: no real-time thread may starve it (normal scheduling
-            # first), and a hang that holds the GIL is ended by faulthandler's own C thread
-            # (exit 1, with every thread's traceback on stderr to show where it hung).
-            final = status
+            # Tearing down rclpy in these wheels was seen to hang, rarely, inside
+            # destroy_node with the GIL held (a Python timer thread then never runs: the rig
+            # killed such a process); everything that matters is done, so a stuck teardown ends
+            # the process with its status by a C-library timer thread (exit_guard). No
+            # real-time thread may starve it (normal scheduling first).
             sys.stdout.flush()
             sys.stderr.flush()
             normal_scheduling()
-            guard = threading.Timer(5.0, lambda: os._exit(final))
-            guard.daemon = True
-            guard.start()
-            faulthandler.dump_traceback_later(20.0, exit=True)
+            faulthandler.dump_traceback_later(4.0)  # where it hung, into the log, then:
+            exit_after(5.0, status)
             if executor is not None:
                 executor.shutdown(timeout_sec=1.0)
         for node in nodes:

@@ -228,18 +228,38 @@ class Rig:
         if proc.poll() is None:
             os.kill(proc.popen.pid, sig)
 
-    def stop(self, grace: float = 10.0) -> dict[str, int | None]:
-        """SIGINT every process still running, SIGKILL after ``grace`` seconds; their exit codes."""
-        for name in self.processes:
-            self.signal(name, signal.SIGINT)
-        deadline = time.monotonic() + grace
-        for proc in self.processes.values():
-            proc.wait(max(0.0, deadline - time.monotonic()))
-        for proc in self.processes.values():
-            if proc.poll() is None:
-                os.kill(proc.popen.pid, signal.SIGKILL)
-                proc.wait(5.0)
+    def stop(self, grace: float = 10.0, recorder_grace: float = 30.0) -> dict[str, int | None]:
+        """SIGINT the loop's processes, then the recorder (it records to the end and then closes
+        its bag with nothing more arriving); SIGKILL what still runs after ``grace`` (the
+        recorder: ``recorder_grace``) seconds, after SIGUSR1 made it print every thread's
+        traceback into its log (``pac_common.process``), whose end goes to stderr. Exit codes."""
+        loop = [name for name in self.processes if name != "recorder"]
+        last = [name for name in self.processes if name == "recorder"]
+        for names, wait in ((loop, grace), (last, recorder_grace)):
+            for name in names:
+                self.signal(name, signal.SIGINT)
+            deadline = time.monotonic() + wait
+            for name in names:
+                self.processes[name].wait(max(0.0, deadline - time.monotonic()))
+            for name in names:
+                self._kill_stuck(self.processes[name], wait)
         return {name: proc.returncode for name, proc in self.processes.items()}
+
+    def _kill_stuck(self, proc: Process, waited: float) -> None:
+        """SIGKILL a process that did not stop after SIGINT, with the evidence of where it was."""
+        if proc.poll() is not None:
+            return
+        os.kill(proc.popen.pid, signal.SIGUSR1)
+        proc.wait(1.0)
+        if proc.poll() is None:
+            os.kill(proc.popen.pid, signal.SIGKILL)
+            proc.wait(5.0)
+        print(
+            f"rig: {proc.name} (pid {proc.popen.pid}) did not stop within {waited:g} s of SIGINT: "
+            f"killed; the end of its log ({proc.log_path}):\n{proc.log()[-6000:]}",
+            file=sys.stderr,
+            flush=True,
+        )
 
     def kill(self, name: str) -> int | None:
         """SIGKILL one node (a crash) and reap it; its exit code."""
