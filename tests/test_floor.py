@@ -11,6 +11,8 @@ import pytest
 from conftest import node_stats
 
 from pac_bag.reader import read_bag
+from pac_common import messages
+from pac_controller.parameters import ControllerParameters
 from pac_rig.launcher import NODES, REALTIME_PRIORITIES
 
 pytestmark = pytest.mark.live
@@ -74,9 +76,14 @@ def test_floor_rig_runs_and_records_every_tick(rigs):
     # a loaded CI host gave 1411 commands in the bag for 1405 sent).
     assert bag.topics["command"]["tick"].size == controller["sent"] + controller["fallback_commands"]
     assert ticks_of(bag, "command")[-1] == n - 1  # the run's last command is in the bag
-    # A relay's physics is nothing: zero estimates, zero commands (it is not the real core).
+    # A relay's physics is nothing: zero estimates, zero answers (it is not the real core); a
+    # watchdog fallback command carries the fallback force, as the real controller's does.
     assert not np.any(bag.topics["estimate"]["theta_hat"])
-    assert not np.any(bag.topics["command"]["u"])
+    command = bag.topics["command"]
+    fallback = command["mode"] == messages.MODES["fallback"]
+    assert not np.any(command["u"][~fallback])
+    assert np.all(command["u"][fallback] == ControllerParameters().fallback_force)
+    assert np.count_nonzero(fallback) == controller["fallback_commands"]
 
 
 def test_floor_lockstep_answers_every_tick(rigs):

@@ -154,6 +154,25 @@ def test_sigint_stops_every_node_cleanly_and_the_bag_reads(rigs):
     assert counts["plant_truth"] == n_truth
 
 
+def test_ctrl_c_leaves_no_traceback_in_any_node_log(rigs):
+    # Ctrl-C used to raise KeyboardInterrupt inside a callback, or fail a publish in flight,
+    # and the executor printed a FATAL traceback for a clean stop: 3 of 12 rig stops here.
+    for i in range(4):
+        rig = rigs(f"ctrl_c_{i}", duration=0.0, record=False)
+        rig.start()
+        plant = rig.processes["plant"]
+        deadline = time.monotonic() + 60
+        while "real-time loop running" not in plant.log():
+            assert time.monotonic() < deadline, plant.log()
+            time.sleep(0.05)
+        time.sleep(0.5)
+        assert rig.stop() == dict.fromkeys(rig.processes, 0)
+        for name, proc in rig.processes.items():
+            log = proc.log()
+            for sign in ("Traceback", "Exception in", "KeyboardInterrupt", "Failed to publish"):
+                assert sign not in log, f"{name} after Ctrl-C:\n{log[-3000:]}"
+
+
 ROS2_SHIM = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 
 

@@ -115,6 +115,34 @@ class PacNode(ManagedNode, Node):
         lifecycle = self._sets.get(LifecycleOptions)
         self.start_lifecycle(isinstance(lifecycle, LifecycleOptions) and lifecycle.lifecycle)
 
+    # SIGINT / SIGTERM shut the context down from rclpy's signal handling while the executor may
+    # be inside one of our callbacks; a publish there fails with "publisher's context is
+    # invalid", which the EventsExecutor printed as a FATAL traceback although the stop was
+    # clean (seen on plant_node). Our callbacks drop an error raised once the context is down;
+    # an error while it runs is raised as ever.
+    def create_timer(self, timer_period_sec: float, callback: Callable, *args: Any, **kwargs: Any) -> Any:
+        return super().create_timer(timer_period_sec, self._until_shutdown(callback), *args, **kwargs)
+
+    def create_subscription(
+        self, msg_type: Any, topic: str, callback: Callable, qos_profile: Any, *args: Any, **kwargs: Any
+    ) -> Any:
+        return super().create_subscription(
+            msg_type, topic, self._until_shutdown(callback), qos_profile, *args, **kwargs
+        )
+
+    def _until_shutdown(self, callback: Callable) -> Callable:
+        context = self.context
+
+        def guarded(*args: Any) -> Any:
+            try:
+                return callback(*args)
+            except Exception:
+                if context.ok():
+                    raise
+                return None
+
+        return guarded
+
     def _health_counters(self) -> dict[str, Any]:
         if not self.configured:
             return {"state": self.lifecycle_state}

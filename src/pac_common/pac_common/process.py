@@ -9,6 +9,7 @@ from __future__ import annotations
 import faulthandler
 import signal
 import sys
+import threading
 import time
 from collections.abc import Sequence
 
@@ -53,6 +54,13 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
     # `kill -USR1 <pid>` prints every thread's traceback on stderr, the process going on: how a
     # stop that hangs shows where (the rig sends it before it kills a process that did not stop).
     faulthandler.register(signal.SIGUSR1, all_threads=True)
+    # Ctrl-C: rclpy's own handler (installed by rclpy.init, which then calls this one) shuts the
+    # context down and the loop below ends. Python's default handler would also raise
+    # KeyboardInterrupt at whatever line runs, often inside a callback mid-publish, which the
+    # EventsExecutor printed as a FATAL traceback although the stop was clean; or inside
+    # close(), cutting a bag's close short. This one only notes the stop.
+    interrupted = threading.Event()
+    signal.signal(signal.SIGINT, lambda *_: interrupted.set())
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
@@ -77,7 +85,7 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
         executor = make_executor()
         for node in nodes:
             executor.add_node(node)
-        while rclpy.ok() and not all(node.finished for node in nodes):
+        while rclpy.ok() and not interrupted.is_set() and not all(node.finished for node in nodes):
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
