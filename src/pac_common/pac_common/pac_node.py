@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, ClassVar, TypeVar
 
 from rcl_interfaces.msg import SetParametersResult
@@ -73,6 +73,22 @@ def pac_parameter_names() -> set[str]:
                 if isinstance(section, dict) and isinstance(section.get("ros__parameters"), dict):
                     names |= set(section["ros__parameters"])
     return names
+
+
+def unacknowledged(publishers: Iterable[Any], timeout: float) -> list[Any]:
+    """The publishers whose reliable readers had not acknowledged every sample sent when
+    ``timeout`` seconds (one deadline for all) ran out; a process that destroys its node at once
+    loses what is still in flight. A context already shut down has nobody left to wait for."""
+    deadline = time.monotonic() + timeout
+    late = []
+    for pub in publishers:
+        left = max(0.0, deadline - time.monotonic())
+        try:
+            if not pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9))):
+                late.append(pub)
+        except Exception:  # noqa: BLE001 - a context already shut down: nothing to wait for
+            break
+    return late
 
 
 class PacNode(ManagedNode, Node):
@@ -408,15 +424,7 @@ class PacNode(ManagedNode, Node):
         Without it the last ticks of a run were lost when the recorder was slower than the
         plant's exit (seen under load).
         """
-        deadline = time.monotonic() + timeout
-        for pub in list(self.publishers):
-            left = deadline - time.monotonic()
-            if left <= 0.0:
-                break
-            try:
-                pub.wait_for_all_acked(Duration(nanoseconds=int(left * 1e9)))
-            except Exception:  # noqa: BLE001 - a context already shut down: nothing to wait for
-                return
+        unacknowledged(list(self.publishers), timeout)
 
     def close(self) -> None:
         """Make the node's results final; the base reports the last status and waits for

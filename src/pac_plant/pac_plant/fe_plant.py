@@ -212,13 +212,13 @@ class FEPlant(Plant):
     def pantograph_truths(self) -> list[PantographTruth]:
         """What each pantograph of ``pantographs`` (in that order) feels at this tick."""
         s, out, r = self.sim, [], np.zeros(5)
-        forces, positions = s.contact_forces, s.contact_positions
         for k in self.contact_of:
+            force, position = kernels.pantograph_contact(s.constants, s.state, k)
             s.readings_at(self._flex, s.x - s.lags[k], r)
             out.append(
                 PantographTruth(
-                    contact_force=float(forces[k]),
-                    contact_position=float(positions[k]),
+                    contact_force=float(force),
+                    contact_position=float(position),
                     contact_uplift=float(r[kernels.CONTACT_UPLIFT]),
                     support_uplift=float(r[kernels.SUPPORT_UPLIFT]),
                     controlled=k == 0,

@@ -19,6 +19,7 @@ from pac_bag.reader import BagError, bag_files
 from pac_bag.recovery import iter_records
 from pac_common import messages
 from pac_common.node import PUBLISH_QOS, loopback_only
+from pac_common.pac_node import unacknowledged
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -81,9 +82,8 @@ def main(argv: list[str] | None = None) -> int:
             pubs[topic].publish(bytes(data))
         # The last samples are still in flight when the loop ends: destroying the node now lost
         # them (4 of 500 in a loaded CI run). Reliable writers wait for every reader's ack.
-        from rclpy.duration import Duration
-
-        unacked = [t for t, p in pubs.items() if not p.wait_for_all_acked(Duration(seconds=args.timeout))]
+        late = unacknowledged(pubs.values(), args.timeout)
+        unacked = [t for t, p in pubs.items() if p in late]
         if unacked:
             print(
                 f"replay: warning: {', '.join(unacked)}: not every subscriber acknowledged the last "
