@@ -130,6 +130,7 @@ class ControllerNode(PacNode):
         self.last_answer: Command | None = None  # the command that answered the last fresh estimate
         self.in_fallback = False
         self.sent = 0
+        self.answered_again = 0  # answers re-published for a re-sent estimate (the tick-0 handshake)
         self.skipped = 0  # estimates that never arrived (tick gaps)
         self.fallback_commands = 0
         self.fallback_episodes = 0
@@ -214,6 +215,7 @@ class ControllerNode(PacNode):
             return  # idle: the run is over (a new run starts again at tick 0)
         if tick <= self.last_estimate_tick:
             if tick == self.last_estimate_tick and self.last_answer is not None:
+                self.answered_again += 1
                 self.publish(self.last_answer, 0)  # the answer to a re-sent sample, again
             return
         if not self.ready():
@@ -267,6 +269,7 @@ class ControllerNode(PacNode):
             "last_tick": self.last_estimate_tick,
             "law": self.core.name,
             "sent": self.sent,
+            "answered_again": self.answered_again,
             "skipped": self.skipped,
             "fallback_active": self.in_fallback,
             "estimate_age_ticks": age,
@@ -281,7 +284,8 @@ class ControllerNode(PacNode):
     def close(self) -> None:
         super().close()
         print(
-            f"controller_node: sent {self.sent} commands; {self.skipped} estimates never arrived; "
+            f"controller_node: sent {self.sent} commands ({self.answered_again} answers again to a "
+            f"re-sent estimate); {self.skipped} estimates never arrived; "
             f"{self.fallback_commands} fallback commands in {self.fallback_episodes} episodes; "
             f"{self.nonfinite} non-finite or implausible estimates refused",
             file=sys.stderr,

@@ -106,6 +106,7 @@ class ObserverNode(PacNode):
         self.rejected_since_estimate = False
         self.waited = 0
         self.processed = 0
+        self.answered_again = 0  # estimates re-published for a re-sent measurement (tick-0 handshake)
         self.bridged = 0  # samples never received (or refused), bridged by the core
         self.timing = diagnostics.LoopTiming()  # measurement arrivals and handling times
 
@@ -155,6 +156,7 @@ class ObserverNode(PacNode):
             return  # idle: the run is over (a new run starts again at tick 0)
         if tick <= self.last_seen_tick:
             if tick == self.core.tick and self.last_estimate is not None:
+                self.answered_again += 1
                 self.publish(*self.last_estimate)  # the answer to a re-sent sample, again
             return
         if not self.ready():
@@ -193,6 +195,7 @@ class ObserverNode(PacNode):
             "state": self.loop_state(self.last_seen_tick),
             "last_tick": self.last_seen_tick,
             "processed": self.processed,
+            "answered_again": self.answered_again,
             "bridged": self.bridged,
             "waited": self.waited,
             "refused": self.rejected,
@@ -204,7 +207,8 @@ class ObserverNode(PacNode):
     def close(self) -> None:
         super().close()
         print(
-            f"observer_node: processed {self.processed} measurements; "
+            f"observer_node: processed {self.processed} measurements "
+            f"({self.answered_again} estimates again for a re-sent one); "
             f"{self.bridged} never arrived or were refused and were bridged; "
             f"{self.waited} before the loop was matched; {self.rejected} refused; "
             f"{self.reinitialisations} re-initialisations",
