@@ -89,6 +89,46 @@ def pytest_collection_modifyitems(config, items):
 ROOT = Path(__file__).resolve().parents[1]
 
 
+#: The project's ``ros2`` (the workspace's environment set up, as the README runs it).
+ROS2 = str(ROOT / "scripts" / "bin" / "ros2")
+
+
+def ros2(*args: str, env: dict[str, str], timeout: float = 120.0, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([ROS2, *args], capture_output=True, text=True, timeout=timeout, env=env, cwd=cwd)
+
+
+def one_line(proc: subprocess.CompletedProcess, code: int, *needles: str) -> str:
+    """Exit ``code``, exactly one line on stderr (no traceback), naming every needle."""
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert proc.returncode == code and len(lines) == 1 and "Traceback" not in proc.stderr, (
+        proc.returncode,
+        proc.stderr,
+    )
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    return lines[0]
+
+
+def stop(proc: subprocess.Popen, timeout: float = 30.0) -> int:
+    """Stop a process this test started, by its PID: SIGINT, then SIGKILL after ``timeout``."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            return proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+    return proc.wait()
+
+
+@pytest.fixture
+def processes():
+    """Popen objects started by the test; each is stopped (:func:`stop`) by PID, pass or fail."""
+    started: list[subprocess.Popen] = []
+    yield started
+    for proc in started:
+        stop(proc)
+
+
 def repository_files(*patterns: str) -> list[Path]:
     """The repository's files matching git pathspecs ``patterns``, tracked or new, not ignored
     (build outputs and bags are not the project's text)."""

@@ -2,12 +2,12 @@
 
 import json
 import shutil
-import signal
 import subprocess
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import one_line, ros2, stop
 from mcap_ros2.reader import read_ros2_messages
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -107,89 +107,83 @@ def test_re_estimate_detects_different_tuning(offline_bags):
     assert result["fields"]["theta_hat"]["max_rel_diff"] > 1e-3
 
 
-def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_path, domain_id):
-    """Replay measurement at a tenth of real time into observer_node; record what it sees and says.
+def recorder(bag: Path, topics: str, *parameters: str) -> list[str]:
+    """The command line of a recorder of ``topics`` (comma-separated) into ``bag``."""
+    args = [f"bag_path:={bag}", f"topics:={topics}", *parameters]
+    return ["ros2", "run", "pac_rig", "recorder", "--ros-args", *(a for p in args for a in ("-p", p))]
 
-    Exact: the live observer's estimates equal the observer core fed with exactly the samples it
-    processed (re_estimate on the new bag), bit for bit, whatever the load.
-    Against the original run: identical when it processed every sample from tick 0; when it
-    skipped samples under load (keep-last-1) it bridges them by interpolating y, and k_hat then
-    stays within 0.5 % of the original once converged (the bridging error grows with the gap)."""
+
+def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_path, domain_id, processes):
+    """Replay measurement in lock step into observer_node; record what it sees and says.
+
+    Every sample is processed whatever the load (each is published once the observer answered the
+    one before), so the live observer's estimates equal the original run's bit for bit, and the
+    observer core fed with exactly the samples it processed (re_estimate on the new bag).  A timed
+    replay lost up to 13 % of them on a loaded 2-core machine (keep-last-1)."""
     env = node_env(domain_id)
     rec_bag = tmp_path / "new_estimates"
-    procs = []
-    try:
-        for cmd in (
-            [
-                "ros2",
-                "run",
-                "pac_rig",
-                "recorder",
-                "--ros-args",
-                "-p",
-                f"bag_path:={rec_bag}",
-                "-p",
-                "topics:=measurement,estimate",
-                "-p",
-                "stop_after_tick:=4999",
-                "-p",
-                "idle_timeout:=3.0",
-            ],
-            # no controller here: the recorder is the estimate's only subscriber
-            ["ros2", "run", "pac_observer", "observer_node"],
-        ):
-            procs.append(
-                subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            )
-        replay = subprocess.run(
-            [
-                "ros2",
-                "run",
-                "pac_rig",
-                "replay",
-                str(offline_bags / "active"),
-                "--topics",
-                "measurement",
-                "--rate",
-                # Keep-last-1 drops a sample whenever two arrive within one spin of the observer:
-                # on loaded 2-core machines 13 % of them at 0.5, 3.8 % at 0.25 (a clean-clone CI
-                # run, k_hat then 0.507 % off).
-                "0.1",
-                "--wait-for",
-                "2",
-            ],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
-        assert replay.returncode == 0, replay.stderr
-        assert procs[0].wait(timeout=60) == 0
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                p.send_signal(signal.SIGINT)
-        for p in procs:
-            try:
-                p.communicate(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.communicate()
+    for cmd in (
+        recorder(rec_bag, "measurement,estimate", "stop_after_tick:=4999", "idle_timeout:=3.0"),
+        ["ros2", "run", "pac_observer", "observer_node"],
+    ):
+        with open(tmp_path / f"{cmd[3]}.log", "wb") as log:  # the process keeps its own handle
+            processes.append(subprocess.Popen(cmd, env=env, stdout=log, stderr=subprocess.STDOUT))
+    replay = subprocess.run(
+        [
+            "ros2",
+            "run",
+            "pac_rig",
+            "replay",
+            str(offline_bags / "active"),
+            "--topics",
+            "measurement",
+            "--lockstep",
+            "--wait-for",
+            "2",
+        ],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert replay.returncode == 0, replay.stderr
+    assert "published 5000 messages" in replay.stderr, replay.stderr
+    print(f"\n{replay.stderr.strip().splitlines()[-1]}")
+    assert processes[0].wait(timeout=60) == 0, (tmp_path / "recorder.log").read_text()
+    stop(processes[1])
     same_samples = re_estimate(rec_bag, {})
-    assert same_samples["compared"] > 2500
+    assert same_samples["compared"] == 5000
     assert all(f["identical"] for f in same_samples["fields"].values())
     new = read_bag(rec_bag).topics["estimate"]
     old = read_bag(offline_bags / "active").topics["estimate"]
     ticks, idx = np.unique(new["tick"], return_index=True)
-    print(f"\nreplay: the live observer processed {ticks.size} of 5000 samples")
-    if ticks.size == 5000:
-        np.testing.assert_array_equal(new["theta_hat"][idx], old["theta_hat"])
-        np.testing.assert_array_equal(new["z_hat"][idx], old["z_hat"])
-    else:
-        late = ticks >= 2000  # after convergence
-        np.testing.assert_allclose(
-            new["stiffness_hat"][idx][late], old["stiffness_hat"][ticks][late], rtol=5e-3
+    np.testing.assert_array_equal(ticks, np.arange(5000))
+    for field in ("theta_hat", "z_hat", "stiffness_hat"):
+        np.testing.assert_array_equal(new[field][idx], old[field], err_msg=field)
+
+
+def test_lockstep_replay_refuses_what_no_loop_node_answers_and_gives_up_without_an_answer(
+    offline_bags, domain_id, processes
+):
+    """--lockstep replays one answered topic; with nobody answering it stops with one line."""
+    env = node_env(domain_id)
+    bag = str(offline_bags / "active")
+    for topics in (["command"], ["measurement", "estimate"]):
+        proc = ros2("run", "pac_rig", "replay", bag, "--topics", *topics, "--lockstep", env=env)
+        one_line(proc, 2, "--lockstep replays one topic that a loop node answers")
+    proc = ros2("run", "pac_rig", "replay", bag, "--lockstep", "--resend-timeout", "0", env=env)
+    one_line(proc, 2, "invalid --resend-timeout 0")
+    # a subscriber that never answers: the recorder
+    processes.append(
+        subprocess.Popen(
+            recorder(offline_bags.parent / f"unanswered_{domain_id}", "measurement"),
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
         )
+    )
+    proc = ros2("run", "pac_rig", "replay", bag, "--lockstep", "--timeout", "2", env=env)
+    one_line(proc, 1, "--lockstep: no estimate for tick 0 within 2 s")
 
 
 # -- bad bags ---------------------------------------------------------------------------------

@@ -13,11 +13,11 @@ import struct
 import subprocess
 import termios
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from conftest import ROS2
 
 from pac_bag.reader import read_bag
 from pac_bag.typestore import interface_dir
@@ -27,7 +27,6 @@ from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 pytestmark = pytest.mark.offline
 
-ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 RATE_HZ = 200.0
 TYPES = {
     "/measurement": "pac_interfaces/msg/FrameMeasurement",

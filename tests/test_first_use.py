@@ -9,30 +9,14 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import ROS2, one_line, ros2
 
 from pac_bag.reader import BagError, read_bag
 from pac_common.command_line import ParamsFile, UsageError, section_matches
 from pac_rig.launcher import node_env
 
-ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 #: A folder nobody can create files in, root included (the tests run as root here).
 READ_ONLY = Path("/proc")
-
-
-def ros2(*args: str, env: dict[str, str], timeout: float = 120.0, cwd=None) -> subprocess.CompletedProcess:
-    return subprocess.run([ROS2, *args], capture_output=True, text=True, timeout=timeout, env=env, cwd=cwd)
-
-
-def one_line(proc: subprocess.CompletedProcess, code: int, *needles: str) -> str:
-    """Exit ``code``, exactly one line on stderr (no traceback), naming every needle."""
-    lines = [line for line in proc.stderr.splitlines() if line.strip()]
-    assert proc.returncode == code and len(lines) == 1 and "Traceback" not in proc.stderr, (
-        proc.returncode,
-        proc.stderr,
-    )
-    for needle in needles:
-        assert needle in lines[0], (needle, lines[0])
-    return lines[0]
 
 
 def simulate(*args: str, env: dict[str, str], cwd=None) -> subprocess.CompletedProcess:

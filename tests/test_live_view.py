@@ -2,14 +2,13 @@
 
 import json
 import re
-import signal
 import struct
 import subprocess
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROS2, stop
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
@@ -21,7 +20,6 @@ from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 pytestmark = pytest.mark.live
 
 TOPICS = ("measurement", "plant_truth", "estimate", "command")
-ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 MESSAGE_DATA = 0x01  # server -> client binary opcode: subscription id u32, log time u64, payload
 
@@ -45,25 +43,6 @@ def subscribed_topics(env) -> list[str]:
     assert info.returncode == 0, info.stderr
     section = info.stdout.split("  Subscribers:\n")[1].split("  Publishers:")[0]
     return [line.split(":")[0].strip() for line in section.splitlines()]
-
-
-def stop(proc: subprocess.Popen) -> int:
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
-        try:
-            return proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-    return proc.wait()
-
-
-@pytest.fixture
-def processes():
-    """Popen objects started by the test; each is stopped (SIGINT, then SIGKILL) by PID, pass or fail."""
-    started = []
-    yield started
-    for proc in started:
-        stop(proc)
 
 
 def test_live_view_serves_replayed_topics_to_a_foxglove_client(tmp_path, domain_id, processes):

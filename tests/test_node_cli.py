@@ -3,10 +3,10 @@
 import signal
 import subprocess
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import ROS2
 from mcap_ros2.reader import read_ros2_messages
 
 from pac_common.node import MAX_DOMAIN_ID
@@ -14,8 +14,6 @@ from pac_rig.configs import parameter_sets
 from pac_rig.launcher import NODES, node_env
 
 pytestmark = pytest.mark.live
-
-ROS2 = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
 
 
 def run_node(

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import (
+    ROS2,
     assert_lockstep_equals_offline,
     assert_starts_and_stops_cleanly,
     first_per_tick,
@@ -173,17 +174,12 @@ def test_ctrl_c_leaves_no_traceback_in_any_node_log(rigs):
                 assert sign not in log, f"{name} after Ctrl-C:\n{log[-3000:]}"
 
 
-ROS2_SHIM = str(Path(__file__).resolve().parents[1] / "scripts" / "bin" / "ros2")
-
-
 def test_ros2_shim(domain_id):
     """The stand-in itself, by its path (a real ros2cli first on PATH must not be tested instead)."""
     env = node_env(domain_id)
-    out = subprocess.run(
-        [ROS2_SHIM, "pkg", "executables", "pac_rig"], capture_output=True, text=True, env=env
-    )
+    out = subprocess.run([ROS2, "pkg", "executables", "pac_rig"], capture_output=True, text=True, env=env)
     assert "pac_rig recorder" in out.stdout and "pac_rig live_view" in out.stdout
-    bad = subprocess.run([ROS2_SHIM, "daemon", "stop"], capture_output=True, text=True, env=env)
+    bad = subprocess.run([ROS2, "daemon", "stop"], capture_output=True, text=True, env=env)
     assert bad.returncode == 2 and bad.stderr.strip().splitlines() == [
         "ros2: unknown verb 'daemon': this minimal ros2 provides "
         "run, pkg, topic, node, param, interface, bag, lifecycle"
@@ -193,7 +189,7 @@ def test_ros2_shim(domain_id):
 def test_ros2_param_set_and_get_on_a_live_node(domain_id):
     env = node_env(domain_id)
     node = subprocess.Popen(
-        [ROS2_SHIM, "run", "pac_controller", "controller_node"],
+        [ROS2, "run", "pac_controller", "controller_node"],
         env=env,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -201,7 +197,7 @@ def test_ros2_param_set_and_get_on_a_live_node(domain_id):
     try:
 
         def ros2(*args):
-            return subprocess.run([ROS2_SHIM, *args], capture_output=True, text=True, env=env, timeout=60)
+            return subprocess.run([ROS2, *args], capture_output=True, text=True, env=env, timeout=60)
 
         # The shim answers "not found" within ~2 s (as ros2cli): wait for the node to be up first.
         deadline = time.monotonic() + 60

@@ -1,4 +1,4 @@
-"""``ros2 run pac_rig replay <bag> --topics measurement [command ...] [--rate R]``.
+"""``ros2 run pac_rig replay <bag> --topics measurement [command ...] [--rate R | --lockstep]``.
 
 Republishes chosen topics of a bag into the running graph (this process's
 ROS_DOMAIN_ID, loopback discovery) with the original timing of their log times
@@ -6,6 +6,13 @@ scaled by ``--rate`` (2 = twice as fast; 0 = as fast as possible), the serialise
 messages untouched.  Typical use: replay ``measurement`` into a live
 ``observer_node`` (your own, or ours with other parameters) and record its new
 ``estimate`` with ``ros2 run pac_rig recorder``.
+
+A node's loop input keeps the last sample only, so a timed replay loses samples
+whenever two arrive within one spin of the node (a few % on a loaded machine).
+``--lockstep`` makes the replay exact on any machine: each tick's sample is
+published once the node has answered the previous one (its ``estimate`` for a
+``measurement``, its ``command`` for an ``estimate``), and re-sent when no answer
+comes within ``--resend-timeout``, as the plant does in lock step.
 """
 
 from __future__ import annotations
@@ -21,6 +28,9 @@ from pac_common import messages
 from pac_common.node import PUBLISH_QOS, loopback_only
 from pac_common.pac_node import unacknowledged
 
+#: The topic a loop node answers each replayed topic's sample on, with the same tick.
+ANSWERS = {"measurement": "estimate", "estimate": "command"}
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="replay", description=__doc__)
@@ -33,10 +43,39 @@ def main(argv: list[str] | None = None) -> int:
         default=1,
         help="subscribers each replayed topic needs before the replay starts (default 1)",
     )
-    parser.add_argument("--timeout", type=float, default=30.0, help="how long to wait for them [s]")
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=30.0,
+        help="how long to wait for the subscribers, and (--lockstep) for one tick's answer [s]",
+    )
+    parser.add_argument(
+        "--lockstep",
+        action="store_true",
+        help="publish each tick once the node answered the previous one (one topic: measurement or "
+        "estimate); every sample is processed whatever the load, --rate is ignored",
+    )
+    parser.add_argument(
+        "--resend-timeout",
+        type=float,
+        default=0.5,
+        help="--lockstep: re-send a sample that got no answer within this time [s] (default 0.5)",
+    )
     args = parser.parse_args(argv)
     if args.rate < 0:
         print(f"replay: invalid --rate {args.rate}: allowed >= 0", file=sys.stderr)
+        return 2
+    for name in ("timeout", "resend_timeout"):
+        value = getattr(args, name)
+        if not value > 0:
+            print(f"replay: invalid --{name.replace('_', '-')} {value}: allowed > 0", file=sys.stderr)
+            return 2
+    if args.lockstep and (len(args.topics) != 1 or args.topics[0] not in ANSWERS):
+        print(
+            f"replay: --lockstep replays one topic that a loop node answers "
+            f"({' or '.join(ANSWERS)}), not {' '.join(args.topics)}",
+            file=sys.stderr,
+        )
         return 2
     warnings: list[str] = []
     try:
@@ -72,14 +111,15 @@ def main(argv: list[str] | None = None) -> int:
                 )
                 return 1
             time.sleep(0.01)
-        first = records[0][2]
         start = time.monotonic()
-        for topic, _, log_time, data in records:
-            if args.rate > 0:
-                delay = start + (log_time - first) * 1e-9 / args.rate - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-            pubs[topic].publish(bytes(data))
+        if args.lockstep:
+            (topic,) = args.topics
+            replayed = lockstep(node, factory, topic, pubs[topic], records, args)
+            if replayed is None:
+                return 1
+            records = replayed
+        else:
+            timed(pubs, records, args.rate)
         # The last samples are still in flight when the loop ends: destroying the node now lost
         # them (4 of 500 in a loaded CI run). Reliable writers wait for every reader's ack.
         late = unacknowledged(pubs.values(), args.timeout)
@@ -101,6 +141,57 @@ def main(argv: list[str] | None = None) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def timed(pubs: dict, records: list, rate: float) -> None:
+    """Publish ``records`` at their log times scaled by ``rate`` (0: as fast as possible)."""
+    first, start = records[0][2], time.monotonic()
+    for topic, _, log_time, data in records:
+        if rate > 0:
+            delay = start + (log_time - first) * 1e-9 / rate - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        pubs[topic].publish(bytes(data))
+
+
+def lockstep(node, factory, topic: str, pub, records: list, args: argparse.Namespace) -> list | None:
+    """Publish each tick of ``records`` once the node answered the one before (on
+    :data:`ANSWERS`), re-sending it after ``--resend-timeout``: the records published, one per
+    tick, or None when an answer did not come within ``--timeout`` (said on stderr)."""
+    import rclpy
+    from rclpy.serialization import deserialize_message
+
+    answer = ANSWERS[topic]
+    answered = [-1]  # the highest tick answered
+
+    def on_answer(msg) -> None:
+        answered[0] = max(answered[0], int(msg.tick))
+
+    cls = factory.cls(messages.TOPICS[topic])
+    node.create_subscription(factory.cls(messages.TOPICS[answer]), answer, on_answer, PUBLISH_QOS)
+    # One sample per tick, in tick order: a bag of a live run holds re-sent samples more than once.
+    by_tick: dict[int, tuple] = {}
+    for record in records:
+        by_tick.setdefault(int(deserialize_message(bytes(record[3]), cls).tick), record)
+    for tick in sorted(by_tick):
+        data = bytes(by_tick[tick][3])
+        pub.publish(data)
+        first = sent = time.monotonic()
+        while answered[0] < tick:
+            rclpy.spin_once(node, timeout_sec=args.resend_timeout / 10)
+            now = time.monotonic()
+            if answered[0] >= tick:
+                break
+            if now - first > args.timeout:
+                print(
+                    f"replay: --lockstep: no {answer} for tick {tick} within {args.timeout:g} s",
+                    file=sys.stderr,
+                )
+                return None
+            if now - sent > args.resend_timeout:
+                pub.publish(data)
+                sent = now
+    return [by_tick[tick] for tick in sorted(by_tick)]
 
 
 if __name__ == "__main__":
