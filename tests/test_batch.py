@@ -8,9 +8,9 @@ import pytest
 
 from pac_controller.parameters import COMPILED_LAW_NAMES, LAW_NAMES
 from pac_experiments.reproduce import COMMON, PAPER_GAINS
-from pac_rig.batch import TRACES, actuator_violation, batchable, run_batch
+from pac_rig.batch import TRACES, _run_one, actuator_violation, batchable, prepare, run_batch
 from pac_rig.closed_loop import DivergenceError, build_cores, run, run_cores
-from pac_rig.loop import MAX_DELAY, compile_loop
+from pac_rig.loop import MAX_DELAY, TICK, compile_loop
 from pac_rig.simulate import scenario_from_flat
 
 pytestmark = pytest.mark.offline
@@ -213,6 +213,23 @@ def test_a_command_the_safety_chain_cannot_give_is_found(batch):
         beyond,
         f"u = {climb[beyond]:.6g} N outside [{s.controller.u_min:g}, {s.controller.u_max:g}] N",
     )
+
+
+def test_each_tick_is_written_into_the_record_the_caller_holds():
+    """The compiled loop writes every tick's record into the caller's array, which lives as long
+    as the call: the last tick's values are there afterwards. (A record made inside the compiled
+    loop from a temporary array pointed into freed memory: numba's records do not keep their
+    array alive, and runs in threads were overwritten; docs/numerics.md, "The batch's threads".)"""
+    s = scenario_from_flat({**COMMON, "duration": 0.2})
+    loop, noise = prepare(0, s)
+    out = np.full((len(TRACES), s.loop.ticks), np.nan)
+    record = np.zeros(1, TICK)
+    assert _run_one(s.loop.ticks, *loop.args(), noise, out, record) == (s.loop.ticks, 0, 0.0)
+    last = record[0]
+    assert last["force_reference"] > 0.0 and last["u"] != 0.0  # a tick was written, not zeros
+    for j, name in enumerate(TRACES):
+        value = last["z"][0] if name == "z1" else last[name]
+        np.testing.assert_equal(value, out[j, -1], err_msg=name)  # NaN where the line has none
 
 
 def test_empty_batch_is_refused():

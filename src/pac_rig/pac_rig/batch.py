@@ -33,16 +33,22 @@ TRACES = (
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _run_one(
-    ticks, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+    ticks, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out, tick_record
 ) -> tuple[int, int, float]:
     """One scenario, tick by tick by :func:`pac_rig.loop.loop_tick`, its TRACES into ``out``
-    (len(TRACES) x ticks); (ticks reached, divergence code, value).
+    (len(TRACES) x ticks); (ticks reached, divergence code, value). ``tick_record``: one
+    ``loop.TICK`` row, each tick's record (the caller's array: see below).
+
+    The record array comes from the caller because a numba record does not keep its array alive:
+    ``np.zeros(1, TICK)[0]`` in here freed the array at once and every tick then wrote into freed
+    memory that any allocation, of this thread or another, could be handed (docs/numerics.md,
+    "The batch's threads").
 
     One thread runs one scenario at a time (``run_batch``).  Threads rather than numba's
     ``parallel=True``: compiled for parallel, the same core functions gave results a few ulp
     apart from the per-tick path's (seen), which would break "batch == closed_loop.run bit for bit".
     """
-    rec = np.zeros(1, TICK)[0]
+    rec = tick_record[0]
     quiet = noise.shape[0] == 1
     p, s, o, q, c, d = pp[0], ps[0], oc[0], os[0], cp[0], cs[0]
     for k in range(ticks):
@@ -140,19 +146,22 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
     )
 
     def run_loop(i: int, loop: CompiledLoop, noise: np.ndarray) -> None:
-        result_tick[i], result_code[i], result_value[i] = _run_one(int(ticks[i]), *loop.args(), noise, out[i])
+        record = np.zeros(1, TICK)
+        result_tick[i], result_code[i], result_value[i] = _run_one(
+            int(ticks[i]), *loop.args(), noise, out[i], record
+        )
 
     start = time.perf_counter()
     # Zero ticks of the first scenario here first: numba compiles (or loads) the loop in this thread,
     # not in two threads at once on their first call (which crashed).
     first, noise = prepare(0, scenarios[0])
-    _run_one(0, *first.args(), noise, out[0])
+    _run_one(0, *first.args(), noise, out[0], np.zeros(1, TICK))
     # Groups: the cores of a group are built here, one after the other and while no loop runs; then
-    # the group's compiled ticks run in the threads. Cores built while other loops ran (in the
-    # threads) corrupted runs: pid / lqr on the FE line, |u| of 1e153 .. 1e259 N in 2 to 3 of 6
-    # repeats of those 18 runs with two threads, also with the builds serialised by a lock; none in
-    # 6 repeats with every build done before the ticks. Which shared object the build writes is not
-    # found yet (docs/numerics.md). A group bounds the memory held (an FE loop is ~8 MB).
+    # the group's compiled ticks run in the threads. Built in the threads, pid / lqr FE runs were
+    # corrupted (|u| of 1e153 .. 1e259 N); the cause was the per-tick record pointing into freed
+    # memory (now the caller's array, above), but building here costs little and keeps the
+    # threads to compiled code only (docs/numerics.md). A group bounds the memory held (an FE
+    # loop is ~8 MB).
     group = 4 * threads
     with ThreadPoolExecutor(max_workers=min(threads, n)) as pool:
         for g0 in range(0, n, group):
