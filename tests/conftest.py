@@ -157,6 +157,32 @@ def first_per_tick(topic):
     return ticks, idx
 
 
+def assert_bag_holds_every_message_published(bag, logs: dict[str, str]) -> tuple[dict, dict]:
+    """Every estimate and command the observer and the controller published is in the bag (their
+    ``pac-stats`` counters from ``logs``: role -> process output), each answered tick once:
+
+    - their answers, and their answers again to a re-sent sample (the plant re-sends tick 0 until
+      the loop answers: a CI run had tick 0's command twice);
+    - the controller's fallback commands: its watchdog's (no fresh estimate in time, which a
+      starved host gives: a loaded CI host had 1411 commands for 1405 answers) and those answering
+      a refused estimate.
+
+    Returns the two nodes' counters."""
+    from pac_common import messages
+
+    observer = node_stats(logs["observer"], "observer_node")
+    controller = node_stats(logs["controller"], "controller_node")
+    estimates = bag.topics["estimate"]["tick"]
+    assert estimates.size == observer["processed"] + observer["answered_again"], observer
+    assert np.unique(estimates).size == observer["processed"], observer
+    command = bag.topics["command"]
+    fallback = command["mode"] == messages.MODES["fallback"]
+    assert np.count_nonzero(fallback) == controller["fallback_commands"] + controller["refused"], controller
+    assert np.count_nonzero(~fallback) == controller["sent"] + controller["answered_again"], controller
+    assert np.unique(command["tick"][~fallback]).size == controller["sent"], controller
+    return observer, controller
+
+
 def assert_lockstep_equals_offline(
     bag_path: Path, values: dict, offline_path: Path, columns: dict[str, list[str]] = PHYSICS
 ) -> dict:

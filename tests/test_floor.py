@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import node_stats
+from conftest import assert_bag_holds_every_message_published
 
 from pac_bag.reader import read_bag
 from pac_common import messages
@@ -69,16 +69,7 @@ def test_floor_rig_runs_and_records_every_tick(rigs):
     n = int(duration * 1000)
     for topic in ("measurement", "plant_truth"):
         np.testing.assert_array_equal(ticks_of(bag, topic), np.arange(n), err_msg=topic)
-    observer = node_stats(rig.processes["observer"].log(), "observer_node")
-    controller = node_stats(rig.processes["controller"].log(), "controller_node")
-    # Every message a node published is in the bag: its answers, its answers again to a re-sent
-    # sample (the plant re-sends tick 0 until the loop answers: a CI run had tick 0's command
-    # twice) and, under load, the watchdog's fallback commands (a loaded CI host gave 1411
-    # commands for 1405 answers).
-    assert bag.topics["estimate"]["tick"].size == observer["processed"] + observer["answered_again"]
-    assert ticks_of(bag, "estimate").size == observer["processed"]
-    published = controller["sent"] + controller["answered_again"] + controller["fallback_commands"]
-    assert bag.topics["command"]["tick"].size == published
+    assert_bag_holds_every_message_published(bag, {n: p.log() for n, p in rig.processes.items()})
     assert ticks_of(bag, "command")[-1] == n - 1  # the run's last command is in the bag
     # A relay's physics is nothing: zero estimates, zero answers (it is not the real core); a
     # watchdog fallback command carries the fallback force, as the real controller's does.
@@ -87,7 +78,6 @@ def test_floor_rig_runs_and_records_every_tick(rigs):
     fallback = command["mode"] == messages.MODES["fallback"]
     assert not np.any(command["u"][~fallback])
     assert np.all(command["u"][fallback] == ControllerParameters().fallback_force)
-    assert np.count_nonzero(fallback) == controller["fallback_commands"]
 
 
 def test_floor_lockstep_answers_every_tick(rigs):
