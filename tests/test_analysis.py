@@ -21,7 +21,7 @@ from pac_bag.typestore import interface_dir
 from pac_bag.writer import BagWriter
 from pac_common import messages
 from pac_common.messages import RosbagsFactory
-from pac_rig.launcher import node_env
+from pac_rig.launcher import node_env, ros_args
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 pytestmark = pytest.mark.offline
@@ -107,10 +107,15 @@ def test_re_estimate_detects_different_tuning(offline_bags):
     assert result["fields"]["theta_hat"]["max_rel_diff"] > 1e-3
 
 
-def recorder(bag: Path, topics: str, *parameters: str) -> list[str]:
+def recorder(bag: Path, topics: str, **parameters: float) -> list[str]:
     """The command line of a recorder of ``topics`` (comma-separated) into ``bag``."""
-    args = [f"bag_path:={bag}", f"topics:={topics}", *parameters]
-    return ["ros2", "run", "pac_rig", "recorder", "--ros-args", *(a for p in args for a in ("-p", p))]
+    return [
+        "ros2",
+        "run",
+        "pac_rig",
+        "recorder",
+        *ros_args({"bag_path": bag, "topics": topics, **parameters}),
+    ]
 
 
 def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_path, domain_id, processes):
@@ -123,7 +128,7 @@ def test_replay_into_a_live_observer_reproduces_the_estimates(offline_bags, tmp_
     env = node_env(domain_id)
     rec_bag = tmp_path / "new_estimates"
     for cmd in (
-        recorder(rec_bag, "measurement,estimate", "stop_after_tick:=4999", "idle_timeout:=3.0"),
+        recorder(rec_bag, "measurement,estimate", stop_after_tick=4999, idle_timeout=3.0),
         ["ros2", "run", "pac_observer", "observer_node"],
     ):
         with open(tmp_path / f"{cmd[3]}.log", "wb") as log:  # the process keeps its own handle

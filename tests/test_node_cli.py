@@ -1,12 +1,11 @@
 """A ROS 2 user's habits on the nodes: one-line refusals, --help, and runs that end."""
 
-import signal
 import subprocess
 import time
 
 import numpy as np
 import pytest
-from conftest import ROS2
+from conftest import ROS2, stop
 from mcap_ros2.reader import read_ros2_messages
 
 from pac_common.node import MAX_DOMAIN_ID
@@ -102,12 +101,7 @@ def test_an_unknown_parameter_is_refused_by_name_at_run_time(domain_id):
         assert proc.returncode != 0 and "c11" in proc.stdout + proc.stderr, (proc.stdout, proc.stderr)
         assert "no such parameter" in proc.stdout + proc.stderr
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            node.kill()
-            node.wait()
+        stop(node, timeout=10)
 
 
 def test_the_by_hand_recipe_ends_by_itself(domain_id, tmp_path):
