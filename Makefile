@@ -13,7 +13,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast lint typecheck clean demo reproduce catenary two-pantographs fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable lint typecheck clean demo reproduce catenary two-pantographs fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -28,6 +28,15 @@ test: setup
 # The fast kinds only (cores, offline tools in process), not the slow ones: no node process, no DDS.
 test-fast: setup
 	bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+
+# The fast tests on another CPU's arithmetic (docs/numerics.md, "Tests that pass on any machine"):
+# numpy's SIMD loops narrowed to its x86-64-v2 baseline (AVX-512 and AVX2/FMA off), then numba
+# compiling for a generic x86-64 (no FMA, no AVX; its machine code goes beside the host's in the cache).
+PORTABLE_NUMPY := X86_V4 AVX512_ICL AVX512_SPR X86_V3
+test-portable: setup
+	NPY_DISABLE_CPU_FEATURES="$(PORTABLE_NUMPY)" bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+	NUMBA_CPU_NAME=generic scripts/with_env.sh python -m pac_rig.warm
+	NUMBA_CPU_NAME=generic bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 
 lint: setup
 	scripts/with_env.sh ruff check src tests scripts

@@ -3,7 +3,8 @@
 line_adaptive's outputs must not change when it is compiled: the shipped law (its compiled
 functions, which the class and the compiled loop call) is driven side by side with the numpy
 implementation it replaced (tests/line_adaptive_oracle.py) on random force estimates, with
-and without the actuator clipping it, and the two must give the same commands bit for bit.
+and without the actuator clipping it: the same modes at every tick, and commands, errors and
+learned harmonics that differ by rounding only (:func:`assert_same_law`), on any CPU.
 """
 
 import math
@@ -52,6 +53,23 @@ def drive(law, speed_seed: int, spans: int, u_max: float, gain_sign: float = 1.0
     return out
 
 
+#: Rounding between the compiled law and numpy's: the two sum and multiply in different orders (numpy's
+#: pairwise sums and SIMD complex loops, which depend on the CPU; plain loops compiled), so one span's
+#: sums differ by ~n eps relative (n = 166-300 ticks a span here), and the learning step, a contraction,
+#: carries that into the next spans without growing it. Measured on this suite's cases: at most
+#: 1.5e-15 of each column's largest value, also with numpy's SIMD loops narrowed to its x86-64-v2
+#: baseline and numba compiling for a generic CPU; the bound leaves four orders of margin. A law that
+#: is wrong by little differs by far more (the learning gain 1 % high: 5e-3).
+LAW_RTOL = 1e-11
+
+
+def assert_same_law(got: np.ndarray, want: np.ndarray) -> None:
+    """Every column within LAW_RTOL of its largest value in ``want``."""
+    scale = np.max(np.abs(want), axis=0) if want.ndim > 1 else np.max(np.abs(want))
+    worst = np.max(np.abs(got - want), axis=0) if want.ndim > 1 else np.max(np.abs(got - want))
+    assert np.all(worst <= LAW_RTOL * scale), (worst, scale)
+
+
 @pytest.mark.parametrize("episode", [(4100, 4350), (4321, 4322)])
 def test_compiled_law_resumes_after_a_fallback_as_the_numpy_law(episode):
     """A fallback episode mid-run (and a single lost tick): the restart, the tainted span and the
@@ -64,8 +82,8 @@ def test_compiled_law_resumes_after_a_fallback_as_the_numpy_law(episode):
     a = drive(compiled, 9, 12, 220.0, episode=episode)
     b = drive(reference, 9, 12, 220.0, episode=episode)
     assert [row[-1] for row in a] == [row[-1] for row in b]
-    np.testing.assert_array_equal(np.array([row[:-1] for row in a]), np.array([row[:-1] for row in b]))
-    np.testing.assert_array_equal(compiled.u_ff, reference.u_ff)
+    assert_same_law(np.array([row[:-1] for row in a]), np.array([row[:-1] for row in b]))
+    assert_same_law(np.asarray(compiled.u_ff), np.asarray(reference.u_ff))
 
 
 #: The law on its identified responses alone (no line model).
@@ -98,13 +116,8 @@ def test_compiled_law_gives_the_numpy_laws_commands(speed, seed, u_max, gain_sig
     modes = [row[-1] for row in a]
     assert modes == [row[-1] for row in b]
     got, want = np.array([row[:-1] for row in a]), np.array([row[:-1] for row in b])
-    if laws.get("line_response_min", 0.0) > 0.5:
-        # The floored response's angle: libm's atan2 against numpy's vector one (a few ulp).
-        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
-        np.testing.assert_allclose(compiled.u_ff, reference.u_ff, rtol=1e-12, atol=1e-9)
-    else:
-        np.testing.assert_array_equal(got, want)
-        np.testing.assert_array_equal(compiled.u_ff, reference.u_ff)
+    assert_same_law(got, want)
+    assert_same_law(np.asarray(compiled.u_ff), np.asarray(reference.u_ff))
     if gain_sign < 0:
         assert "passive" in modes  # the case did exercise the guard
     else:
@@ -119,8 +132,8 @@ def test_forget_forgets_what_was_learned():
     law.forget()  # (restart(u) after the law's own commands resumes instead: the tests above)
     fresh = LineAdaptiveLaw(track, LawParameters(), 1e-3)
     np.testing.assert_array_equal(law.memory, fresh.memory)
-    for name in law.state.dtype.names:  # the law's memory; line_stack and line_values are scratch
-        if name.startswith("line_") and name not in ("line_stack", "line_values"):
+    for name in law.state.dtype.names:  # the law's memory
+        if name.startswith("line_"):
             assert law.state[0][name].tobytes() == fresh.state[0][name].tobytes(), name
 
 

@@ -55,10 +55,11 @@ def _fma(typingctx, a, b, c):
 
 @njit(cache=True)
 def fma(a: float, b: float, c: float) -> float:
-    """a b + c rounded once.
+    """a b + c rounded once (LLVM's fma intrinsic: a hardware instruction where the CPU has one,
+    a correctly rounded library call where it has not, so the same number on every CPU).
 
-    numpy's ``a @ x`` of two short float64 vectors is, on this machine, OpenBLAS's ddot tail loop
-    ``s += a[i] x[i]`` compiled with FMA contraction: ``s = fma(a[i], x[i], s)`` in index order
-    reproduces it bit for bit (the lqr law's feedback, computed so before it was compiled).
+    The lqr law's feedback is a dot product summed with it in index order; it was written so to
+    match numpy's ``a @ x`` on the machine the law was first compiled on, which tests no longer
+    ask for (they compare with numpy at a tolerance: docs/numerics.md).
     """
     return _fma(float(a), float(b), float(c))

@@ -142,8 +142,6 @@ CONTROLLER_STATE = np.dtype(
         ("line_last_commit", "i8"),  # the tick of the last commit (-1: none)
         ("line_restart_pending", "b1"),  # restarted after a fallback: resume or, on a new run, forget
         ("line_tainted_span", "i8"),  # a span a fallback episode touched: neither learned nor judged (-1)
-        ("line_stack", "i8", (64, 3)),  # scratch of line_adaptive_kernels._pairwise: (start, length, stage)
-        ("line_values", "f8", 64),
     ]
 )
 

@@ -12,8 +12,6 @@ import math
 import numpy as np
 from numba import njit
 
-from pac_common.smallmat import fma
-
 #: An update smaller than this [N] in a harmonic says nothing about its response.
 MIN_INFORMATIVE_STEP = 0.5
 #: The guard judges the RMS of the last this many spans' sigma_b (learning is not monotone span by span).
@@ -33,16 +31,19 @@ MODEL_C, MODEL_B, MODEL_DET, MODEL_HOLD, MODEL_OMEGA = range(1, 6)
 TABLE_EXTRA_ROWS = 6
 
 
-# -- complex arithmetic as numpy performs it (module docstring) ---------------------------------
+# -- complex arithmetic on (real, imaginary) pairs ---------------------------------------------------
+# Plain arithmetic, not any library's own loop: the law's numbers are the same in every front (the
+# class and the compiled loop call these), and tests compare them with the numpy law at the
+# tolerance rounding allows, on any CPU (tests/test_line_kernels.py).
 @njit(cache=True, inline="always")
 def _cmul(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
-    """(a r + i a i)(b r + i b i) as numpy's vector loop: fused multiply-adds."""
-    return fma(ar, br, -(ai * bi)), fma(ar, bi, ai * br)
+    """(ar + i ai)(br + i bi)."""
+    return ar * br - ai * bi, ar * bi + ai * br
 
 
 @njit(cache=True, inline="always")
 def _cdiv(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
-    """a / b as numpy's loop (Smith's scaling, one reciprocal)."""
+    """(ar + i ai) / (br + i bi) by Smith's scaling (no overflow of |b|^2 for large b)."""
     if abs(br) >= abs(bi):
         rat = bi / br
         scl = 1.0 / (br + bi * rat)
@@ -54,101 +55,18 @@ def _cdiv(ar: float, ai: float, br: float, bi: float) -> tuple[float, float]:
 
 @njit(cache=True, inline="always")
 def _cabs(re: float, im: float) -> float:
-    """|a| as numpy's vector loop: larger * sqrt(1 + (smaller / larger)^2)."""
-    re, im = abs(re), abs(im)
-    if re == math.inf:
-        im = math.inf
-    if im == math.inf:
-        re = math.inf
-    if math.isnan(re):
-        im = math.nan
-    if math.isnan(im):
-        re = math.nan
-    larger, smaller = max(re, im), min(im, re)
-    ratio = 0.0 if (larger == 0.0 or smaller == math.inf) else smaller / larger
-    return math.sqrt(fma(ratio, ratio, 1.0)) * larger
+    """|re + i im| without overflow (libm's hypot)."""
+    return math.hypot(re, im)
 
 
 @njit(cache=True)
-def _leaf_complex(row: np.ndarray, lo: int, n: int) -> float:
-    """Real part of numpy's pairwise sum of complex ``row[lo:lo + n]``, n <= 64 (no split)."""
-    if n < 4:
-        r = -0.0
-        for i in range(lo, lo + n):
-            r += row[i].real
-        return r
-    r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
-    m = n - n % 4
-    for i in range(lo + 4, lo + m, 4):
-        r0 += row[i].real
-        r1 += row[i + 1].real
-        r2 += row[i + 2].real
-        r3 += row[i + 3].real
-    r = (r0 + r1) + (r2 + r3)
-    for i in range(lo + m, lo + n):
-        r += row[i].real
-    return r
-
-
-@njit(cache=True)
-def _leaf_float(row: np.ndarray, lo: int, n: int) -> float:
-    """numpy's pairwise sum of the float array ``row[lo:lo + n].real``, n <= 128 (no split)."""
-    if n < 8:
-        r = -0.0
-        for i in range(lo, lo + n):
-            r += row[i].real
-        return r
-    r0, r1, r2, r3 = row[lo].real, row[lo + 1].real, row[lo + 2].real, row[lo + 3].real
-    r4, r5, r6, r7 = row[lo + 4].real, row[lo + 5].real, row[lo + 6].real, row[lo + 7].real
-    m = n - n % 8
-    for i in range(lo + 8, lo + m, 8):
-        r0 += row[i].real
-        r1 += row[i + 1].real
-        r2 += row[i + 2].real
-        r3 += row[i + 3].real
-        r4 += row[i + 4].real
-        r5 += row[i + 5].real
-        r6 += row[i + 6].real
-        r7 += row[i + 7].real
-    r = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    for i in range(lo + m, lo + n):
-        r += row[i].real
-    return r
-
-
-@njit(cache=True)
-def _pairwise(s, row: np.ndarray, n: int, as_float: bool) -> float:
-    """numpy's pairwise sum of ``row[:n]``: the real part of a complex array's (as_float False) or
-    of the float array of the real parts (True).  numpy splits in halves until a block is small
-    (64 complex, 128 float numbers) and adds the halves' sums; the same tree here, walked with an
-    explicit stack in the state record (numba's cache cannot load recursive functions)."""
-    leaf = 128 if as_float else 64
-    stack, values = s.line_stack, s.line_values
-    top, count = 1, 0
-    stack[0, 0], stack[0, 1], stack[0, 2] = 0, n, 0
-    while top:
-        lo, m, stage = stack[top - 1, 0], stack[top - 1, 1], stack[top - 1, 2]
-        if m <= leaf:
-            values[count] = _leaf_float(row, lo, m) if as_float else _leaf_complex(row, lo, m)
-            count += 1
-            top -= 1
-            continue
-        if as_float:
-            half = m // 2
-            half -= half % 8
-        else:
-            half = (m - m % 8) // 2
-        if stage < 2:  # the left half, then the right half
-            stack[top - 1, 2] = stage + 1
-            stack[top, 0], stack[top, 1], stack[top, 2] = (
-                (lo, half, 0) if stage == 0 else (lo + half, m - half, 0)
-            )
-            top += 1
-        else:  # both halves summed: their sum replaces them
-            values[count - 2] = values[count - 2] + values[count - 1]
-            count -= 1
-            top -= 1
-    return values[0]
+def _sum_real(row: np.ndarray, n: int) -> float:
+    """Sum of the real parts of ``row[:n]`` (n <= a few hundred harmonics: a plain sum's rounding,
+    n eps relative, is far below what the law resolves)."""
+    total = 0.0
+    for i in range(n):
+        total += row[i].real
+    return total
 
 
 # -- the law, compiled: the class below and pac_controller.kernels call these --------------------
@@ -189,7 +107,7 @@ def line_feedforward(p, s, table, memory, tick: int) -> float:
         ur, ui = _cmul(memory[U_FF, j].real, memory[U_FF, j].imag, table[n, j].real, table[n, j].imag)
         pr, pi = _cmul(ur, ui, table[phase, j].real, table[phase, j].imag)
         memory[SCRATCH, j] = complex(pr, pi)
-    return s.line_u_mean + s.line_clip_offset + (0.0 + _pairwise(s, memory[SCRATCH], h, False))
+    return s.line_u_mean + s.line_clip_offset + _sum_real(memory[SCRATCH], h)
 
 
 @njit(cache=True, error_model="numpy")
@@ -206,7 +124,7 @@ def line_output(
 
 @njit(cache=True, error_model="numpy")
 def _accumulate(table, memory, row: int, phase: int, weight: float, h: int) -> None:
-    """memory[row] += weight conj(basis[phase]) (numpy's scalar-times-array product)."""
+    """memory[row] += weight conj(basis[phase])."""
     for j in range(h):
         br, bi = table[phase, j].real, -table[phase, j].imag
         cr, ci = _cmul(weight, 0.0, br, bi)
@@ -267,7 +185,7 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
     for j in range(h):
         a = _cabs(memory[E_ACC, j].real, memory[E_ACC, j].imag)
         memory[SCRATCH, j] = complex(a * a, 0.0)
-    var = 0.5 * (0.0 + _pairwise(s, memory[SCRATCH], h, True))
+    var = 0.5 * _sum_real(memory[SCRATCH], h)
     if 1 <= span < p.line_runin_spans:  # span 0 holds the start transient
         s.line_passive_var += var
         s.line_passive_spans += 1
@@ -362,21 +280,21 @@ def _fit_line(p, s, table, memory) -> None:
         finite = math.isfinite(zs_r) and math.isfinite(zs_i) and math.isfinite(weight)
         memory[FIT_W, j] = complex(weight if finite else 0.0, 0.0)
         memory[FIT_Z, j] = complex(zs_r, zs_i) if finite else 0.0
-    total = 0.0 + _pairwise(s, memory[FIT_W], h, True)
+    total = _sum_real(memory[FIT_W], h)
     if not total > 0.0:
         return
     for j in range(h):
         memory[SCRATCH, j] = complex(memory[FIT_W, j].real * memory[FIT_Z, j].real, 0.0)
-    stiffness = (0.0 + _pairwise(s, memory[SCRATCH], h, True)) / total
+    stiffness = _sum_real(memory[SCRATCH], h) / total
     for j in range(h):
         omega = table[n + MODEL_OMEGA, j].real
         memory[SCRATCH, j] = complex(memory[FIT_W, j].real * omega * memory[FIT_Z, j].imag, 0.0)
-    moment = 0.0 + _pairwise(s, memory[SCRATCH], h, True)
+    moment = _sum_real(memory[SCRATCH], h)
     for j in range(h):
         omega = table[n + MODEL_OMEGA, j].real
         memory[SCRATCH, j] = complex(memory[FIT_W, j].real * (omega * omega), 0.0)
     s.line_stiffness = max(stiffness, 0.0)
-    s.line_damping = max(moment / (0.0 + _pairwise(s, memory[SCRATCH], h, True)), 0.0)
+    s.line_damping = max(moment / _sum_real(memory[SCRATCH], h), 0.0)
     # A model that calls the first harmonic weak (near F = u at low frequency on any real line) has
     # not fitted the line (e.g. Z = 0): it stands in for no harmonic.
     m_r, m_i = _model_response(s, table, n, 0)
