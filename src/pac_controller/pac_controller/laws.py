@@ -17,6 +17,7 @@ and docs/laws.md.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
@@ -56,13 +57,26 @@ def _line_adaptive(pantograph, track, params, reference, laws, catenary, dt) -> 
     return LineAdaptiveLaw(track, laws, dt, pantograph)
 
 
-LAWS: dict[str, Callable[..., Law]] = {
-    "adaptive_backstepping": _adaptive,
-    "backstepping_known": _known,
-    "pid": _pid,
-    "lqr": _lqr,
-    "passive": _passive,
-    "line_adaptive": _line_adaptive,
+@dataclass(frozen=True)
+class LawEntry:
+    """One law of the registry: its builder, what it needs of the estimate besides z_hat
+    (pac_observer.parameters.OBSERVER_GIVES names what each observer gives) and the observer a
+    run gives it when none is named (pac_rig.composition)."""
+
+    build: Callable[..., Law]
+    needs: frozenset[str] = frozenset()
+    observer: str = "adaptive"
+
+
+THETA = frozenset({"theta_hat"})
+
+LAWS: dict[str, LawEntry] = {
+    "adaptive_backstepping": LawEntry(_adaptive, THETA),
+    "backstepping_known": LawEntry(_known),  # told the true theta: z_hat only
+    "pid": LawEntry(_pid, THETA),  # F_hat = k_hat z1
+    "lqr": LawEntry(_lqr, THETA),
+    "passive": LawEntry(_passive),
+    "line_adaptive": LawEntry(_line_adaptive, frozenset({"contact_force_hat"}), observer="contact_force"),
 }
 assert tuple(LAWS) == LAW_NAMES, "the registry and the parameter's choices must agree"
 
@@ -80,7 +94,7 @@ def make_law(
     """The core of law ``name``; raises ParameterError when its design fails (pid, lqr)."""
     if name in NEEDS_CATENARY and catenary is None:
         raise ValueError(f"law {name} needs the catenary parameters (k0, alpha, beta)")
-    build = LAWS[name]
+    build = LAWS[name].build
     return build(pantograph, track, params, reference, laws or LawParameters(), catenary, sample_period)
 
 

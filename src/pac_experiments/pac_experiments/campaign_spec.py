@@ -37,7 +37,9 @@ import yaml
 from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.parameters import ParameterError
 from pac_plant.catenary.catenary_file import load_catenary
+from pac_rig import composition
 from pac_rig.closed_loop import Scenario
+from pac_rig.composition import CompositionError
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
 
 STATISTICS = ("raw", "en50318")
@@ -262,9 +264,10 @@ def point_key(scenario: Scenario, window: tuple[float, float], statistics: str =
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
-def _scenario(values: dict[str, Any]) -> Scenario:
+def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
     """The point's scenario; SpecError with every refused value of the point (a parameter set
-    stops at its first error, so each refused value is dropped and the rest checked again)."""
+    stops at its first error, so each refused value is dropped and the rest checked again), and
+    (``composed``) for parts that do not fit together (pac_rig.composition)."""
     errors: list[str] = []
     rest = dict(values)
     while True:
@@ -280,6 +283,11 @@ def _scenario(values: dict[str, Any]) -> Scenario:
             break
         else:
             if not errors:
+                try:
+                    if composed:
+                        composition.check_pair(scenario.controller.effective_law, scenario.observer.observer)
+                except CompositionError as exc:
+                    raise SpecError(str(exc)) from None
                 return scenario
             break
     raise SpecError(errors)
@@ -296,14 +304,13 @@ def span_window(scenario: Scenario, spans: tuple[float, float]) -> tuple[float, 
 
 def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any], tuple[float, float]]:
     """The point's scenario, its values with what the SPEC derives, and its window [s]."""
-    values = dict(values)
+    # What the parts imply (pac_rig.composition): the observer a law needs, and on the FE line the
+    # span of the line the plant runs (a campaign may vary the file).
+    _scenario(values, composed=False)  # every value valid before anything is derived from them
+    values, _ = composition.derive(values)
     scenario = _scenario(values)
     if spec.force_target == "en50367":
         values["force_amplitude"] = target_mean_force(scenario.track.speed_kmh)
-    if scenario.plant.catenary_model == "fe" and "span_length" not in values:
-        # The laws are told the span of the line the plant runs (a campaign may vary the file).
-        values["span_length"] = load_catenary(scenario.plant.catenary).data.span
-        scenario = _scenario(values)
     if spec.window_spans is not None:
         fe_span = load_catenary(scenario.plant.catenary).data.span
         if scenario.plant.catenary_model == "fe" and scenario.track.span_length != fe_span:

@@ -29,6 +29,7 @@ from pac_plant.fe_plant import PantographTruth, make_plant, several_pantographs
 from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
 
+from . import composition
 from .loop import (
     DISPLACEMENT,
     DIVERGENCE_DISPLACEMENT,
@@ -91,6 +92,9 @@ class DivergenceError(RuntimeError):
 
 
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
+    """The plant, observer and controller of ``s``; ParameterError (one line) for parts that do not
+    fit together (pac_rig.composition) or a design the parameters do not allow."""
+    composition.check_pair(s.controller.effective_law, s.observer.observer)
     dt = s.loop.sample_period
     if (s.plant.pantograph or s.pantograph.nominal_pantograph) and s.mismatch.plant_mass_scale != 1.0:
         raise ParameterError(

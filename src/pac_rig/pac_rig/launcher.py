@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from . import composition
 from .configs import parameter_sets
 from .nodes import LOOP_NODES, NODES
 
@@ -154,7 +155,18 @@ class Rig:
         for name, extra in (params or {}).items():
             if name != "all":
                 self.params[name].update(extra)
+        self._compose()
         self.processes: dict[str, Process] = {}
+
+    def _compose(self) -> None:
+        """The observer the controller's law needs where none was named, and a refusal
+        (CompositionError, one line) of a law on an observer that does not give what it needs."""
+        law = self.params["controller"].get("law")
+        if law is None or self.relay:
+            return
+        derived, _ = composition.derive({"law": law}, self.params["observer"])
+        self.params["observer"].update({k: v for k, v in derived.items() if k != "law"})
+        composition.check_pair(str(law), str(self.params["observer"].get("observer", "adaptive")))
 
     def composed_command(self) -> list[str]:
         """``composed`` with a params file holding one section per node (by node name)."""

@@ -21,6 +21,7 @@ from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
 from pac_plant.fe_plant import several_pantographs
 
+from . import composition
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
 from .closed_loop import (
     BLOCK,
@@ -274,8 +275,12 @@ def main(argv: list[str] | None = None) -> int:
         compression = values.pop("compression", DEFAULT_COMPRESSION)
         if compression not in COMPRESSIONS:
             raise ParameterError("compression", compression, " or ".join(COMPRESSIONS))
+        scenario_from_flat(values)  # every value valid before anything is derived from them
+        values, derived = composition.derive(values)
+        for note in derived:
+            print(f"simulate: {note}", file=sys.stderr)
         scenario = scenario_from_flat(values)
-        build_cores(scenario)  # a law design the parameters do not allow is refused here
+        build_cores(scenario)  # parts that do not fit, or a law design the parameters do not allow
     except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
         return 2

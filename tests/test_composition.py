@@ -1,0 +1,101 @@
+"""Parts that fit: the observer a law needs and the FE line's span are derived where the user names
+nothing; a law on an observer that does not give what it needs is refused before any run, with one
+line naming both (pac_rig.composition), on every entry point."""
+
+from __future__ import annotations
+
+import pytest
+from conftest import simulate_refusal
+
+from pac_controller.laws import LAWS
+from pac_controller.parameters import LAW_NAMES
+from pac_observer.parameters import OBSERVER_GIVES
+from pac_plant.catenary.catenary_file import load_catenary
+from pac_rig import composition
+from pac_rig.closed_loop import build_cores
+from pac_rig.composition import CompositionError
+from pac_rig.launcher import Rig
+from pac_rig.simulate import scenario_from_flat
+
+#: The pairs that cannot work: each law that needs theta_hat on the filter that gives none.
+REFUSED = {("adaptive_backstepping", "contact_force"), ("pid", "contact_force"), ("lqr", "contact_force")}
+
+
+@pytest.mark.unit
+def test_every_law_states_what_it_needs_and_exactly_the_theta_laws_are_refused_on_the_force_filter():
+    assert tuple(LAWS) == LAW_NAMES
+    for law in LAW_NAMES:
+        for observer in OBSERVER_GIVES:
+            if (law, observer) in REFUSED:
+                with pytest.raises(CompositionError) as info:
+                    composition.check_pair(law, observer)
+                message = str(info.value)
+                assert "\n" not in message
+                assert f"law '{law}'" in message and f"observer '{observer}'" in message
+                assert "observer:=adaptive" in message  # what would fit
+            else:
+                composition.check_pair(law, observer)
+
+
+@pytest.mark.unit
+def test_the_cores_of_a_refused_pair_are_never_built():
+    """build_cores is the one place every offline path builds a run (simulate, batch, campaigns)."""
+    with pytest.raises(CompositionError):
+        build_cores(scenario_from_flat({"law": "pid", "observer": "contact_force", "duration": 0.01}))
+
+
+@pytest.mark.unit
+def test_line_adaptive_brings_its_observer_and_the_fe_line_its_span():
+    values, notes = composition.derive({"law": "line_adaptive", "catenary_model": "fe"})
+    assert values["observer"] == "contact_force"
+    assert values["span_length"] == load_catenary("benchmark_55m").data.span == 55.0
+    assert len(notes) == 2
+    # Named by the user: kept (and then checked, not overridden).
+    values, notes = composition.derive(
+        {"law": "line_adaptive", "observer": "adaptive", "catenary_model": "fe", "span_length": 60.0}
+    )
+    assert values["observer"] == "adaptive" and values["span_length"] == 60.0 and notes == []
+    # Another file: its own span.
+    values, _ = composition.derive({"catenary_model": "fe", "catenary": "stitched_hs_65m"})
+    assert values["span_length"] == load_catenary("stitched_hs_65m").data.span
+    # The lumped line keeps the span it is told; a law on the paper's observer derives nothing.
+    assert composition.derive({"law": "pid"}) == ({"law": "pid"}, [])
+
+
+@pytest.mark.unit
+def test_the_rig_derives_the_observer_and_refuses_a_pair_that_cannot_work(tmp_path):
+    rig = Rig(tmp_path / "bag", duration=1.0, params={"controller": {"law": "line_adaptive"}}, record=False)
+    assert rig.params["observer"]["observer"] == "contact_force"
+    with pytest.raises(CompositionError, match="law 'lqr' needs theta_hat"):
+        Rig(
+            tmp_path / "bag2",
+            duration=1.0,
+            params={"controller": {"law": "lqr"}, "observer": {"observer": "contact_force"}},
+            record=False,
+        )
+
+
+@pytest.mark.offline
+@pytest.mark.slow
+def test_simulate_refuses_a_pair_that_cannot_work_in_one_line(tmp_path):
+    line = simulate_refusal(tmp_path / "bag", "law:=pid", "observer:=contact_force")
+    assert "law 'pid' needs theta_hat" in line and "observer 'contact_force'" in line
+
+
+@pytest.mark.offline
+def test_a_campaign_refuses_a_pair_that_cannot_work_before_any_run(tmp_path):
+    from pac_experiments.campaign_spec import SpecError, load_points
+
+    spec = tmp_path / "spec.yaml"
+    spec.write_text("grid:\n  law: [passive, lqr]\n  observer: [contact_force]\nfixed:\n  duration: 0.1\n")
+    with pytest.raises(SpecError) as info:
+        load_points(spec)
+    assert info.value.errors == [str(_refusal("lqr", "contact_force"))]
+
+
+def _refusal(law: str, observer: str) -> CompositionError:
+    try:
+        composition.check_pair(law, observer)
+    except CompositionError as exc:
+        return exc
+    raise AssertionError(f"{law} on {observer} was not refused")
