@@ -32,7 +32,6 @@ import math
 
 import numpy as np
 
-from pac_common.parameters import ParameterError
 from pac_model.pantograph_file import load_pantograph_file
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
@@ -124,19 +123,6 @@ class FEPlant(Plant):
         spacings = options.pantographs
         periods, start = window_periods(data, spacings[-1])
         self.line, self._flex = line_and_flexibility(self.data, numerics, periods * len(data.spans))
-        pushing = int(np.count_nonzero(self.line.droppers.static_tension <= 0.0))
-        if pushing:  # the static state assumes taut droppers: a dropper cannot push
-            name, value = (
-                ("fe_height_error", options.fe_height_error)
-                if options.fe_height_error > 0.0
-                else ("catenary", options.catenary)
-            )
-            raise ParameterError(
-                name,
-                value,
-                f"a line whose droppers all hang in tension at rest ({pushing} of "
-                f"{len(self.line.droppers.node)} would be compressed)",
-            )
         chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
         ctrl = options.controlled_pantograph
         model, force = passive_pantograph(options, track.speed_kmh)
