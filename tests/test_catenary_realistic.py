@@ -1,19 +1,24 @@
-"""A realistic line: droppers that carry tension only at rest. Each physics check compares with an
-independent reference and is shown to fail on the wrong physics (a taut-only static solve, the rest
-load left out of the dynamics)."""
+"""A realistic line: droppers that carry tension only at rest, the contact-wire deviation drawn from
+a spectrum. Each physics check compares with an independent reference and is shown to fail on the
+wrong physics (a taut-only static solve, the rest load left out of the dynamics, a wrong spectrum)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.signal import welch
 
 from pac_plant.catenary.data import CatenaryData
+from pac_plant.catenary.deviation import DeviationModel, apply_deviation, spectral_density, vertical_deviation
 from pac_plant.catenary.imperfections import apply_imperfections
 from pac_plant.catenary.integrator import ContactSimulation
 from pac_plant.catenary.line import WC, WM, Line, beam_matrices, gravity_load
 from pac_plant.catenary.pantographs import paper_pantograph
 
 pytestmark = pytest.mark.offline
+
+#: The deviation model of the realistic preset (its numbers are judgement: docs/catenary.md).
+MODEL = DeviationModel(vertical_sigma=0.004, correlation_length=10.0, longitudinal_sigma=0.05)
 
 
 def deviated_line(seed: int = 1) -> Line:
@@ -119,3 +124,62 @@ def test_the_tension_only_rest_state_is_at_rest_in_the_dynamics() -> None:
     # Mutation: the dynamics without the rest load (the taut K about the tension-only state) move.
     moved, _ = rest_run(line, True, rest_load=False)
     assert moved > 1e-4
+
+
+# -- 2. the deviation's spectrum --------------------------------------------------------------------
+def sampled_spectral_density(kappa: np.ndarray, sigma: float, ell: float, step: float) -> np.ndarray:
+    """One-sided spectral density of the process sampled every ``step`` [m]: the Fourier series of its
+    autocorrelation sigma^2 rho^|k|, rho = exp(-step / ell) (the stated S(kappa) folded at 1/(2 step))."""
+    rho = np.exp(-step / ell)
+    return (
+        2.0 * step * sigma**2 * (1.0 - rho**2) / (1.0 - 2.0 * rho * np.cos(2 * np.pi * kappa * step) + rho**2)
+    )
+
+
+def band_ratios(u: np.ndarray, step: float, sigma: float, ell: float) -> np.ndarray:
+    """Welch estimate / reference spectrum, averaged over bands of 8 frequency bins (DC left out)."""
+    kappa, estimate = welch(u, fs=1.0 / step, nperseg=256)
+    reference = sampled_spectral_density(kappa, sigma, ell, step)
+    ratio = estimate[1:-1] / reference[1:-1]
+    return ratio[: len(ratio) // 8 * 8].reshape(-1, 8).mean(axis=1)
+
+
+#: Welch over 2^17 samples, 256-sample Hann segments half overlapping: ~1000 segments, a bin's
+#: relative standard error ~ 1/sqrt(1000 x 0.9) = 3.3 %, a band of 8 correlated bins ~2 %: 10 % is
+#: 5 standard errors (a false failure ~1e-6), while a correlation length off by 1.5x misses by 25 % or more.
+SPECTRUM_TOLERANCE = 0.10
+
+
+def test_the_drawn_deviation_has_the_stated_spectrum() -> None:
+    sigma, ell, step = 0.004, 10.0, 5.75
+    x = step * np.arange(2**17)
+    u = vertical_deviation(x, sigma, ell, np.random.default_rng(7))
+    ratios = band_ratios(u, step, sigma, ell)
+    assert np.max(np.abs(ratios - 1.0)) < SPECTRUM_TOLERANCE
+    assert abs(np.std(u) / sigma - 1.0) < 0.02
+    # The reference is the stated S(kappa) folded by the sampling at the droppers (aliasing):
+    # sum over m of S(|kappa + m / step|), here summed term by term.
+    kappa = np.linspace(0.0, 0.5 / step, 7)
+    m = np.arange(-20000, 20001)[:, None]
+    folded = spectral_density(np.abs(kappa[None, :] + m / step), sigma, ell).sum(axis=0)
+    assert np.allclose(sampled_spectral_density(kappa, sigma, ell, step), folded, rtol=1e-3)
+    # Mutations: a wrong correlation length, or white noise of the same variance, fails the check.
+    assert np.max(np.abs(band_ratios(u, step, sigma, 1.5 * ell) - 1.0)) > 2 * SPECTRUM_TOLERANCE
+    white = np.random.default_rng(7).normal(0.0, sigma, len(x))
+    assert np.max(np.abs(band_ratios(white, step, sigma, ell) - 1.0)) > 2 * SPECTRUM_TOLERANCE
+
+
+def test_the_deviation_is_seeded_different_in_every_span_and_within_its_amplitude() -> None:
+    data = CatenaryData()
+
+    def draw(seed: int) -> CatenaryData:
+        return apply_deviation(data, MODEL, 60, np.random.default_rng(seed))
+
+    a, b = draw(1), draw(2)
+    assert draw(1) == a  # the same seed, the same line
+    assert a != b
+    sag = np.array([s.presag for s in a.spans]) - np.array(data.presag)
+    assert not np.any(np.all(np.isclose(sag[1:], sag[0]), axis=1))  # no span repeats the first
+    assert 0.005 < np.max(np.abs(sag)) < 0.02  # several mm, up to about +-10 mm (4 mm standard deviation)
+    shift = np.array([s.dropper_positions for s in a.spans]) - np.array(data.dropper_positions)
+    assert 0.03 < np.std(shift) < 0.07 and np.max(np.abs(shift)) <= 0.15 + 1e-12
