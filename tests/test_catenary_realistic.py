@@ -1,22 +1,28 @@
 """A realistic line: droppers that carry tension only at rest, the contact-wire deviation drawn from
-a spectrum. Each physics check compares with an independent reference and is shown to fail on the
-wrong physics (a taut-only static solve, the rest load left out of the dynamics, a wrong spectrum)."""
+a spectrum, a whole line drawn by a layout rule. Each physics check compares with an independent
+reference and is shown to fail on the wrong physics (a taut-only static solve, the rest load left
+out of the dynamics, a wrong spectrum)."""
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.signal import welch
 
+from pac_plant.catenary.catenary_file import CatenaryFileError, load_catenary, parse_catenary
 from pac_plant.catenary.data import CatenaryData
 from pac_plant.catenary.deviation import DeviationModel, apply_deviation, spectral_density, vertical_deviation
 from pac_plant.catenary.imperfections import apply_imperfections
 from pac_plant.catenary.integrator import ContactSimulation
+from pac_plant.catenary.layout_rule import reflect
 from pac_plant.catenary.line import WC, WM, Line, beam_matrices, gravity_load
 from pac_plant.catenary.pantographs import paper_pantograph
 
 pytestmark = pytest.mark.offline
 
+ROOT = Path(__file__).resolve().parents[1]
 #: The deviation model of the realistic preset (its numbers are judgement: docs/catenary.md).
 MODEL = DeviationModel(vertical_sigma=0.004, correlation_length=10.0, longitudinal_sigma=0.05)
 
@@ -183,3 +189,74 @@ def test_the_deviation_is_seeded_different_in_every_span_and_within_its_amplitud
     assert 0.005 < np.max(np.abs(sag)) < 0.02  # several mm, up to about +-10 mm (4 mm standard deviation)
     shift = np.array([s.dropper_positions for s in a.spans]) - np.array(data.dropper_positions)
     assert 0.03 < np.std(shift) < 0.07 and np.max(np.abs(shift)) <= 0.15 + 1e-12
+
+
+# -- 3./4. the whole line and its file --------------------------------------------------------------
+def test_the_realistic_preset_follows_its_layout_rule() -> None:
+    f = load_catenary("realistic_3km")
+    data = f.data
+    assert data.whole_line and f.drawing is not None and f.drawing.layout is not None
+    rule = f.drawing.layout
+    lengths = np.array([s.length for s in data.spans])
+    heights = np.array([s.encumbrance for s in data.spans])
+    assert lengths.sum() >= 3000.0 and data.n_spans == len(data.spans)
+    assert np.all((lengths >= rule.span_min) & (lengths <= rule.span_max))
+    assert np.max(np.abs(np.diff(heights))) <= rule.max_height_step + 1e-12
+    assert np.all((heights >= rule.height_min) & (heights <= rule.height_max))
+    assert len(set(np.round(lengths, 6))) == len(lengths)  # drawn, not repeated
+    assert f.line(2) != data and f.line(1) == data  # line_seed
+
+
+def test_reflect_keeps_the_height_in_its_range() -> None:
+    assert reflect(1.65, 1.1, 1.6) == pytest.approx(1.55)
+    assert reflect(1.0, 1.1, 1.6) == pytest.approx(1.2)
+    assert reflect(1.3, 1.1, 1.6) == 1.3
+
+
+BASE = (ROOT / "config" / "catenaries" / "realistic_3km.yaml").read_text()
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "key"),
+    [
+        ("rule: uniform_spans", "rule: gaussian", "layout.rule"),
+        ("max_height_step: 0.15", "max_height_step: -0.1", "layout.max_height_step"),
+        ("span_max: 60.0", "span_max: 40.0", "layout.span_max"),
+        ("droppers: 9 ", "droppers: 40 ", "layout.droppers"),
+        ("model: exponential_psd", "model: white", "deviation.model"),
+        ("vertical_sigma: 0.004", "vertical_sigma: 0.2", "deviation.vertical_sigma"),
+        ("longitudinal_sigma: 0.05", "longitudinal_sigma: 0.9", "deviation.longitudinal_sigma"),
+        ("line_seed: 1", "line_seed: -3", "line_seed"),
+        ("layout:", "spans: [{length: 55.0}]\nlayout:", "spans"),
+    ],
+)
+def test_a_bad_layout_or_deviation_is_refused_in_one_line(old: str, new: str, key: str) -> None:
+    assert old in BASE
+    with pytest.raises(CatenaryFileError) as err:
+        parse_catenary(BASE.replace(old, new, 1), "bad.yaml")
+    message = str(err.value)
+    assert "\n" not in message and f"'{key}'" in message
+
+
+WHOLE_SHORT = str(ROOT / "tests" / "data" / "catenary_whole_short.yaml")
+
+
+def test_the_plant_runs_a_whole_line_once_from_its_first_support() -> None:
+    from pac_model.parameters import PantographParameters, TrackParameters
+    from pac_plant.fe_plant import FEPlant
+    from pac_plant.parameters import PlantOptions
+
+    def plant(seed: int) -> FEPlant:
+        options = PlantOptions(catenary_model="fe", catenary=WHOLE_SHORT, line_seed=seed)
+        return FEPlant(PantographParameters(), TrackParameters(speed_kmh=300.0), None, options, 1e-3)
+
+    p = plant(-1)
+    assert p.data == load_catenary(WHOLE_SHORT).data  # -1: the file's line_seed
+    assert not p.sim.endless and p.line.n_spans == len(p.data.spans)  # the whole line, not a window
+    assert p.sim.x == p.line.layout.support_x[1]
+    assert np.array_equal(p.sim.slack, p.line.rest_slack) and p.truth().contact_force == 0.0
+    for _ in range(2000):
+        p.advance(120.0)
+    assert p.truth().contact_position == pytest.approx(p.line.layout.support_x[1] + 2000 * 300.0 / 3.6e3)
+    assert 0.0 < p.truth().contact_force < 400.0
+    assert plant(2).data != p.data  # line_seed draws another line
