@@ -56,6 +56,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "fe_height_error": 0.0,
     "fe_wear": 0.0,
     "fe_imperfection_seed": 0,
+    "line_seed": -1,
     "pantograph": "",
     "nominal_pantograph": "",
     "wind_uplift": 0.0,

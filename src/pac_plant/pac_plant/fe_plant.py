@@ -12,7 +12,9 @@ height at the start point (a support, where the pre-sag is 0), i.e. from a fixed
 as a real rig would measure them (``fe_datum:=static_wire`` measures them from the
 static, pre-sagged wire under the contact point instead); at tick 0 the head just touches the wire (F = 0) and
 everything is at rest, as in the lumped plant. The line is endless (a moving window of
-``WINDOW_SPANS`` spans, see ``ContactSimulation``), so a live run can go on until stopped.
+``WINDOW_SPANS`` spans, see ``ContactSimulation``), so a live run can go on until stopped; a whole
+line (a catenary file with a layout rule, ``CatenaryData.whole_line``) is built from end to end
+and run once from its first interior support (docs/catenary.md, "A whole line").
 Truth: ``stiffness`` is the line's static point stiffness at the contact point (droppers
 taut), ``contact_force`` the penalty force, plus the wire uplift at the contact point
 and at the nearest support.
@@ -32,7 +34,6 @@ import math
 
 import numpy as np
 
-from pac_common.parameters import ParameterError
 from pac_model.pantograph_file import load_pantograph_file
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
@@ -113,7 +114,8 @@ class FEPlant(Plant):
         self.sample_period = sample_period
         if data is None:
             line_file = load_catenary(options.catenary)
-            data, numerics = line_file.data, line_file.numerics
+            data = line_file.line(None if options.line_seed < 0 else options.line_seed)
+            numerics = line_file.numerics
         else:
             numerics = NumericalOptions()
         numerics = dataclasses.replace(numerics, element_size=options.fe_element_size)
@@ -122,21 +124,12 @@ class FEPlant(Plant):
         )
         self.data = data
         spacings = options.pantographs
-        periods, start = window_periods(data, spacings[-1])
+        # A whole line (drawn by a layout rule) runs once from end to end; a period, endlessly.
+        periods, start = (1, 1) if data.whole_line else window_periods(data, spacings[-1])
         self.line, self._flex = line_and_flexibility(self.data, numerics, periods * len(data.spans))
-        pushing = int(np.count_nonzero(self.line.droppers.static_tension <= 0.0))
-        if pushing:  # the static state assumes taut droppers: a dropper cannot push
-            name, value = (
-                ("fe_height_error", options.fe_height_error)
-                if options.fe_height_error > 0.0
-                else ("catenary", options.catenary)
-            )
-            raise ParameterError(
-                name,
-                value,
-                f"a line whose droppers all hang in tension at rest ({pushing} of "
-                f"{len(self.line.droppers.node)} would be compressed)",
-            )
+        if data.whole_line:  # the first interior support with every pantograph on the line
+            start = max(1, int(np.searchsorted(self.line.layout.support_x, spacings[-1])))
+        start_x = float(self.line.layout.support_x[start]) if data.whole_line else start * data.period
         chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
         ctrl = options.controlled_pantograph
         model, force = passive_pantograph(options, track.speed_kmh)
@@ -148,8 +141,8 @@ class FEPlant(Plant):
             head_first(lumped(chain)),  # z1 = the head, z2 = the actuator's mass
             sample_period / options.fe_substeps,
             track.speed_kmh / 3.6,
-            start * data.period,
-            endless=True,
+            start_x,
+            endless=not data.whole_line,
             lag=spacings[ctrl],
             passive=passive,
         )
@@ -160,7 +153,9 @@ class FEPlant(Plant):
             self.sim.relax_roof_springs(self.uplift)
         # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
         # no tick pays one later.
-        self.sim.prepare_contact_columns(start * data.period, self.sim.shift_at)
+        # On a whole line, the first two spans' (the step solves the others' at first use).
+        ahead = float(self.line.layout.support_x[start + 2]) if data.whole_line else self.sim.shift_at
+        self.sim.prepare_contact_columns(start_x, ahead)
         self.datum = self.line.static_height(self.sim.x - self.sim.lags[0])
         self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
         self.sim.readings(self._flex, self._readings)

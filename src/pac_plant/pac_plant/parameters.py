@@ -100,6 +100,13 @@ class PlantOptions(ParameterSet):
     fe_imperfection_seed: int = parameter(
         0, "fe: seed of the height errors (the same seed gives the same line)", low=0
     )
+    line_seed: int = parameter(
+        -1,
+        "fe: seed of a drawn line, a catenary file with a layout rule or a deviation model (-1: the "
+        "file's line_seed; the same seed gives the same line; docs/catenary.md, 'A whole line')",
+        low=-1,
+        high=2**32 - 1,
+    )
 
     pantographs: tuple = parameter(
         (0.0,),

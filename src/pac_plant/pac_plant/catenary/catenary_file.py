@@ -11,14 +11,19 @@ one line naming the file, the line and column, the key, the value and what is al
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
+
 from pac_common.data_file import DataFileError, Map, Presets, Reader, Seq
 
 from .data import GRAVITY, CatenaryData, NumericalOptions, SpanData, StitchData, WireData
+from .deviation import DeviationModel, apply_deviation
+from .layout_rule import LayoutRule, draw_spans
 
 #: The shipped presets, in the repository (found from this file's location, installed or not).
 PRESET_FOLDER = Path("config") / "catenaries"
@@ -36,8 +41,41 @@ class CatenaryFile:
     """What a catenary file states: the line and the numerical options that go with it."""
 
     path: Path
-    data: CatenaryData
+    data: CatenaryData  # the line drawn with the file's ``line_seed`` where it has a rule or a model
     numerics: NumericalOptions
+    drawing: LineDrawing | None = None  # how to draw the line again with another seed
+
+    def line(self, seed: int | None = None) -> CatenaryData:
+        """The line; drawn with ``seed`` instead of the file's ``line_seed`` if given (a line
+        without a layout rule or a deviation model has nothing to draw: the same line)."""
+        if seed is None or self.drawing is None:
+            return self.data
+        return self.drawing.draw(seed)
+
+
+@dataclass(frozen=True)
+class LineDrawing:
+    """What a file draws: the spans (a layout rule, else the file's period) and their deviation."""
+
+    base: CatenaryData  # the file's line before drawing (its spans: the stated period)
+    layout: LayoutRule | None
+    deviation: DeviationModel | None
+    deviation_spans: int  # spans the deviation is drawn over (the period of the drawn line)
+
+    def draw(self, seed: int) -> CatenaryData:
+        """The line of ``seed``: the layout's spans (one whole line: n_spans = all of them, not
+        cycled), then the deviation drawn over them. Layout and deviation take separate streams of
+        the seed, so the same seed gives the same layout with or without a deviation model."""
+        data = self.base
+        if self.layout is not None:
+            spans = draw_spans(self.layout, np.random.default_rng([seed, 0]))
+            data = dataclasses.replace(data, spans=spans, n_spans=len(spans), whole_line=True)
+        if self.deviation is not None:
+            n = len(data.spans) if self.layout is not None else self.deviation_spans
+            data = apply_deviation(data, self.deviation, n, np.random.default_rng([seed, 1]))
+            if self.layout is None:  # a deviated period, cycled over the section as before
+                data = dataclasses.replace(data, n_spans=max(data.n_spans, n))
+        return data
 
 
 TOP_KEYS = (
@@ -52,6 +90,9 @@ TOP_KEYS = (
     "spans",
     "damping",
     "contact_stiffness",
+    "layout",
+    "deviation",
+    "line_seed",
 )
 WIRE_KEYS = ("rho", "tension", "ei")
 DROPPER_KEYS = ("ea", "rho", "clamp_mass_contact", "clamp_mass_messenger")
@@ -64,10 +105,31 @@ SUPPORT_KEYS = (
 SPAN_KEYS = ("length", "encumbrance", "droppers", "presag", "stitch")
 STITCH_KEYS = ("length", "tension", "rho", "droppers", "presag")
 DAMPING_KEYS = ("rayleigh_alpha", "rayleigh_beta")
+LAYOUT_KEYS = (
+    "rule",
+    "length",
+    "span_min",
+    "span_max",
+    "height_min",
+    "height_max",
+    "max_height_step",
+    "droppers",
+    "end_dropper",
+    "presag_per_length",
+)
+DEVIATION_KEYS = ("model", "vertical_sigma", "correlation_length", "longitudinal_sigma", "spans")
+LAYOUT_RULES = ("uniform_spans",)
+DEVIATION_MODELS = ("exponential_psd",)
 
 
 def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptions]:
-    """``CatenaryData`` and ``NumericalOptions`` of a catenary file's text (``source`` names it)."""
+    """``CatenaryData`` and ``NumericalOptions`` of a catenary file's text (``source`` names it);
+    a line with a layout rule or a deviation model drawn with the file's ``line_seed``."""
+    data, options, _ = _parse(text, source)
+    return data, options
+
+
+def _parse(text: str, source: str) -> tuple[CatenaryData, NumericalOptions, LineDrawing | None]:
     r = Reader(source, CatenaryFileError)
     raw = r.parse(text, TOP_KEYS)
     for key in ("name", "source"):
@@ -85,13 +147,19 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
         )
     dr = r.mapping(raw, "droppers", "", DROPPER_KEYS)
     sp = r.mapping(raw, "supports", "", SUPPORT_KEYS)
+    layout = _layout(r, raw) if "layout" in raw else None
     spans_raw = raw.get("spans")
-    if not isinstance(spans_raw, Seq) or not spans_raw or not all(isinstance(s, Map) for s in spans_raw):
-        raise r.fail(
-            "spans", spans_raw, "a non-empty list of spans (mappings)", raw.marks.get("spans", raw.start)
-        )
-    spans = tuple(_span(r, s, i) for i, s in enumerate(spans_raw))
-    _check_stitches(r, spans_raw, spans)
+    if layout is not None:
+        if "spans" in raw:
+            raise r.fail("spans", spans_raw, "absent: the layout rule draws the spans", raw.marks["spans"])
+        spans: tuple[SpanData, ...] = (SpanData(),)  # replaced by the drawn ones
+    else:
+        if not isinstance(spans_raw, Seq) or not spans_raw or not all(isinstance(s, Map) for s in spans_raw):
+            raise r.fail(
+                "spans", spans_raw, "a non-empty list of spans (mappings)", raw.marks.get("spans", raw.start)
+            )
+        spans = tuple(_span(r, s, i) for i, s in enumerate(spans_raw))
+        _check_stitches(r, spans_raw, spans)
     section = raw.get("section_spans", 10)
     if isinstance(section, bool) or not isinstance(section, int) or not 2 <= section <= 1000:
         raise r.fail("section_spans", section, "an integer in [2, 1000]", raw.marks.get("section_spans"))
@@ -124,7 +192,79 @@ def parse_catenary(text: str, source: str) -> tuple[CatenaryData, NumericalOptio
         rayleigh_beta=r.number(damping, "rayleigh_beta", "damping.", "s", 0.0, 0.01, low_open=False),
         contact_stiffness=r.number(raw, "contact_stiffness", "", "N/m", 1e3, 1e7),
     )
-    return data, options
+    deviation, deviation_spans = _deviation(r, raw, data) if "deviation" in raw else (None, 0)
+    seed = raw.get("line_seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2**32:
+        raise r.fail("line_seed", seed, "an integer in [0, 2^32)", raw.marks.get("line_seed"))
+    if layout is None and deviation is None:
+        if "line_seed" in raw:
+            raise r.fail(
+                "line_seed",
+                seed,
+                "absent: nothing is drawn (no layout, no deviation)",
+                raw.marks["line_seed"],
+            )
+        return data, options, None
+    drawing = LineDrawing(data, layout, deviation, deviation_spans)
+    try:
+        drawn = drawing.draw(seed)
+    except ValueError as exc:  # a deviation that cannot keep the droppers in order
+        raise r.fail("deviation.longitudinal_sigma", None, str(exc), raw.marks["deviation"]) from None
+    return drawn, options, drawing
+
+
+def _choice(r: Reader, m: Map, name: str, path: str, allowed: tuple[str, ...]) -> str:
+    value = m.get(name)
+    if value not in allowed:
+        raise r.fail(f"{path}{name}", value, f"one of {', '.join(allowed)}", m.marks.get(name, m.start))
+    return str(value)
+
+
+def _count(r: Reader, m: Map, name: str, path: str, low: int, high: int, default: int | None = None) -> int:
+    value = m.get(name, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise r.fail(f"{path}{name}", value, f"an integer in [{low}, {high}]", m.marks.get(name, m.start))
+    return value
+
+
+def _layout(r: Reader, raw: Map) -> LayoutRule:
+    m, p = r.mapping(raw, "layout", "", LAYOUT_KEYS), "layout."
+    span_min = r.number(m, "span_min", p, "m", 20.0, 100.0)
+    height_min = r.number(m, "height_min", p, "m", 0.2, 5.0)
+    rule = LayoutRule(
+        rule=_choice(r, m, "rule", p, LAYOUT_RULES),
+        length=r.number(m, "length", p, "m", 100.0, 20000.0),
+        span_min=span_min,
+        span_max=r.number(m, "span_max", p, "m", span_min, 100.0, low_open=False),
+        height_min=height_min,
+        height_max=r.number(m, "height_max", p, "m", height_min, 5.0, low_open=False),
+        max_height_step=r.number(m, "max_height_step", p, "m", 0.0, 1.0, low_open=False),
+        droppers=_count(r, m, "droppers", p, 2, 30),
+        end_dropper=r.number(m, "end_dropper", p, "m", 0.0, 0.25 * span_min),
+        presag_per_length=r.number(m, "presag_per_length", p, "", 0.0, 0.005, low_open=False),
+    )
+    if (rule.span_min - 2.0 * rule.end_dropper) / (rule.droppers - 1) < 1.0:
+        raise r.fail(
+            "layout.droppers",
+            rule.droppers,
+            "droppers at least 1 m apart in the shortest span",
+            m.marks["droppers"],
+        )
+    return rule
+
+
+def _deviation(r: Reader, raw: Map, data: CatenaryData) -> tuple[DeviationModel, int]:
+    m, p = r.mapping(raw, "deviation", "", DEVIATION_KEYS), "deviation."
+    model = DeviationModel(
+        model=_choice(r, m, "model", p, DEVIATION_MODELS),
+        vertical_sigma=r.number(m, "vertical_sigma", p, "m", 0.0, 0.05, low_open=False),
+        correlation_length=r.number(m, "correlation_length", p, "m", 0.1, 1000.0),
+        longitudinal_sigma=r.number(m, "longitudinal_sigma", p, "m", 0.0, 1.0, low_open=False),
+    )
+    if data.stitched:
+        raise r.fail("deviation", "a stitched line", "a line without stitch wires", raw.marks["deviation"])
+    spans = _count(r, m, "spans", p, 1, 1000, default=data.n_spans)
+    return model, spans
 
 
 def _span(r: Reader, s: Map, i: int) -> SpanData:
@@ -240,5 +380,5 @@ def load_catenary(catenary: str = DEFAULT) -> CatenaryFile:
 
 @lru_cache(maxsize=32)
 def _load(path: str, mtime_ns: int, size: int) -> CatenaryFile:
-    data, numerics = parse_catenary(PRESETS.text(path), path)
-    return CatenaryFile(Path(path), data, numerics)
+    data, numerics, drawing = _parse(PRESETS.text(path), path)
+    return CatenaryFile(Path(path), data, numerics, drawing)

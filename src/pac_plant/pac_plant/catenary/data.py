@@ -79,6 +79,9 @@ class CatenaryData:
     gravity: float = GRAVITY
     name: str = "benchmark_55m"
     source: str = "docs/catenary_data.md §2"
+    #: ``spans`` is one whole line (a layout rule drew it), not a period: the plant runs it as a
+    #: fixed line from end to end, not as an endless window.
+    whole_line: bool = False
 
     @property
     def period(self) -> float:

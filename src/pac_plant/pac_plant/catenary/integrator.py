@@ -226,6 +226,7 @@ class ContactSimulation:
             p_inputs=inputs,
             p_lag=self.lags.copy(),
             p_uplift=self.uplifts.copy(),
+            y_rest=self._rest_solution(),
         )
         # State: the arrays the compiled step mutates in place (the attributes below are views).
         self.state = StepState(
@@ -261,6 +262,15 @@ class ContactSimulation:
         self._zero = np.zeros(n)
         self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (reference step)
         self.start_touching()
+
+    def _rest_solution(self) -> np.ndarray:
+        """A^-1 of the line's constant rest load (droppers slack at rest), added to every step's
+        solution; empty where every dropper hangs taut (the step then adds nothing)."""
+        if len(self.line.rest_slack) == 0:
+            return np.zeros(0)
+        y = self.line.rest_load()
+        band_chol_solve(self._chol, y)
+        return y
 
     # -- state (views of ``self.state``, the arrays the compiled step works on) ---------------
     def _vector(name: str) -> property:  # type: ignore[misc]
@@ -353,6 +363,7 @@ class ContactSimulation:
     def start_touching(self) -> None:
         """Line at static equilibrium, pantographs at rest with the heads just touching (F = 0)."""
         self.d[:] = self.v[:] = self.a[:] = 0.0
+        self.slack = self.line.rest_slack
         xs = self.x - self.lags
         self._place_pantographs(np.array([self.line.static_height(x) for x in xs]), np.zeros(len(xs)))
         self.input_force = 0.0
@@ -520,6 +531,8 @@ class ContactSimulation:
         y_l = self._b
         newmark_rhs(self._m, self._k, d, v, a, dt, self.alpha, self.beta, self._x1, self._x2, y_l)
         band_chol_solve(self._chol, y_l)
+        if len(self.constants.y_rest):
+            y_l += self.constants.y_rest
         dofs, nsh = self.line.contact_interpolation(x_new)
         yc_l = -(self._unit_solution(dofs[0]) * nsh[0])
         for i in range(1, 4):

@@ -341,6 +341,7 @@ class StepConstants(NamedTuple):
     Contact k (one per pantograph, the pantographs' DOFs stacked with the controlled one's first):
     ``p_heads[k]`` / ``p_inputs[k]`` its head and input DOF, ``p_lag[k]`` its distance behind x
     [m], ``p_uplift[k]`` the force held on its input (ignored for the controlled one) [N].
+    ``y_rest`` = A^-1 ``Line.rest_load()`` where droppers hang slack at rest, else empty.
     """
 
     m_pad: np.ndarray
@@ -368,6 +369,7 @@ class StepConstants(NamedTuple):
     p_inputs: np.ndarray
     p_lag: np.ndarray
     p_uplift: np.ndarray
+    y_rest: np.ndarray
 
 
 class StepState(NamedTuple):
@@ -561,6 +563,9 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     z, tail = s.padded[0], s.padded[1, :n]
     newmark_rhs_mass(c.m_pad, d, v, a, dt, alpha, beta, z, tail, y_l)
     chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work, tail)
+    if c.y_rest.shape[0]:  # A^-1 of the constant rest load (droppers slack at rest; else empty)
+        for i in range(n):
+            y_l[i] += c.y_rest[i]
     # Contact columns A^-1 g_k (line part) from the stored patches; zero outside their [lo, hi).
     width = s.unit_patches.shape[2]
     for k in range(npc):
@@ -790,7 +795,7 @@ def fe_advance(
 #: Kind of each field of StepConstants / StepState: f = float64, i = int64, then the dimension.
 CONSTANT_KINDS = (
     "f2", "f2", "f3", "i1", "i1", "f1", "f1", "f2", "f2", "f2", "f1",
-    "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1", "i1", "i1", "f1", "f1",
+    "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1", "i1", "i1", "f1", "f1", "f1",
 )  # fmt: skip
 STATE_KINDS = (
     "f1", "f1", "f1", "f1", "f1", "f1", "f1", "f1", "i1", "i1", "f3", "i1", "f2", "f2", "f2",
@@ -850,7 +855,7 @@ def unpack(
         _v1(cf, cl, 6), _v2(cf, cl, 7), _v2(cf, cl, 8), _v2(cf, cl, 9), _v1(cf, cl, 10), _v1(cf, cl, 11),
         _v1(ci, cl, 12), _v1(ci, cl, 13), _v1(ci, cl, 14), _v2(cf, cl, 15), _v2(cf, cl, 16),
         _v2(cf, cl, 17), _v1(cf, cl, 18), _v1(cf, cl, 19), _v1(ci, cl, 20), _v1(ci, cl, 21),
-        _v1(ci, cl, 22), _v1(cf, cl, 23), _v1(cf, cl, 24),
+        _v1(ci, cl, 22), _v1(cf, cl, 23), _v1(cf, cl, 24), _v1(cf, cl, 25),
     )  # fmt: skip
     s = StepState(
         _v1(sf, sl, 0), _v1(sf, sl, 1), _v1(sf, sl, 2), _v1(sf, sl, 3), _v1(sf, sl, 4), _v1(sf, sl, 5),

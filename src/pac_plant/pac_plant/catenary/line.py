@@ -30,6 +30,7 @@ from scipy.linalg import cho_solve_banded, cholesky_banded
 from .data import CatenaryData, NumericalOptions, WireData
 from .layout import WS, build_layout, span_marks
 from .layout import span_nodes as _span_nodes
+from .static import tension_only_equilibrium
 
 DOFS_PER_NODE = 4
 BANDWIDTH = 7  # sub-diagonals: node i couples with node i+1 only
@@ -141,7 +142,7 @@ class Dropper:
     upper: np.ndarray  # DOF offset of its upper end: WM (messenger) or WS (a stitch wire)
     length0: np.ndarray  # unstrained length [m]
     stiffness: np.ndarray  # EA / L0 [N/m]
-    elongation0: np.ndarray  # static elongation [m] (> 0: in tension)
+    elongation0: np.ndarray  # static elongation [m] (> 0: in tension; < 0: hanging slack at rest)
 
     @property
     def wc(self) -> np.ndarray:
@@ -153,14 +154,16 @@ class Dropper:
 
     @property
     def static_tension(self) -> np.ndarray:
-        return self.stiffness * self.elongation0
+        """Force at rest [N]: a dropper carries tension only (a slack one, none)."""
+        return self.stiffness * np.maximum(self.elongation0, 0.0)
 
 
 class Line:
     """A catenary section of ``n_spans`` spans, assembled and in static equilibrium.
 
-    ``w_static`` is the static displacement of every DOF (gravity, droppers taut);
-    the dynamics use the deviation d = w - w_static, so ``M``, ``K`` (line only) act on d.
+    ``w_static`` is the static displacement of every DOF (gravity; droppers carry tension only,
+    ``rest_slack`` the ones that hang slack at rest, usually none); the dynamics use the deviation
+    d = w - w_static, so ``M``, ``K`` (line only, every dropper taut) act on d.
     """
 
     def __init__(
@@ -338,9 +341,23 @@ class Line:
         dr.length0 = np.array(length0, dtype=float)
         dr.stiffness = d.dropper_ea / dr.length0
         self._assemble()
-        self.w_static = self.solve_static(self.f_static)
-        ws = self.w_static
-        dr.elongation0 = dr.height + ws[dr.wm] - ws[dr.wc] - dr.length0
+        w_taut = self.solve_static(self.f_static)
+        e_taut = dr.height + w_taut[dr.wm] - w_taut[dr.wc] - dr.length0
+        # A dropper that would have to push hangs slack instead (the taut state, untouched, where none does).
+        rest = tension_only_equilibrium(self.solve_static, w_taut, e_taut, dr.wc, dr.wm, dr.stiffness)
+        self.w_static, dr.elongation0, self.rest_slack = rest.w, rest.elongation, rest.slack
+
+    def rest_load(self) -> np.ndarray:
+        """The constant load that keeps the taut-dropper K in equilibrium at the tension-only rest
+        state: minus the forces the slack droppers would carry as springs, -sum_j k_j e0_j g_j over
+        ``rest_slack`` (zero where no dropper hangs slack). With it, d = 0 is at rest in the
+        dynamics about ``w_static`` (docs/catenary.md, "Slack droppers at rest")."""
+        dr, f = self.droppers, np.zeros(self.n_dof)
+        j = self.rest_slack
+        force = dr.stiffness[j] * dr.elongation0[j]
+        np.add.at(f, dr.wm[j], -force)
+        np.add.at(f, dr.wc[j], force)
+        return f
 
     # -- geometry of a point on the contact wire ----------------------------------------------
     def locate(self, x: float) -> tuple[int, float]:
