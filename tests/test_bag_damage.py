@@ -473,3 +473,13 @@ def test_messages_lost_to_a_stalled_recorder_are_counted_in_the_bag(tmp_path, do
         assert code == 1 and "lost before they reached the recorder" in err
     else:
         pytest.skip("this host delivered every sample despite the stall: nothing lost to count")
+
+
+def test_the_recorders_health_is_error_while_messages_are_lost():
+    from pac_common.diagnostics import ERROR, OK, recorder_status
+
+    counters = {"state": "recording", "messages": 10, "bag_bytes": 100, "queued": 0}
+    assert recorder_status("recorder", counters, None).level == OK
+    lost = recorder_status("recorder", {**counters, "lost_messages": 13, "lost_plant_truth": 13}, None)
+    assert lost.level == ERROR
+    assert "13 messages lost before they reached the recorder (plant_truth 13)" in lost.message

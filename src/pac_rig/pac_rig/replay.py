@@ -13,6 +13,10 @@ whenever two arrive within one spin of the node (a few % on a loaded machine).
 published once the node has answered the previous one (its ``estimate`` for a
 ``measurement``, its ``command`` for an ``estimate``), and re-sent when no answer
 comes within ``--resend-timeout``, as the plant does in lock step.
+
+Every message is decoded before the replay starts: one that does not decode, or is of
+another type than its topic's, is counted (one line per topic) and not published, and the
+replay exits 1 after replaying the rest, as for any damage the bag readers report.
 """
 
 from __future__ import annotations
