@@ -6,6 +6,9 @@ SHELL := /bin/bash
 ARGS ?=
 # Bag directory for `make report BAG=bags/<run>`.
 BAG ?=
+# $(BAG) as one shell word, whatever it holds (spaces, quotes, `;`, `$`): single-quoted, with each
+# single quote closed, escaped and reopened.
+QUOTED_BAG = '$(subst ','\'',$(value BAG))'
 # SPECs of config/campaigns/ that `make campaigns` runs.
 CAMPAIGNS ?= laws_speeds robustness lines_speeds
 
@@ -88,16 +91,16 @@ soak: setup
 	scripts/with_env.sh ros2 run pac_experiments soak $(ARGS)
 
 report: setup
-	@if [ -z "$(BAG)" ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi
-	scripts/with_env.sh ros2 run pac_analysis report $(BAG) $(ARGS)
+	@if [ -z $(QUOTED_BAG) ]; then echo "usage: make report BAG=<bag directory>" >&2; exit 2; fi
+	scripts/with_env.sh ros2 run pac_analysis report $(QUOTED_BAG) $(ARGS)
 
 info re-estimate recover: setup
-	@if [ -z "$(BAG)" ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
-	scripts/with_env.sh ros2 run pac_analysis $(subst -,_,$@) $(BAG) $(ARGS)
+	@if [ -z $(QUOTED_BAG) ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
+	scripts/with_env.sh ros2 run pac_analysis $(subst -,_,$@) $(QUOTED_BAG) $(ARGS)
 
 replay: setup
-	@if [ -z "$(BAG)" ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
-	scripts/with_env.sh ros2 run pac_rig replay $(BAG) $(ARGS)
+	@if [ -z $(QUOTED_BAG) ]; then echo "usage: make $@ BAG=<bag directory> [ARGS=...]" >&2; exit 2; fi
+	scripts/with_env.sh ros2 run pac_rig replay $(QUOTED_BAG) $(ARGS)
 
 sweep: setup
 	scripts/with_env.sh ros2 run pac_experiments sweep $(ARGS)

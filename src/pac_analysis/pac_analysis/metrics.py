@@ -235,12 +235,23 @@ NEEDS = {
 
 
 def missing_inputs(bag: BagData) -> list[str]:
-    """One line per pac topic the bag lacks, naming the measures it prevents."""
-    return [
+    """One line per pac topic the bag lacks, naming the measures it prevents, and one when
+    contact forces are not finite (the contact-force measures are NaN then)."""
+    lines = [
         f"no '{topic}' messages: {what} not computed"
         for topic, what in NEEDS.items()
         if topic not in bag.topics or not len(bag.topics[topic])
     ]
+    truth = bag.topics.get("plant_truth")
+    if truth is not None and len(truth) and "contact_force" in truth.columns:
+        force = np.asarray(truth["contact_force"], dtype=float)
+        bad = int(np.count_nonzero(~np.isfinite(force)))
+        if bad:
+            lines.append(
+                f"'plant_truth': {bad} of {force.size} contact forces not finite: "
+                "the contact-force measures are NaN"
+            )
+    return lines
 
 
 _ROWS = (

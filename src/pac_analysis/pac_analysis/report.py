@@ -30,12 +30,33 @@ from .metrics import (
 from .plots import overlay_figure, run_figure
 
 
+def bag_names(bags: list[Path]) -> list[str]:
+    """One distinct name per bag (its column, figure and part of the default folder): its folder's
+    name, with as many parent folders as it takes to tell it from the others (``a/run`` and
+    ``b/run``: ``a_run``, ``b_run``), numbered when the same bag is given twice."""
+    parts = [path.absolute().parts[1:] for path in bags]  # without the root
+
+    def named(i: int, depth: int) -> str:
+        return "_".join(parts[i][-depth:])
+
+    names = []
+    for i in range(len(bags)):
+        depth = 1
+        while depth < len(parts[i]) and any(
+            named(j, depth) == named(i, depth) for j in range(len(bags)) if parts[j] != parts[i]
+        ):
+            depth += 1
+        names.append(named(i, depth))
+    counted = [names[:i].count(n) for i, n in enumerate(names)]
+    return [n if k == 0 else f"{n}_{k + 1}" for n, k in zip(names, counted, strict=True)]
+
+
 def report(
     bags: list[Path], out: Path, window_from: float, window_to: float | None
 ) -> tuple[dict, list[str]]:
     problems: list[str] = []
     loaded: dict[str, BagData] = {}
-    for path in bags:
+    for path, name in zip(bags, bag_names(bags), strict=True):
         try:
             bag = read_bag(path)
         except BagError as exc:
@@ -43,7 +64,7 @@ def report(
             continue
         problems += [f"{path}: {w}" for w in bag.warnings]
         problems += [f"{path}: {m}" for m in missing_inputs(bag)]
-        loaded[path.name] = bag
+        loaded[name] = bag
     if not loaded:
         return {}, problems
     out.mkdir(parents=True, exist_ok=True)
@@ -105,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=None, help="output folder (default reports/<name>)")
     args = parser.parse_args(argv)
-    name = "_vs_".join(b.name for b in args.bags)
+    name = "_vs_".join(bag_names(args.bags))
     out = args.out or Path("reports") / name
     try:
         results, problems = report(args.bags, out, args.window_from, args.window_to)

@@ -190,7 +190,10 @@ class McapWriter:
         body = struct.pack("<QQQI", start, end, len(data), zlib.crc32(data))
         body += _string(self.compression) + struct.pack("<Q", len(compressed))
         chunk_offset = self._file.tell()
-        self._file.write(_record(OP_CHUNK, body))
+        # The record's length covers its whole body, the compressed records included (pac before
+        # this wrote the header's length only: readers that walk records by their length, as
+        # a recovery must, took every chunk for damage; pac_bag.mcap_reader reads both).
+        self._file.write(struct.pack("<BQ", OP_CHUNK, len(body) + len(compressed)) + body)
         self._file.write(compressed)
         index_start = self._file.tell()
         offsets = self._message_indexes(index_start)

@@ -6,7 +6,7 @@ Old bags with relative topic names (``measurement``) read the same as new ones
 
 from __future__ import annotations
 
-import json
+import stat
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -14,7 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from .names import topic_key
+from pac_common.messages import WATCHED_TOPICS
+
+from .metadata import declared_counts, read_custom_metadata
 from .recovery import iter_records
 from .typestore import typestore
 
@@ -55,37 +57,6 @@ def _flatten(msg: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
             yield f"{prefix}{name}", value
 
 
-def _bag_info(path: Path) -> dict[str, Any]:
-    """metadata.yaml's ``rosbag2_bagfile_information`` (empty when there is none or it is unreadable)."""
-    import yaml
-
-    try:
-        info = yaml.safe_load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-        return info if isinstance(info, dict) else {}
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):
-        return {}
-
-
-def read_custom_metadata(path: Path) -> dict[str, Any]:
-    """The ``pac.*`` custom data of metadata.yaml (empty when there is none)."""
-    try:
-        custom = _bag_info(path).get("custom_data") or {}
-        return {k[4:]: json.loads(v) for k, v in custom.items() if k.startswith("pac.")}
-    except (AttributeError, TypeError, ValueError):
-        return {}
-
-
-def declared_counts(path: Path) -> dict[str, int]:
-    """Messages per topic as metadata.yaml declares them (empty without metadata.yaml)."""
-    counts: dict[str, int] = {}
-    try:
-        for entry in _bag_info(path).get("topics_with_message_count") or []:
-            counts[topic_key(entry["topic_metadata"]["name"])] = int(entry["message_count"])
-    except (KeyError, TypeError, ValueError):
-        pass
-    return counts
-
-
 def _column(values: list[Any]) -> np.ndarray:
     """One field of every message.  rosbags gives numeric arrays as numpy arrays and sequences of
     messages or strings (``/diagnostics``' ``status``) as lists: those stay one list per message,
@@ -111,6 +82,8 @@ def bag_files(path: Path) -> list[Path]:
         raise BagError(f"{path}: not a bag (no .mcap file)")
     for file in files:
         try:
+            if not stat.S_ISREG(file.stat().st_mode):  # a FIFO would block, a device never end
+                raise BagError(f"{path}: not a bag ({file.name} is not a regular file)")
             with open(file, "rb") as handle:
                 head = handle.read(len(MCAP_MAGIC))
         except OSError as exc:
@@ -140,8 +113,13 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
 
     def consume(records: Iterator[tuple[str, str, int, bytes]]) -> None:
         for topic, typename, log_time, raw in records:
-            typenames.setdefault(topic, typename)
             if wanted is not None and topic not in wanted:
+                continue
+            # A topic's columns come from one type: pac's for its own topics, else the first seen;
+            # messages of another type on the topic are counted and said.
+            if typenames.setdefault(topic, WATCHED_TOPICS.get(topic, typename)) != typename:
+                other_types.setdefault(topic, {}).setdefault(typename, 0)
+                other_types[topic][typename] += 1
                 continue
             if typename not in store.types:
                 if topic not in unknown:
@@ -156,11 +134,17 @@ def read_bag(path: Path | str, topics: Iterable[str] | None = None) -> BagData:
             rows.setdefault(topic, []).append((log_time, msg))
 
     undecodable: dict[str, list] = {}
+    other_types: dict[str, dict[str, int]] = {}
     consume(iter_records(path, warnings))
     for topic, (count, first) in undecodable.items():
         warnings.append(f"topic '{topic}': {count} undecodable messages skipped ({first})")
+    for topic, counts in other_types.items():
+        others = ", ".join(f"{n} of {t}" for t, n in sorted(counts.items()))
+        warnings.append(
+            f"topic '{topic}': messages of several types: read {typenames[topic]}, skipped {others}"
+        )
     if path.is_dir():
-        for topic, declared in declared_counts(path).items():
+        for topic, declared in declared_counts(path, warnings).items():
             readable = len(rows.get(topic, ()))
             if readable < declared and (wanted is None or topic in wanted):
                 warnings.append(

@@ -12,7 +12,9 @@ simulator), serialised with numpy in the CDR layout derived from the .msg files
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -50,7 +52,8 @@ class BagWriter:
     defaults to what pac's publishers offer; ``add_topic`` adds a topic later (the recorder
     adds each one when it has seen its publishers).  ``metadata`` goes into the bag's custom
     data (rosbag2 v9) as JSON, so a bag says how it was made.  ``compression``: MCAP chunk
-    compression, one of ``zstd``, ``lz4``, ``none``.
+    compression, one of ``zstd``, ``lz4``, ``none``.  ``name``: the bag's name, its MCAP file's
+    stem (default the directory's name; :func:`atomic_bag` writes under another one).
     """
 
     def __init__(
@@ -61,6 +64,7 @@ class BagWriter:
         *,
         compression: str = DEFAULT_COMPRESSION,
         offered_qos: list[dict[str, Any]] | None = None,
+        name: str | None = None,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r}: allowed {', '.join(COMPRESSIONS)}")
@@ -69,7 +73,7 @@ class BagWriter:
         self.store = typestore()
         self.factory = RosbagsFactory(self.store)
         self.compression = compression
-        self._file = self.path / f"{self.path.name}.mcap"
+        self._file = self.path / f"{name or self.path.name}.mcap"
         self._mcap = McapWriter(self._file, library="pac (rosbag2 v9)", compression=compression)
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[str, int] = {}
@@ -228,6 +232,20 @@ class BagWriter:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+@contextmanager
+def atomic_bag(path: Path) -> Iterator[Path]:
+    """A temporary directory next to ``path`` to write a bag into (``BagWriter(..., name=path.name)``),
+    renamed to ``path`` when the block completes and removed when it raises: a failure (a full
+    disk) never leaves a half-written bag under the name asked for."""
+    partial = path.with_name(f".{path.name}.partial-{os.getpid()}")
+    try:
+        yield partial
+        os.rename(partial, path)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
 
 
 def _merge_records(

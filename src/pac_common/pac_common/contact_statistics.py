@@ -101,7 +101,8 @@ def statistics(force: np.ndarray, loss_force: np.ndarray | None = None) -> Conta
         contact_force_max=float(np.max(f)),
         statistical_min=mean - 3.0 * std,
         statistical_max=mean + 3.0 * std,
-        contact_loss_percent=100.0 * float(np.mean(lost <= 0.0)),
+        # A NaN force is neither in contact nor lost: one makes the share unknown, not 0 %.
+        contact_loss_percent=100.0 * float(np.mean(lost <= 0.0)) if np.all(np.isfinite(lost)) else math.nan,
     )
 
 

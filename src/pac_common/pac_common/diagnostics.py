@@ -184,7 +184,8 @@ def controller_status(node: str, now: Counters, before: Counters | None) -> Stat
 
 
 def recorder_status(node: str, now: Counters, before: Counters | None) -> Status:
-    """The recorder: ERROR once a write failed or when the free disk is below ``min_free_disk_mb``;
+    """The recorder: ERROR once a write failed, once DDS reported messages lost to it, or when the
+    free disk is below ``min_free_disk_mb``;
     WARN when messages wait in its queue for more than a second's worth of writes."""
     errors, warnings = [], []
     if now.get("failed"):
@@ -192,6 +193,13 @@ def recorder_status(node: str, now: Counters, before: Counters | None) -> Status
     free, floor = float(now.get("free_disk_mb", math.inf)), float(now.get("min_free_disk_mb", 0.0))
     if free < floor:
         errors.append(f"free disk {free:.1f} MB below min_free_disk_mb {floor:g} MB")
+    lost = {k[5:]: int(n) for k, n in now.items() if k.startswith("lost_") and k != "lost_messages" and n}
+    if lost:  # a condition: the bag lacks them for good
+        errors.append(
+            f"{sum(lost.values())} messages lost before they reached the recorder ("
+            + ", ".join(f"{t} {n}" for t, n in sorted(lost.items()))
+            + ")"
+        )
     if int(now.get("queued", 0)) > 10000:
         warnings.append(f"{now['queued']} messages waiting to be written")
     level = ERROR if errors else WARN if warnings else OK

@@ -8,6 +8,9 @@ a queue with the receive time; a writer thread does all file I/O, so nothing
 slow sits on the subscription callbacks' path.  The bag's log time is the wall
 time of reception (the header stamps carry the simulated time).  SIGINT/SIGTERM,
 ``stop_after_tick`` or ``idle_timeout`` close the bag cleanly (summary written).
+Messages DDS reports lost on a subscription (never received) are counted per topic, in
+``/diagnostics`` (ERROR: the bag is incomplete) and in the bag's ``lost_messages``, which
+every bag reader reports.
 """
 
 from __future__ import annotations
@@ -23,9 +26,11 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
 from pac_bag.mcap_writer import COMPRESSIONS
+from pac_bag.metadata import LOST_MESSAGES
 from pac_bag.qos import qos_dict
 from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import messages
@@ -109,6 +114,7 @@ class RecorderNode(PacNode):
         # deque.append/popleft are atomic: the callbacks append, the writer thread drains in
         # batches every WRITE_PERIOD, which costs far fewer wake-ups than a queue per message.
         self.pending: deque = deque()
+        self.lost: dict[str, int] = {}  # messages DDS reports lost per topic (never recorded)
         self.stopping = threading.Event()
         self.failed = False
         self.failure = ""
@@ -149,7 +155,12 @@ class RecorderNode(PacNode):
             # of any of its messages.
             self.pending.append((topic, None, (typename, [qos_dict(info.qos_profile) for info in offered])))
             self.create_subscription(
-                self.factory.cls(typename), GRAPH_NAMES[topic], self._callback(topic), qos, raw=True
+                self.factory.cls(typename),
+                GRAPH_NAMES[topic],
+                self._callback(topic),
+                qos,
+                raw=True,
+                event_callbacks=SubscriptionEventCallbacks(message_lost=self._lost_callback(topic)),
             )
             del self.unsubscribed[topic]
             if topic in OPTIONAL_TOPICS:  # published: its last tick counts for the run's end too
@@ -173,6 +184,18 @@ class RecorderNode(PacNode):
                 append((topic, data, time.time_ns()))
 
         return callback
+
+    def _lost_callback(self, topic: str):
+        """Count what DDS says this subscription lost for good: with reliable, keep-last publishers
+        a sample is lost when the publisher dropped it from its history (PUBLISH_QOS keeps 1000,
+        one second of the loop) before the recorder had it, e.g. a transport drop whose repair
+        came after that (the writer's heartbeat, Fast DDS's default every 3 s) on a loaded host.
+        The count goes into /diagnostics and the bag (``lost_messages``): never silent."""
+
+        def lost(info) -> None:
+            self.lost[topic] = self.lost.get(topic, 0) + int(info.total_count_change)
+
+        return lost
 
     def _write_loop(self) -> None:
         last_flush = time.monotonic()
@@ -268,6 +291,8 @@ class RecorderNode(PacNode):
             "free_disk_mb": round(free_mb, 3),
             "min_free_disk_mb": self.params.min_free_disk_mb,
             "queued": len(self.pending),
+            "lost_messages": sum(self.lost.values()),
+            **{f"lost_{topic}": n for topic, n in self.lost.items()},
             "failed": self.failed,
             "failure": self.failure,
         }
@@ -281,10 +306,21 @@ class RecorderNode(PacNode):
         super().close()
         self.stopping.set()
         self.writer.join()
-        if self.failed or not self._guard(self.bag.close):
+        if self.failed:
+            return
+        lost = dict(self.lost)
+        self.bag.set_metadata(LOST_MESSAGES, lost)
+        if not self._guard(self.bag.close):
             return
         counts = ", ".join(f"{t}={n}" for t, n in self.bag.counts.items())
         print(f"recorder: closed {self.path} ({counts})", file=sys.stderr, flush=True)
+        if any(lost.values()):
+            print(
+                f"recorder: {self.path}: messages lost before they reached the recorder: "
+                + ", ".join(f"{t}={n}" for t, n in lost.items() if n),
+                file=sys.stderr,
+                flush=True,
+            )
 
 
 def main(args: list[str] | None = None) -> int:

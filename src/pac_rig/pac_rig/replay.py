@@ -13,6 +13,10 @@ whenever two arrive within one spin of the node (a few % on a loaded machine).
 published once the node has answered the previous one (its ``estimate`` for a
 ``measurement``, its ``command`` for an ``estimate``), and re-sent when no answer
 comes within ``--resend-timeout``, as the plant does in lock step.
+
+Every message is decoded before the replay starts: one that does not decode, or is of
+another type than its topic's, is counted (one line per topic) and not published, and the
+replay exits 1 after replaying the rest, as for any damage the bag readers report.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from pac_bag.reader import BagError, bag_files
@@ -79,10 +84,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     warnings: list[str] = []
     try:
-        bag_files(args.bag)  # not a bag: the one line every tool gives
-        records = sorted(
-            (r for r in iter_records(args.bag, warnings) if r[0] in args.topics), key=lambda r: r[2]
-        )
+        records = replayable(args.bag, args.topics, warnings)
     except BagError as exc:
         print(f"replay: {exc}", file=sys.stderr)
         return 1
@@ -140,26 +142,65 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return 1 if warnings else 0  # a damaged bag: replayed as far as it was readable
 
 
-def timed(pubs: dict, records: list, rate: float) -> None:
+@dataclass(frozen=True)
+class Replayed:
+    """One message to replay: its topic, log time [ns], tick and serialised (CDR) bytes."""
+
+    topic: str
+    log_time: int
+    tick: int
+    data: bytes
+
+
+def replayable(bag: Path, topics: list[str], warnings: list[str]) -> list[Replayed]:
+    """The messages of ``topics`` in ``bag`` that their subscribers can take, in log-time order.
+
+    Each one is decoded first (with the bag's type store: a damaged record must not reach a
+    node, where rclpy would drop it uncounted, nor stop the replay with an rmw error): records
+    of another type than the topic's, and undecodable ones, are counted on ``warnings``."""
+    from pac_bag.typestore import typestore
+
+    bag_files(bag)  # not a bag: the one line every tool gives
+    store = typestore()
+    out: list[Replayed] = []
+    refused: dict[str, list] = {}
+    for topic, typename, log_time, data in iter_records(bag, warnings):
+        if topic not in topics:
+            continue
+        try:
+            if typename != messages.TOPICS[topic]:
+                raise ValueError(f"a {typename}, not a {messages.TOPICS[topic]}")
+            msg = store.deserialize_cdr(data, typename)
+        except Exception as exc:  # noqa: BLE001 - rosbags raises several types on damaged CDR
+            refused.setdefault(topic, [0, f"first at {log_time} ns: {exc}"])[0] += 1
+            continue
+        out.append(Replayed(topic, log_time, int(getattr(msg, "tick", -1)), data))
+    for topic, (count, first) in refused.items():
+        warnings.append(f"topic '{topic}': {count} messages not replayed, undecodable ({first})")
+    return sorted(out, key=lambda r: r.log_time)
+
+
+def timed(pubs: dict, records: list[Replayed], rate: float) -> None:
     """Publish ``records`` at their log times scaled by ``rate`` (0: as fast as possible)."""
-    first, start = records[0][2], time.monotonic()
-    for topic, _, log_time, data in records:
+    first, start = records[0].log_time, time.monotonic()
+    for record in records:
         if rate > 0:
-            delay = start + (log_time - first) * 1e-9 / rate - time.monotonic()
+            delay = start + (record.log_time - first) * 1e-9 / rate - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        pubs[topic].publish(bytes(data))
+        pubs[record.topic].publish(record.data)
 
 
-def lockstep(node, factory, topic: str, pub, records: list, args: argparse.Namespace) -> list | None:
+def lockstep(
+    node, factory, topic: str, pub, records: list[Replayed], args: argparse.Namespace
+) -> list[Replayed] | None:
     """Publish each tick of ``records`` once the node answered the one before (on
     :data:`ANSWERS`), re-sending it after ``--resend-timeout``: the records published, one per
     tick, or None when an answer did not come within ``--timeout`` (said on stderr)."""
     import rclpy
-    from rclpy.serialization import deserialize_message
 
     answer = ANSWERS[topic]
     answered = [-1]  # the highest tick answered
@@ -167,14 +208,13 @@ def lockstep(node, factory, topic: str, pub, records: list, args: argparse.Names
     def on_answer(msg) -> None:
         answered[0] = max(answered[0], int(msg.tick))
 
-    cls = factory.cls(messages.TOPICS[topic])
     node.create_subscription(factory.cls(messages.TOPICS[answer]), answer, on_answer, PUBLISH_QOS)
     # One sample per tick, in tick order: a bag of a live run holds re-sent samples more than once.
-    by_tick: dict[int, tuple] = {}
+    by_tick: dict[int, Replayed] = {}
     for record in records:
-        by_tick.setdefault(int(deserialize_message(bytes(record[3]), cls).tick), record)
+        by_tick.setdefault(record.tick, record)
     for tick in sorted(by_tick):
-        data = bytes(by_tick[tick][3])
+        data = by_tick[tick].data
         pub.publish(data)
         first = sent = time.monotonic()
         while answered[0] < tick:
