@@ -72,12 +72,15 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     ),
     "guard": (
         "pac_controller.line_adaptive_kernels",
-        ("_end_of_span", "line_restart", "line_output", "line_commit"),
+        ("_end_of_span",),
         LINE_LAW_TESTS,
     ),
     "line_law": (
         "pac_controller.line_adaptive_kernels",
-        ("_learn", "_step", "_fit_line", "_identified", "_model_response", "line_feedforward"),
+        (
+            "line_restart", "line_output", "line_commit", "_learn", "_step", "_fit_line", "_identified",
+            "_model_response", "line_feedforward",
+        ),
         LINE_LAW_TESTS,
     ),
     "contact_force": (
