@@ -62,6 +62,15 @@ def test_slew_limit_allows_one_period_at_and_before_the_last_commands_tick(ticks
     assert limit_command(100.4, 100.0, True, ticks_since, SLEW, DT, -500.0, 500.0) == 100.4
 
 
+@pytest.mark.parametrize("law", ["adaptive_backstepping", "pid", "lqr"])
+def test_the_first_command_is_not_rate_limited(law):
+    """No command before: nothing to limit the rate from; only the saturation applies."""
+    z, th, f = estimate(0)
+    cmd = controller(law).compute(0, z + np.array([0.01, 0.0, 0.0, 0.0]), th, f + 50.0)
+    assert abs(cmd.u_unsaturated) > 10 * SLEW * DT  # the case would show a rate limit
+    assert cmd.u == min(max(cmd.u_unsaturated, CHAIN.u_min), CHAIN.u_max)
+
+
 def test_slew_limit_scales_with_the_ticks_since_the_last_command_then_saturates():
     assert limit_command(500.0, 100.0, True, 7, SLEW, DT, -500.0, 500.0) == pytest.approx(107.0, rel=1e-12)
     assert limit_command(900.0, 0.0, False, 1, SLEW, DT, -500.0, 500.0) == 500.0  # first: saturation only
@@ -80,6 +89,7 @@ def assert_fallback_step(cmd, before: float) -> None:
     """The fallback command: toward fallback_force by at most one period's slew, asked for exactly."""
     assert cmd.mode == "fallback"
     assert cmd.u_unsaturated == CHAIN.fallback_force
+    assert cmd.tracking_error == (0.0, 0.0, 0.0)  # no law error: the law did not command this
     expected = min(max(CHAIN.fallback_force, before - SLEW * DT), before + SLEW * DT)
     assert cmd.u == pytest.approx(expected, rel=1e-12, abs=1e-12)
 
@@ -135,10 +145,14 @@ def test_a_non_finite_law_output_is_answered_by_the_fallback(law):
 def test_the_fallback_reaches_its_force_at_the_slew_rate_and_stays_there():
     ctrl = controller("passive", reference=ReferenceParameters(shape="constant", force_amplitude=300.0))
     ctrl.last_u, ctrl.last_tick = 300.0, 99  # the actuator at 300 N
-    us = [ctrl.fallback(k).u for k in range(100, 400)]
+    cmds = [ctrl.fallback(k) for k in range(100, 400)]
     expected = np.maximum(300.0 - SLEW * DT * np.arange(1, 301), CHAIN.fallback_force)
-    np.testing.assert_allclose(us, expected, rtol=1e-12)
-    assert us[-1] == CHAIN.fallback_force
+    np.testing.assert_allclose([c.u for c in cmds], expected, rtol=1e-12)
+    assert cmds[-1].u == CHAIN.fallback_force
+    # Each says F_r at its own time (the reference still rising from 0 here).
+    f_r = [ctrl.reference.at(k * DT)[0] for k in range(100, 400)]
+    np.testing.assert_allclose([c.force_reference for c in cmds], f_r, rtol=1e-12)
+    assert f_r[0] < 0.9 * f_r[-1]
 
 
 def test_a_fallback_at_a_tick_not_after_the_last_command_is_still_slew_limited():
@@ -174,6 +188,41 @@ def test_a_stale_tick_restarts_the_law_from_the_actuators_force(law):
     cmd = ctrl.compute(10, z, th, f)
     assert cmd.mode == "active"
     assert cmd.u_unsaturated == pytest.approx(last, rel=1e-9, abs=1e-9)
+
+
+def test_the_line_laws_commands_are_passive_once_its_guard_has_tripped():
+    """Through the chain: one span far above the passive spans' force error trips line_adaptive's
+    guard at its end; from the next command on the commands say passive and are F_r."""
+    fast = dataclasses.replace(CHAIN, slew_rate_max=1e9)  # the step back to F_r in one tick
+    ctrl = controller("line_adaptive", fast, ReferenceParameters(shape="constant"))
+    law = ctrl.law
+    n, w = law.period_ticks, law.omega_span
+    runin = law.params[0]["line_runin_spans"]
+    modes = []
+    for k in range((runin + 2) * n):
+        span = k // n
+        a = 10.0 if span < runin else 100.0  # the first learning span: 10x passive
+        f_r = ctrl.reference.at(k * DT)[0]
+        cmd = ctrl.compute(k, *estimate(k)[:2], f_r - a * math.cos(w * k * DT))
+        modes.append(cmd.mode)
+        if span == runin + 1:
+            assert cmd.u == pytest.approx(f_r, rel=1e-12)
+    assert set(modes[: (runin + 1) * n]) == {"active"}
+    assert set(modes[(runin + 1) * n :]) == {"passive"}
+
+
+@pytest.mark.parametrize("law", ["pid", "lqr"])
+def test_the_same_tick_again_restarts_the_law_from_the_force_commanded(law):
+    """A tick computed again (not after the law's last) restarts the law: its command continues
+    from the force the actuator was given for that tick, not from what the law asked."""
+    ctrl = controller(law)
+    drive(ctrl, range(300))
+    z, th, f = estimate(300)
+    z = z + np.array([0.02, 0.0, 0.0, 0.0])  # a jump the slew limit holds back
+    first = ctrl.compute(300, z, th, f)
+    assert first.saturated and abs(first.u_unsaturated - first.u) > 5.0
+    again = ctrl.compute(300, z, th, f)
+    assert again.u_unsaturated == pytest.approx(first.u, rel=1e-9, abs=1e-9)
 
 
 # -- one chain: the Python path of a law without a compiled form -----------------------------
@@ -234,6 +283,41 @@ def test_a_law_called_from_python_gets_the_same_commands_as_the_compiled_chain(l
     assert a == b  # within one machine, the same arithmetic: equal bit for bit
 
 
+class ConstantLaw:
+    """The least a Law declares: it reads the estimate, says nothing of F_hat."""
+
+    mode = "active"
+    uses_estimate = True
+
+    def restart(self, u_applied):
+        pass
+
+    def output(self, tick, t, f_r, z_hat, theta_hat):
+        return 123.0, (0.0, 0.0, 0.0)
+
+    def commit(self, tick, u_applied):
+        pass
+
+
+def test_a_python_law_that_does_not_say_it_reads_the_force_estimate_is_not_refused_for_it():
+    ctrl = Controller(ConstantLaw(), CHAIN, ReferenceParameters(), DT)
+    z, th, _ = estimate(0)
+    assert ctrl.compute(0, z, th, math.nan).mode == "active"
+    assert ctrl.compute(1, np.full(4, math.nan), th, 100.0).mode == "fallback"
+
+
+@pytest.mark.parametrize("law", ["pid", "lqr"])
+def test_a_new_controller_starts_its_law_afresh_whatever_the_law_did_before(law):
+    """A controller around a law that has run (the law's records are the controller's) restarts it
+    before its first command, even at a later tick: the command is a fresh law's."""
+    used = controller(law)
+    drive(used, range(300))
+    again = Controller(used.law, used.params, used.reference.params, DT, name=law)
+    fresh = controller(law)
+    z, th, f = estimate(400)
+    assert again.compute(400, z, th, f) == fresh.compute(400, z, th, f)
+
+
 # -- the watchdog ------------------------------------------------------------------------------
 @pytest.mark.parametrize("watchdog_ticks", [1, 20, 100])
 def test_the_watchdog_falls_back_at_exactly_its_tick(watchdog_ticks):
@@ -251,13 +335,14 @@ def test_the_watchdog_never_commands_a_tick_already_commanded_and_is_off_at_zero
     assert watchdog_fallback_tick(1e6 * DT, DT, 0, 1000, 1000)[1] is None
 
 
-def test_the_node_asks_the_watchdog_with_its_clock_and_sends_that_tick(monkeypatch):
+@pytest.mark.parametrize("watchdog_ticks", [1, 20])
+def test_the_node_asks_the_watchdog_with_its_clock_and_sends_that_tick(monkeypatch, watchdog_ticks):
     """controller_node.on_watchdog without DDS: the clock is the test's, the publisher records."""
     from pac_controller import controller_node
 
     sent = []
     node = controller_node.ControllerNode.__new__(controller_node.ControllerNode)
-    node.core = controller("pid")
+    node.core = controller("pid", dataclasses.replace(CHAIN, watchdog_ticks=watchdog_ticks))
     node.loop = type("Loop", (), {"sample_period": DT})()
     node.active, node.run_last_tick, node.in_fallback = True, None, False
     node.last_estimate_tick, node.last_estimate_wall = 1000, 50.0
@@ -265,16 +350,17 @@ def test_the_node_asks_the_watchdog_with_its_clock_and_sends_that_tick(monkeypat
     node.core.last_u, node.core.last_tick = 150.0, 1000
     node.publish = lambda cmd, age: sent.append((cmd.tick, cmd.mode, age))
     node.get_logger = lambda: type("Log", (), {"warning": lambda *a, **k: None})()
-    now = [50.0 + 19.5 * DT]
+    now = [50.0 + (watchdog_ticks - 0.5) * DT]
     monkeypatch.setattr(controller_node.time, "monotonic", lambda: now[0])
     node.on_watchdog()
     assert sent == []
-    now[0] = 50.0 + 20.5 * DT
+    now[0] = 50.0 + (watchdog_ticks + 0.5) * DT
     node.on_watchdog()
-    assert sent == [(1020, "fallback", 20)] and node.in_fallback and node.fallback_episodes == 1
-    now[0] = 50.0 + 21.5 * DT
+    w = watchdog_ticks
+    assert sent == [(1000 + w, "fallback", w)] and node.in_fallback and node.fallback_episodes == 1
+    now[0] = 50.0 + (watchdog_ticks + 1.5) * DT
     node.on_watchdog()  # the same episode goes on, one tick later
-    assert sent[1:] == [(1021, "fallback", 21)]
+    assert sent[1:] == [(1001 + w, "fallback", w + 1)]
     assert node.fallback_episodes == 1 and node.fallback_commands == 2
 
 
