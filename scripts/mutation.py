@@ -387,9 +387,10 @@ def load_notes(out: Path) -> dict[str, str]:
     return json.loads(path.read_text()) if path.exists() else {}
 
 
-def note_key(m: Mutant) -> str:
-    """Notes are keyed by what the mutant changes (stable across line moves)."""
-    return f"{m.module} {m.function}: {m.original} -> {m.mutated}"
+def note_for(m: Mutant, notes: dict[str, str]) -> str:
+    """A survivor's argument: keyed by its id, or by what it changes (``module function: original
+    -> mutant``, which survives line moves)."""
+    return notes.get(m.ident) or notes.get(f"{m.module} {m.function}: {m.original} -> {m.mutated}", "")
 
 
 def write_report(
@@ -411,13 +412,7 @@ def write_report(
         "|---|---|---|---|---|---|---|",
     ]
     for m in ms:
-        why = (
-            m.failing
-            if m.status == "killed"
-            else notes.get(note_key(m), "")
-            if m.status == "survived"
-            else ""
-        )
+        why = m.failing if m.status == "killed" else note_for(m, notes) if m.status == "survived" else ""
         if m.status == "survived" and not why:
             why = "**not argued yet**"
         cells = [m.ident, f"`{m.function}`", str(m.line), f"`{m.original}`", f"`{m.mutated}`", m.status, why]
@@ -466,6 +461,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", nargs="*", default=None, help="mutant ids to run (default: all of the scopes)")
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "mutation")
     args = ap.parse_args(argv)
+    # A terminated run still restores the installed file (Planted.restore in a finally).
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     warm = Path(os.environ.get("NUMBA_CACHE_DIR", ROOT / "build" / "numba_cache"))
     args.out.mkdir(parents=True, exist_ok=True)
     notes = load_notes(args.out)
