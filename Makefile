@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable lint typecheck clean demo reproduce catenary two-pantographs fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -40,6 +40,13 @@ test-portable: setup
 	NPY_DISABLE_CPU_FEATURES="$(PORTABLE_NUMPY)" bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 	NUMBA_CPU_NAME=generic scripts/with_env.sh python -m pac_rig.warm
 	NUMBA_CPU_NAME=generic bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+
+# Mutation testing (scripts/mutation.py): defects planted one at a time in the safety chain, the
+# guard, the observers, the line law and the line's assembly; each scope's fast tests run on each;
+# the report in reports/mutation/. Not part of `make test` (tens of minutes per scope).
+# ARGS="--modules kernels guard" narrows it, ARGS="--list" lists the mutants.
+mutation: setup
+	scripts/with_env.sh python scripts/mutation.py $(ARGS)
 
 lint: setup
 	scripts/with_env.sh ruff check src tests scripts

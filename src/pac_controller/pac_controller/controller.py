@@ -1,6 +1,8 @@
 """The law-agnostic controller: reference, estimate checks, fallback, actuator limits, tick bookkeeping.
 
-A control law (a :class:`Law`: adaptive or known-theta backstepping, PID, LQR,
+The safety chain is compiled once (``kernels.controller_step`` and its parts); the node's
+controller and the compiled closed loop run that same code on the same records, so they cannot
+drift.  A control law (a :class:`Law`: adaptive or known-theta backstepping, PID, LQR,
 passive; the registry is :mod:`pac_controller.laws`) only proposes the force
 u_law for a tick.  Everything else is the same for every law:
 
@@ -23,11 +25,23 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from numba import njit
 
 from pac_model import model
 from pac_model.parameters import positive_period
 
+from .kernels import (
+    CONTROLLER_PARAMS,
+    CONTROLLER_STATE,
+    MODES,
+    KernelLaw,
+    fallback_one,
+    fill_safety_chain,
+    law_command_one,
+    must_restart_one,
+    new_state,
+    refused_one,
+    step_one,
+)
 from .parameters import ControllerParameters, ReferenceParameters
 from .reference import ForceReference
 
@@ -87,32 +101,28 @@ def contact_force_estimate(t: float, omega: float, z_hat: np.ndarray, theta_hat:
     return model.contact_force(model.stiffness(t, omega, theta_hat), float(z_hat[0]), unilateral=False)
 
 
-@njit(cache=True)
-def limit_command(
-    u: float,
-    last_u: float,
-    has_last: bool,
-    ticks_since: int,
-    slew_rate_max: float,
-    sample_period: float,
-    u_min: float,
-    u_max: float,
-) -> float:
-    """The actuator limits: slew rate from the last command (over at least one period), then saturation."""
-    applied = u
-    if has_last:
-        # At least one period: a command whose tick is not after the last one (a fallback
-        # tick extrapolated ahead of a returning estimate) is still rate limited.
-        step = slew_rate_max * sample_period * max(1, ticks_since)
-        applied = min(max(applied, last_u - step), last_u + step)
-    return min(max(applied, u_min), u_max)
+def watchdog_fallback_tick(
+    elapsed: float, sample_period: float, watchdog_ticks: int, last_estimate_tick: int, last_command_tick: int
+) -> tuple[int, int | None]:
+    """The watchdog's decision ``elapsed`` seconds after the last fresh estimate arrived: (its age in
+    whole ticks, the tick of the fallback command to send now, or None while the estimate is younger
+    than ``watchdog_ticks`` ticks or the watchdog is off, 0)."""
+    age = int(elapsed / sample_period)
+    if watchdog_ticks == 0 or age < watchdog_ticks:
+        return age, None
+    # The tick the loop would be at, extrapolated by the wall clock; never one already commanded.
+    return age, max(last_estimate_tick + age, last_command_tick + 1)
 
 
 class Controller:
     """One law inside the shared safety chain.
 
-    Explicit state: the last commanded force and its tick (slew limit), and the tick of
-    the law's last own command (None: the law must restart before its next output).
+    Explicit state, in a ``kernels.CONTROLLER_STATE`` record: the last commanded force and its
+    tick (slew limit), and the tick of the law's last own command (none: the law must restart
+    before its next output).  A law with a compiled form (:class:`kernels.KernelLaw`: every law
+    pac ships) shares its records with the controller and each command is one call of
+    ``kernels.controller_step``, the compiled loop's; any other :class:`Law` is called from
+    Python between the same compiled parts of the chain.
     """
 
     def __init__(
@@ -129,34 +139,69 @@ class Controller:
         self.params = params
         self.reference = ForceReference(reference)
         self.sample_period = sample_period
-        self.last_u: float | None = None  # None: no command yet (no rate limit on the first)
-        self.last_tick = -1
-        self.law_tick: int | None = None
+        if isinstance(law, KernelLaw):  # the law's own records: its design and memory are fields
+            self.record, self.state = law.params, law.state
+        else:
+            self.record, self.state = np.zeros(1, CONTROLLER_PARAMS), np.zeros(1, CONTROLLER_STATE)
+            self.record[0]["uses_estimate"] = law.uses_estimate
+            self.record[0]["uses_contact_force"] = getattr(law, "uses_contact_force", False)
+        fill_safety_chain(self.record[0], params, self.reference.args, sample_period)
+        new_state(self.state)
+
+    @property
+    def last_u(self) -> float | None:
+        """The last commanded force (None: no command yet, no rate limit on the first)."""
+        s = self.state[0]
+        return float(s["last_u"]) if s["has_last"] else None
+
+    @last_u.setter
+    def last_u(self, value: float | None) -> None:
+        s = self.state[0]
+        s["has_last"], s["last_u"] = value is not None, 0.0 if value is None else float(value)
+
+    @property
+    def last_tick(self) -> int:
+        """The tick of the last command (-1: none)."""
+        return int(self.state[0]["last_tick"])
+
+    @last_tick.setter
+    def last_tick(self, tick: int) -> None:
+        self.state[0]["last_tick"] = tick
+
+    @property
+    def law_tick(self) -> int | None:
+        """The tick of the law's last own command (None: it restarts before its next output)."""
+        s = self.state[0]
+        return int(s["law_tick"]) if s["has_law_tick"] else None
 
     def compute(
         self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray, contact_force_hat: float = math.nan
     ) -> Command:
         """The command for ``tick`` from the estimate of that tick (F_hat: its contact_force_hat)."""
+        z_hat = np.ascontiguousarray(z_hat, dtype=np.float64)
+        theta_hat = np.ascontiguousarray(theta_hat, dtype=np.float64)
+        f_hat, law = float(contact_force_hat), self.law
+        if isinstance(law, KernelLaw):
+            return self._command(
+                tick,
+                step_one(self.record, self.state, law.table, law.memory, int(tick), z_hat, theta_hat, f_hat),
+            )
+        if refused_one(self.record, z_hat, theta_hat, f_hat):
+            return self.fallback(tick)
+        if must_restart_one(self.state, int(tick)):
+            law.restart(self.last_u)
         t = tick * self.sample_period
         f_r = self.reference.at(t)
-        z_hat, theta_hat = np.asarray(z_hat, dtype=float), np.asarray(theta_hat, dtype=float)
-        if self.law.uses_estimate and not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
-            return self.fallback(tick)
-        uses_force = getattr(self.law, "uses_contact_force", False)
-        if uses_force and not math.isfinite(contact_force_hat):
-            return self.fallback(tick)
-        if self.law_tick is None or tick <= self.law_tick:
-            self.law.restart(self.last_u)
-        if uses_force:
-            u_law, errors = self.law.output(tick, t, f_r, z_hat, theta_hat, float(contact_force_hat))
+        if self.record[0]["uses_contact_force"]:
+            u_law, errors = law.output(tick, t, f_r, z_hat, theta_hat, f_hat)
         else:
-            u_law, errors = self.law.output(tick, t, f_r, z_hat, theta_hat)
+            u_law, errors = law.output(tick, t, f_r, z_hat, theta_hat)
         if not math.isfinite(u_law):
             return self.fallback(tick)
-        cmd = self._limited(tick, t, u_law, f_r[0], errors, self.law.mode)
-        self.law.commit(tick, cmd.u)
-        self.law_tick = tick
-        return cmd
+        mode = law.mode  # before commit: line_adaptive's guard trips there, from the next command on
+        u = law_command_one(self.record, self.state, int(tick), float(u_law))
+        law.commit(tick, u)
+        return Command(tick, t, u, u_law, float(f_r[0]), errors, u != u_law, mode)
 
     def warm_up(self) -> None:
         """Commands on a copy (the law, then the fallback): numba loads the compiled code now, not at
@@ -167,35 +212,18 @@ class Controller:
 
     def fallback(self, tick: int) -> Command:
         """The safe command: the static uplift ``fallback_force``, reached within the slew limit."""
-        t = tick * self.sample_period
-        force = self.params.fallback_force
-        self.law_tick = None  # the law did not command this: it restarts from here
-        return self._limited(tick, t, force, self.reference.at(t)[0], (0.0, 0.0, 0.0), "fallback")
+        return self._command(tick, fallback_one(self.record, self.state, int(tick)))
 
-    def _limited(
-        self, tick: int, t: float, u: float, force_reference: float, errors: Errors, mode: str
-    ) -> Command:
-        """Slew-rate limit from the last command, then saturation; updates the actuator state."""
-        p = self.params
-        has_last = self.last_u is not None
-        applied = limit_command(
-            float(u),
-            float(self.last_u) if self.last_u is not None else 0.0,
-            has_last,
-            tick - self.last_tick,
-            float(p.slew_rate_max),
-            self.sample_period,
-            float(p.u_min),
-            float(p.u_max),
-        )
-        self.last_u, self.last_tick = applied, tick
+    def _command(self, tick: int, out: tuple[float, float, float, float, float, float, int]) -> Command:
+        """The Command of the compiled chain's output (u, u_law, F_r, e1, e2, e3, mode code)."""
+        u, u_law, f_r, e1, e2, e3, mode = out
         return Command(
             tick=tick,
-            time=t,
-            u=applied,
-            u_unsaturated=u,
-            force_reference=force_reference,
-            tracking_error=errors,
-            saturated=applied != u,
-            mode=mode,
+            time=tick * self.sample_period,
+            u=u,
+            u_unsaturated=u_law,
+            force_reference=f_r,
+            tracking_error=(e1, e2, e3),
+            saturated=u != u_law,
+            mode=MODES[mode],
         )

@@ -29,7 +29,7 @@ from pac_common.node import LOOP_QOS, PUBLISH_QOS, PacNode, run_node
 from pac_common.parameters import NodeOptions, ParameterSet, RateParameters, RunEndOptions, parameter
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-from .controller import Command, Controller
+from .controller import Command, Controller, watchdog_fallback_tick
 from .laws import NEEDS_CATENARY, make_controller
 from .parameters import ControllerParameters, LawParameters, ReferenceParameters
 
@@ -245,8 +245,14 @@ class ControllerNode(PacNode):
             or self.run_ended
         ):
             return  # the loop has not started yet, the watchdog is off, or the run is over
-        age = int((time.monotonic() - self.last_estimate_wall) / self.loop.sample_period)
-        if age < self.core.params.watchdog_ticks:
+        age, tick = watchdog_fallback_tick(
+            time.monotonic() - self.last_estimate_wall,
+            self.loop.sample_period,
+            self.core.params.watchdog_ticks,
+            self.last_estimate_tick,
+            self.core.last_tick,
+        )
+        if tick is None:
             return
         if not self.in_fallback:
             self.in_fallback = True
@@ -255,8 +261,6 @@ class ControllerNode(PacNode):
                 f"no fresh estimate for {age} ticks: fallback to "
                 f"{self.core.params.fallback_force:g} N static uplift"
             )
-        # The tick the loop would be at, extrapolated by the wall clock.
-        tick = max(self.last_estimate_tick + age, self.core.last_tick + 1)
         self.fallback_commands += 1
         self.publish(self.core.fallback(tick), age)
 

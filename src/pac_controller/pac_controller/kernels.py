@@ -26,7 +26,7 @@ from pac_common.smallmat import fma
 from pac_model import model
 
 from . import backstepping_equations, line_adaptive_kernels
-from .controller import limit_command
+from .parameters import ControllerParameters
 from .reference import reference_at4
 
 #: Law name -> the code the compiled functions dispatch on.
@@ -45,11 +45,15 @@ CONTROLLER_PARAMS = np.dtype(
     [
         ("law", "i8"),  # LAW_CODES
         ("dt", "f8"),  # sample period [s]
-        # safety chain (pac_controller.controller.Controller)
+        # safety chain (controller_step; set by fill_safety_chain)
         ("slew_rate_max", "f8"),
         ("u_min", "f8"),
         ("u_max", "f8"),
         ("fallback_force", "f8"),
+        # what the law reads of the estimate: z_hat, theta_hat (a non-finite one forces the
+        # fallback) and F_hat (likewise); set from the law's Law.uses_estimate / uses_contact_force
+        ("uses_estimate", "b1"),
+        ("uses_contact_force", "b1"),
         # F_r (reference.reference_args)
         ("shape", "i8"),
         ("force_amplitude", "f8"),
@@ -145,6 +149,23 @@ CONTROLLER_STATE = np.dtype(
     ]
 )
 
+#: The fields of CONTROLLER_PARAMS that ``reference.reference_args`` gives, in its order.
+REFERENCE_FIELDS = ("shape", "force_amplitude", "force_initial", "step_time", "period", "filter_bandwidth")
+
+
+def fill_safety_chain(
+    record: np.ndarray, params: ControllerParameters, reference_args: tuple, sample_period: float
+) -> None:
+    """The safety chain's fields of a CONTROLLER_PARAMS record: period, actuator limits, fallback
+    force and F_r (``reference_args``: ``reference.reference_args``)."""
+    record["dt"] = sample_period
+    record["slew_rate_max"] = params.slew_rate_max
+    record["u_min"], record["u_max"] = params.u_min, params.u_max
+    record["fallback_force"] = params.fallback_force
+    for name, value in zip(REFERENCE_FIELDS, reference_args, strict=True):
+        record[name] = value
+
+
 #: The law tables of a law without arrays (every law but line_adaptive): one complex zero.
 NO_TABLE = np.zeros((1, 1), dtype=np.complex128)
 
@@ -238,6 +259,15 @@ def law_output(
 
 
 @njit(cache=True, error_model="numpy")
+def law_mode(p, s) -> int:
+    """The mode code of the law's command: passive for the passive law and for line_adaptive once
+    its guard has tripped (latched), active otherwise."""
+    if p.law == _PASSIVE or (p.law == _LINE and s.line_tripped):
+        return _MODE_PASSIVE
+    return _ACTIVE
+
+
+@njit(cache=True, error_model="numpy")
 def law_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     """The limited force actually commanded for ``tick``: update the law's state."""
     law = p.law
@@ -255,6 +285,48 @@ def law_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
         if p.delay:
             s.commands[s.head] = u_applied  # replaces the oldest
             s.head = (s.head + 1) % p.delay
+
+
+@njit(cache=True)
+def limit_command(
+    u: float,
+    last_u: float,
+    has_last: bool,
+    ticks_since: int,
+    slew_rate_max: float,
+    sample_period: float,
+    u_min: float,
+    u_max: float,
+) -> float:
+    """The actuator limits: slew rate from the last command (over at least one period), then saturation."""
+    applied = u
+    if has_last:
+        # At least one period: a command whose tick is not after the last one (a fallback
+        # tick extrapolated ahead of a returning estimate) is still rate limited.
+        step = slew_rate_max * sample_period * max(1, ticks_since)
+        applied = min(max(applied, last_u - step), last_u + step)
+    return min(max(applied, u_min), u_max)
+
+
+@njit(cache=True, error_model="numpy")
+def estimate_refused(p, z_hat, theta_hat, f_hat: float) -> bool:
+    """A law never sees a non-finite value of what it reads (``uses_estimate``: z_hat and
+    theta_hat; ``uses_contact_force``: F_hat): such an estimate is answered by the fallback."""
+    if p.uses_estimate:
+        for i in range(4):
+            if not math.isfinite(z_hat[i]):
+                return True
+        for i in range(3):
+            if not math.isfinite(theta_hat[i]):
+                return True
+    return p.uses_contact_force and not math.isfinite(f_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def law_must_restart(s, tick: int) -> bool:
+    """The previous command was not the law's (none yet, a fallback) or ``tick`` is not after its
+    last one (a new run): the law restarts, bumplessly from the actuator's force."""
+    return not s.has_law_tick or tick <= s.law_tick
 
 
 @njit(cache=True, error_model="numpy")
@@ -289,27 +361,25 @@ def controller_step(
     f_r = reference_at4(
         t, p.shape, p.force_amplitude, p.force_initial, p.step_time, p.period, p.filter_bandwidth
     )
-    if p.law != _PASSIVE:  # a law that uses the estimate never sees a non-finite one
-        finite = True
-        for i in range(4):
-            finite = finite and math.isfinite(z_hat[i])
-        for i in range(3):
-            finite = finite and math.isfinite(theta_hat[i])
-        if not finite:
-            return controller_fallback(p, s, tick)
-    if p.law == _LINE and not math.isfinite(f_hat):  # the law that reads F_hat
+    if estimate_refused(p, z_hat, theta_hat, f_hat):
         return controller_fallback(p, s, tick)
-    if not s.has_law_tick or tick <= s.law_tick:
+    if law_must_restart(s, tick):
         law_restart(p, s, memory, s.has_last, s.last_u)
     u_law, e1, e2, e3 = law_output(p, s, table, memory, tick, t, f_r, z_hat, theta_hat, f_hat)
     if not math.isfinite(u_law):
         return controller_fallback(p, s, tick)
-    # The mode of this command (line_adaptive's guard may trip in commit: from the next one on).
-    passive = p.law == _PASSIVE or (p.law == _LINE and s.line_tripped)
-    u = _limited(p, s, tick, u_law)
+    mode = law_mode(p, s)  # before commit: line_adaptive's guard trips there, from the next command on
+    u = law_command(p, s, tick, u_law)
     law_commit(p, s, table, memory, tick, u)
+    return u, u_law, f_r[0], e1, e2, e3, mode
+
+
+@njit(cache=True, error_model="numpy")
+def law_command(p, s, tick: int, u_law: float) -> float:
+    """The law's finite ``u_law`` through the actuator limits; the law commanded ``tick``."""
+    u = _limited(p, s, tick, u_law)
     s.has_law_tick, s.law_tick = True, tick
-    return u, u_law, f_r[0], e1, e2, e3, _MODE_PASSIVE if passive else _ACTIVE
+    return u
 
 
 # Entry points for Python callers (the law classes): records travel as 1-element arrays.
@@ -321,6 +391,33 @@ def _restart_one(params, states, memory, has_u, u_applied) -> None:
 @njit(cache=True, error_model="numpy")
 def _output_one(params, states, table, memory, tick, t, f0, f1, f2, f3, z_hat, theta_hat, f_hat):
     return law_output(params[0], states[0], table, memory, tick, t, (f0, f1, f2, f3), z_hat, theta_hat, f_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def step_one(params, states, table, memory, tick, z_hat, theta_hat, f_hat):
+    """:func:`controller_step` on the records of 1-element arrays."""
+    return controller_step(params[0], states[0], table, memory, tick, z_hat, theta_hat, f_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def fallback_one(params, states, tick):
+    """:func:`controller_fallback` on the records of 1-element arrays."""
+    return controller_fallback(params[0], states[0], tick)
+
+
+@njit(cache=True, error_model="numpy")
+def refused_one(params, z_hat, theta_hat, f_hat) -> bool:
+    return estimate_refused(params[0], z_hat, theta_hat, f_hat)
+
+
+@njit(cache=True, error_model="numpy")
+def must_restart_one(states, tick) -> bool:
+    return law_must_restart(states[0], tick)
+
+
+@njit(cache=True, error_model="numpy")
+def law_command_one(params, states, tick, u_law) -> float:
+    return law_command(params[0], states[0], tick, u_law)
 
 
 @njit(cache=True, error_model="numpy")
@@ -338,6 +435,7 @@ class KernelLaw:
 
     mode = "active"
     uses_estimate = True
+    uses_contact_force = False
     #: The law's arrays (line_adaptive's basis and learned harmonics); one complex zero otherwise.
     table = NO_TABLE
     memory = NO_TABLE
@@ -346,6 +444,8 @@ class KernelLaw:
         self.params = np.zeros(1, CONTROLLER_PARAMS)
         self.params[0]["law"] = LAW_CODES[name]
         self.params[0]["dt"] = sample_period
+        self.params[0]["uses_estimate"] = self.uses_estimate
+        self.params[0]["uses_contact_force"] = self.uses_contact_force
         self.state = np.zeros(1, CONTROLLER_STATE)
         self.restart(None)
 

@@ -100,7 +100,7 @@ class BatchFault(RuntimeError):
 def actuator_violation(u: np.ndarray, s: Scenario) -> tuple[int, str] | None:
     """(tick, what) of the first command ``u`` (one run's trace, NaN after a divergence) that
     the safety chain cannot give: outside [u_min, u_max], or a step from the previous tick's larger
-    than ``slew_rate_max`` x period (``Controller.limit_command``, which every command passes,
+    than ``slew_rate_max`` x period (``kernels.limit_command``, which every command passes,
     the fallback's too). None when every tick keeps both: any correct run does.
 
     A run whose memory was overwritten while it ran (docs/numerics.md, "The batch's threads") shows

@@ -55,8 +55,6 @@ DIVERGENCE_FORCE = 1e6
 DISPLACEMENT, FORCE, OFF_LINE = 4, 5, 7
 #: PLANT_PARAMS.kind
 LUMPED, FE = 0, 1
-#: The fields of CONTROLLER_PARAMS that ``reference.reference_args`` gives, in its order.
-REFERENCE_FIELDS = ("shape", "force_amplitude", "force_initial", "step_time", "period", "filter_bandwidth")
 #: Most ticks of command delay the compiled loop holds (``command_delay_ticks``' upper bound).
 MAX_DELAY = 100
 
@@ -407,13 +405,7 @@ def compile_loop(
         p["a"], p["theta"] = plant._a, plant._theta
         fe_args = NO_FE
     law = controller.law
-    cp = law.params.copy()
-    c, chain = cp[0], controller.params
-    c["dt"] = controller.sample_period
-    c["slew_rate_max"], c["u_min"], c["u_max"] = chain.slew_rate_max, chain.u_min, chain.u_max
-    c["fallback_force"] = chain.fallback_force
-    for name, value in zip(REFERENCE_FIELDS, controller.reference.args, strict=True):
-        c[name] = value
+    cp = controller.record.copy()  # the law's design and the safety chain's fields
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
     memory = law.memory.copy()

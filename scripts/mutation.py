@@ -1,0 +1,522 @@
+"""Mutation testing of pac's safety-critical code: small defects planted one at a time, the fast tests
+run on each, a report of what they caught.
+
+``make mutation`` (after ``make setup``; ``ARGS="--modules kernels guard"`` narrows it, ``--list``
+only lists the mutants).  For every function in :data:`SCOPE` the script plants each mutant of a
+small set of operators (a comparison turned into its neighbour or its negation, ``and`` / ``or``
+swapped, a ``not`` dropped, ``+`` / ``-`` and ``*`` / ``/`` swapped, ``min`` / ``max`` swapped, a
+numeric constant changed, ``True`` / ``False`` swapped) into the *installed* copy of the module,
+runs that module's tests (the ``make test-fast`` kinds: unit and offline, not slow, not live) with
+a timeout, and restores the file.  Killed: a test failed or errored (or the run timed out, counted
+apart); survived: every test passed.  The report (``reports/mutation/<module>.md`` and
+``summary.md``) lists every mutant, and every survivor with the argument in ``notes.json`` (why it
+is equivalent, or what test is missing).
+
+Why not mutmut or cosmic-ray: numba's on-disk cache keys a compiled function by its own file only.
+A function compiled in another module that inlines a mutated one (``pac_rig.loop.loop_tick``
+inlines the controller's ``controller_step``) is loaded from the cache unchanged, so a mutant would
+run the original code wherever it is called through another module: a false survivor.  And
+mutmut's trampolines cannot run inside njit code.  Here each mutant gets its own cache directory,
+a hard-linked copy of the warm one without the mutated module's entries and those of every module
+that imports it (numba replaces cache files atomically, so the warm cache is never written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import copy
+import importlib.util
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+FAST = "(unit or offline) and not live and not slow"
+
+LINE_LAW_TESTS = (
+    "tests/test_line_adaptive_properties.py",
+    "tests/test_line_control.py",
+    "tests/test_line_kernels.py",
+)
+#: name -> (module, functions (qualified names), tests). The tests are those of the module's
+#: behaviour that ``make test-fast`` runs; a mutant they all pass survives.
+SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
+    "kernels": (
+        "pac_controller.kernels",
+        (
+            "limit_command", "estimate_refused", "law_must_restart", "_limited", "law_command",
+            "controller_fallback", "controller_step", "law_mode", "fill_safety_chain", "new_state",
+        ),
+        ("tests/test_safety_chain.py", "tests/test_controller.py"),
+    ),
+    "controller": (
+        "pac_controller.controller",
+        (
+            "watchdog_fallback_tick", "Controller.__init__", "Controller.last_u", "Controller.last_tick",
+            "Controller.law_tick", "Controller.compute", "Controller.fallback", "Controller._command",
+        ),
+        ("tests/test_safety_chain.py", "tests/test_controller.py"),
+    ),
+    "watchdog": (
+        "pac_controller.controller_node",
+        ("ControllerNode.on_watchdog",),
+        ("tests/test_safety_chain.py",),
+    ),
+    "guard": (
+        "pac_controller.line_adaptive_kernels",
+        ("_end_of_span",),
+        LINE_LAW_TESTS,
+    ),
+    "line_law": (
+        "pac_controller.line_adaptive_kernels",
+        (
+            "line_restart", "line_output", "line_commit", "_learn", "_step", "_fit_line", "_identified",
+            "_model_response", "line_feedforward",
+        ),
+        LINE_LAW_TESTS,
+    ),
+    "contact_force": (
+        "pac_observer.contact_force",
+        ("frame_mass_scales", "contact_force_bank_step", "contact_force_advance", "ContactForceObserver"),
+        ("tests/test_contact_force_bank.py", "tests/test_line_kernels.py", "tests/test_line_control.py"),
+    ),
+    "observer": (
+        "pac_observer.observer",
+        ("observer_advance", "observer_start"),
+        ("tests/test_observer.py", "tests/test_compiled.py"),
+    ),
+    "line": (
+        "pac_plant.catenary.line",
+        ("Line._assemble", "Line.solve_dropper_lengths", "Line.set_dropper_lengths", "Line._assemble_wires"),
+        ("tests/test_line_physics.py", "tests/test_catenary.py"),
+    ),
+}  # fmt: skip
+
+#: Defects written by hand (scope -> (function, original text, replacement)): ones the operators
+#: do not make, that got past the suite once.  Planted besides the generated mutants.
+HAND_PLANTED: dict[str, tuple[tuple[str, str, str], ...]] = {
+    "kernels": (
+        ("controller_fallback", "_limited(p, s, tick, p.fallback_force)", "_limited(p, s, tick, f_r[0])"),
+    ),
+    "line": (
+        (
+            "Line._assemble",
+            "mc, mm = d.clamp_mass_contact + half[j], d.clamp_mass_messenger + half[j]",
+            "mc, mm = 2 * (d.clamp_mass_contact + half[j]), 2 * (d.clamp_mass_messenger + half[j])",
+        ),
+    ),
+}
+
+_COMPARE_SWAPS: dict[type, tuple[type, ...]] = {
+    ast.Lt: (ast.LtE, ast.GtE),
+    ast.LtE: (ast.Lt, ast.Gt),
+    ast.Gt: (ast.GtE, ast.LtE),
+    ast.GtE: (ast.Gt, ast.Lt),
+    ast.Eq: (ast.NotEq,),
+    ast.NotEq: (ast.Eq,),
+}
+_BINOP_SWAPS: dict[type, type] = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult}
+
+
+@dataclass
+class Mutant:
+    """One planted defect: the source segment [start, end) (line, column; 1-based lines) replaced."""
+
+    ident: str
+    module: str
+    function: str
+    line: int
+    original: str
+    mutated: str
+    start: tuple[int, int]
+    end: tuple[int, int]
+    status: str = "not run"  # killed, survived, timeout, not run
+    seconds: float = 0.0
+    failing: str = ""
+
+
+def _functions(tree: ast.Module, names: tuple[str, ...]) -> list[tuple[str, ast.AST]]:
+    """The (qualified name, node) of each function or class ``names`` lists."""
+    found = []
+
+    def visit(node: ast.AST, prefix: str) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.FunctionDef | ast.ClassDef):
+                name = f"{prefix}{child.name}"
+                if name in names:
+                    found.append((name, child))
+                elif isinstance(child, ast.ClassDef):
+                    visit(child, f"{name}.")
+
+    visit(tree, "")
+    missing = set(names) - {n for n, _ in found}
+    if missing:
+        raise SystemExit(f"mutation: not found in the module: {sorted(missing)}")
+    return found
+
+
+def _variants(node: ast.AST) -> list[ast.AST]:
+    """The mutated copies of ``node`` itself (not of its children)."""
+    out: list[ast.AST] = []
+    if isinstance(node, ast.Compare) and len(node.ops) == 1:
+        for op in _COMPARE_SWAPS.get(type(node.ops[0]), ()):
+            m = copy.deepcopy(node)
+            m.ops = [op()]
+            out.append(m)
+    elif isinstance(node, ast.BinOp) and type(node.op) in _BINOP_SWAPS:
+        m = copy.deepcopy(node)
+        m.op = _BINOP_SWAPS[type(node.op)]()
+        out.append(m)
+    elif isinstance(node, ast.BoolOp):
+        m = copy.deepcopy(node)
+        m.op = ast.Or() if isinstance(node.op, ast.And) else ast.And()
+        out.append(m)
+    elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.Not | ast.USub):
+        out.append(copy.deepcopy(node.operand))
+    elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("min", "max"):
+        m = copy.deepcopy(node)
+        m.func = ast.Name(id="max" if node.func.id == "min" else "min", ctx=ast.Load())
+        out.append(m)
+    elif isinstance(node, ast.Constant) and isinstance(node.value, bool):
+        out.append(ast.Constant(value=not node.value))
+    elif isinstance(node, ast.Constant) and isinstance(node.value, int | float):
+        v = node.value
+        for new in {v + 1, 0 if v else 1, 2 * v if v not in (0, 1) else None} - {None, v}:
+            out.append(ast.Constant(value=type(v)(new)))
+    return out
+
+
+def mutants(module: str, functions: tuple[str, ...], source: str) -> list[Mutant]:
+    """Every mutant of the listed functions, in source order; docstrings and annotations are skipped."""
+    tree = ast.parse(source)
+    out: list[Mutant] = []
+    for name, fn in _functions(tree, functions):
+        skip: set[int] = set()
+        for node in ast.walk(fn):
+            if isinstance(node, ast.FunctionDef | ast.ClassDef):  # @njit(cache=True): not behaviour
+                skip.update(id(n) for d in node.decorator_list for n in ast.walk(d))
+            if isinstance(node, ast.FunctionDef | ast.ClassDef | ast.Module) and node.body:
+                first = node.body[0]
+                if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant):
+                    skip.add(id(first.value))
+            if isinstance(node, ast.FunctionDef):
+                for a in (*node.args.args, *node.args.kwonlyargs):
+                    if a.annotation is not None:
+                        skip.update(id(n) for n in ast.walk(a.annotation))
+                if node.returns is not None:
+                    skip.update(id(n) for n in ast.walk(node.returns))
+            if isinstance(node, ast.AnnAssign):
+                skip.update(id(n) for n in ast.walk(node.annotation))
+            if isinstance(node, ast.Subscript):  # indices and dtype fields: out of range, not a defect
+                skip.update(id(n) for n in ast.walk(node.slice) if isinstance(n, ast.Constant))
+        for node in ast.walk(fn):
+            if id(node) in skip or not hasattr(node, "lineno"):
+                continue
+            segment = ast.get_source_segment(source, node)
+            if segment is None:
+                continue
+            for variant in _variants(node):
+                text = ast.unparse(variant)
+                if "\n" in segment:
+                    continue
+                index = sum(1 for m in out if m.line == node.lineno)
+                out.append(
+                    Mutant(
+                        ident=f"{module.rsplit('.', 1)[-1]}:{node.lineno}:{index}",
+                        module=module,
+                        function=name,
+                        line=node.lineno,
+                        original=segment,
+                        mutated=f"({text})",
+                        start=(node.lineno, node.col_offset),
+                        end=(node.end_lineno or node.lineno, node.end_col_offset or 0),
+                    )
+                )
+    return out
+
+
+def hand_planted(name: str, module: str, functions: tuple[str, ...], source: str) -> list[Mutant]:
+    """The :data:`HAND_PLANTED` mutants of scope ``name``, located in ``source``."""
+    tree = ast.parse(source)
+    spans = {n: (f.lineno, f.end_lineno or f.lineno) for n, f in _functions(tree, functions)}
+    lines = source.splitlines()
+    out = []
+    for function, original, replacement in HAND_PLANTED.get(name, ()):
+        first, last = spans[function]
+        for i in range(first - 1, last):
+            col = lines[i].find(original)
+            if col >= 0:
+                start = len(lines[i][:col].encode())
+                end = start + len(original.encode())
+                out.append(
+                    Mutant(
+                        f"{module.rsplit('.', 1)[-1]}:{i + 1}:hand", module, function, i + 1,
+                        original, replacement, (i + 1, start), (i + 1, end),
+                    )
+                )  # fmt: skip
+                break
+        else:
+            raise SystemExit(f"mutation: {original!r} is not in {module}.{function}")
+    return out
+
+
+def apply(source: str, m: Mutant) -> str:
+    lines = source.splitlines(keepends=True)
+    (l0, c0), (l1, c1) = m.start, m.end
+    assert l0 == l1
+    line = lines[l0 - 1].encode()
+    lines[l0 - 1] = (line[:c0] + m.mutated.encode() + line[c1:]).decode()
+    return "".join(lines)
+
+
+def _imports(path: Path, package: str) -> set[str]:
+    """The project modules ``path`` (of ``package``) imports, as names (a.b.c and a.b.c.name)."""
+    tree = ast.parse(path.read_text())
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            base = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+            mod = (f"{base}.{node.module}" if node.module else base) if node.level else node.module or ""
+            out.add(mod)
+            out.update(f"{mod}.{a.name}" for a in node.names)
+        elif isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+    return {m for m in out if m.startswith("pac_")}
+
+
+def dependents(module: str) -> set[str]:
+    """``module`` and every project module that imports it, directly or not (from src/)."""
+    graph: dict[str, set[str]] = {}
+    for path in (ROOT / "src").glob("*/pac_*/**/*.py"):
+        parts = path.relative_to(ROOT / "src").with_suffix("").parts[1:]  # src/<package dir>/...
+        if parts[-1] == "__init__":
+            name = package = ".".join(parts[:-1])
+        else:
+            name, package = ".".join(parts), ".".join(parts[:-1])
+        graph[name] = _imports(path, package)
+    found, frontier = {module}, {module}
+    while frontier:
+        frontier = {m for m, deps in graph.items() if deps & frontier and m not in found}
+        found |= frontier
+    return found
+
+
+def installed_file(module: str) -> Path:
+    spec = importlib.util.find_spec(module)
+    if spec is None or spec.origin is None:
+        raise SystemExit(f"mutation: {module} is not importable: run `make setup` and `source env.sh`")
+    return Path(spec.origin)
+
+
+def cache_for(modules: set[str], warm: Path, into: Path) -> None:
+    """``into``: the warm numba cache, hard-linked, without the entries of ``modules``."""
+    from numba.core.caching import _CacheLocator
+
+    if into.exists():
+        shutil.rmtree(into)
+    shutil.copytree(warm, into, copy_function=os.link) if warm.exists() else into.mkdir(parents=True)
+    for name in modules:
+        try:
+            origin = installed_file(name)
+        except (SystemExit, ModuleNotFoundError):
+            continue
+        sub = into / _CacheLocator.get_suitable_cache_subpath(str(origin))
+        stem = origin.stem
+        for f in sub.glob(f"{stem}.*") if sub.exists() else ():
+            f.unlink()
+
+
+def run_tests(tests: tuple[str, ...], env: dict, timeout: float) -> tuple[str, str]:
+    cmd = [sys.executable, "-m", "pytest", *tests, "-q", "-x", "-p", "no:cacheprovider", "-m", FAST]
+    proc = subprocess.Popen(
+        cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+    try:
+        out, _ = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        return "timeout", ""
+    if proc.returncode == 0:
+        return "survived", ""
+    failed = [
+        line.split(" ", 1)[1].split(" - ")[0]
+        for line in out.splitlines()
+        if line.startswith(("FAILED", "ERROR"))
+    ]
+    if proc.returncode == 5:
+        return "error", out[-2000:]
+    return "killed", failed[0] if failed else f"pytest exit {proc.returncode}"
+
+
+class Planted:
+    """The installed file with a mutant in it; restored (text and times) on exit, whatever happens."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.backup = path.with_name(path.name + ".mutation-original")
+        if self.backup.exists():  # an earlier run was killed before it restored the file
+            shutil.copy2(self.backup, path)
+        shutil.copy2(path, self.backup)
+        self.original = path.read_text()
+        self.stat = path.stat()
+
+    def plant(self, text: str, serial: int) -> None:
+        self.path.write_text(text)
+        # A time of its own: Python's bytecode cache is keyed by the source's time and size.
+        t = self.stat.st_mtime_ns + (serial + 1) * 1_000_000_000
+        os.utime(self.path, ns=(t, t))
+
+    def restore(self) -> None:
+        shutil.copy2(self.backup, self.path)
+        os.utime(self.path, ns=(self.stat.st_atime_ns, self.stat.st_mtime_ns))
+        self.backup.unlink()
+
+
+def load_notes(out: Path) -> dict[str, str]:
+    path = out / "notes.json"
+    return json.loads(path.read_text()) if path.exists() else {}
+
+
+def note_for(m: Mutant, notes: dict[str, str]) -> str:
+    """A survivor's argument: keyed by its id, or by what it changes (``module function: original
+    -> mutant``, which survives line moves)."""
+    return notes.get(m.ident) or notes.get(f"{m.module} {m.function}: {m.original} -> {m.mutated}", "")
+
+
+def write_report(
+    out: Path, name: str, tests: tuple[str, ...], ms: list[Mutant], notes: dict[str, str]
+) -> None:
+    done = [m for m in ms if m.status != "not run"]
+    killed = sum(m.status in ("killed", "timeout") for m in done)
+    lines = [
+        f"# Mutation: {name} ({ms[0].module if ms else ''})",
+        "",
+        f'Tests (`-m "{FAST}"`): ' + ", ".join(f"`{t}`" for t in tests),
+        "",
+        f"{len(ms)} mutants, {len(done)} run: {killed} killed"
+        + (f" ({100.0 * killed / len(done):.1f} %)" if done else "")
+        + f", {sum(m.status == 'survived' for m in done)} survived, "
+        f"{sum(m.status == 'timeout' for m in done)} of the killed by timeout.",
+        "",
+        "| id | function | line | original | mutant | result | caught by / why it survives |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for m in ms:
+        why = m.failing if m.status == "killed" else note_for(m, notes) if m.status == "survived" else ""
+        if m.status == "survived" and not why:
+            why = "**not argued yet**"
+        cells = [m.ident, f"`{m.function}`", str(m.line), f"`{m.original}`", f"`{m.mutated}`", m.status, why]
+        lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
+    (out / f"{name}.md").write_text("\n".join(lines) + "\n")
+    (out / f"{name}.json").write_text(json.dumps([asdict(m) for m in ms], indent=1) + "\n")
+
+
+def write_summary(out: Path) -> None:
+    rows = ["| scope | module | mutants | run | killed | survived | score |", "|---|---|---|---|---|---|---|"]
+    total = [0, 0, 0, 0]
+    for name in SCOPE:
+        path = out / f"{name}.json"
+        if not path.exists():
+            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | |")
+            continue
+        ms = json.loads(path.read_text())
+        run = [m for m in ms if m["status"] != "not run"]
+        killed = sum(m["status"] in ("killed", "timeout") for m in run)
+        survived = sum(m["status"] == "survived" for m in run)
+        score = f"{100.0 * killed / len(run):.1f} %" if run else ""
+        cells = (f"[{name}]({name}.md)", SCOPE[name][0], len(ms), len(run), killed, survived, score)
+        rows.append("| " + " | ".join(str(c) for c in cells) + " |")
+        for i, v in enumerate((len(ms), len(run), killed, survived)):
+            total[i] += v
+    score = f"{100.0 * total[2] / total[1]:.1f} %" if total[1] else ""
+    rows.append(f"| all | | {total[0]} | {total[1]} | {total[2]} | {total[3]} | {score} |")
+    text = [
+        "# Mutation run (`make mutation`, scripts/mutation.py)",
+        "",
+        "Killed by the `make test-fast` kinds of each module's tests (listed per module); a timeout "
+        "counts as killed. Survivors are listed and argued in each module's page.",
+        "",
+        *rows,
+    ]
+    (out / "summary.md").write_text("\n".join(text) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--modules", nargs="*", default=list(SCOPE), choices=list(SCOPE), help="scopes to run")
+    ap.add_argument(
+        "--timeout", type=float, default=900.0, help="per mutant [s] (a cold numba compile included)"
+    )
+    ap.add_argument("--list", action="store_true", help="list the mutants only")
+    ap.add_argument("--only", nargs="*", default=None, help="mutant ids to run (default: all of the scopes)")
+    ap.add_argument("--out", type=Path, default=ROOT / "reports" / "mutation")
+    args = ap.parse_args(argv)
+    # A terminated run still restores the installed file (Planted.restore in a finally).
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    warm = Path(os.environ.get("NUMBA_CACHE_DIR", ROOT / "build" / "numba_cache"))
+    args.out.mkdir(parents=True, exist_ok=True)
+    notes = load_notes(args.out)
+    import domain_coordinator
+
+    with domain_coordinator.domain_id() as did, tempfile.TemporaryDirectory(prefix="pac-mutation-") as tmp:
+        env = dict(
+            os.environ, ROS_DOMAIN_ID=str(did), PAC_ROS_DOMAIN_ID_BASE=str(did),
+            ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PYTHONDONTWRITEBYTECODE="1",
+        )  # fmt: skip
+        for name in args.modules:
+            module, functions, tests = SCOPE[name]
+            path = installed_file(module)
+            source = path.read_text()
+            ms = mutants(module, functions, source) + hand_planted(name, module, functions, source)
+            if args.list:
+                for m in ms:
+                    print(f"{m.ident:28} {m.function:28} {m.original!r} -> {m.mutated!r}")
+                continue
+            results = args.out / f"{name}.json"
+            previous = {m["ident"]: m for m in json.loads(results.read_text())} if results.exists() else {}
+            for m in ms:  # keep the results of mutants not run this time
+                old = previous.get(m.ident)
+                if old and old["original"] == m.original and old["mutated"] == m.mutated:
+                    m.status, m.seconds, m.failing = old["status"], old["seconds"], old["failing"]
+            stale = dependents(module)
+            planted = Planted(path)
+            try:
+                for serial, m in enumerate(ms):
+                    if args.only is not None and m.ident not in args.only:
+                        continue
+                    if args.only is None and m.status != "not run":
+                        continue
+                    planted.plant(apply(source, m), serial)
+                    cache = Path(tmp) / "numba_cache"
+                    cache_for(stale, warm, cache)
+                    t0 = time.monotonic()
+                    m.status, m.failing = run_tests(
+                        tests, {**env, "NUMBA_CACHE_DIR": str(cache)}, args.timeout
+                    )
+                    m.seconds = round(time.monotonic() - t0, 1)
+                    planted.path.write_text(source)
+                    print(
+                        f"{m.ident:28} {m.status:9} {m.seconds:6.1f} s  {m.original!r} -> {m.mutated!r}",
+                        flush=True,
+                    )
+                    write_report(args.out, name, tests, ms, notes)
+            finally:
+                planted.restore()
+            write_report(args.out, name, tests, ms, notes)
+        if not args.list:
+            write_summary(args.out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,160 @@
+"""line_adaptive's do-no-harm guard at its exact span, and its learning step by property.
+
+The guard's contract (line_adaptive's module docstring): spans 1 .. ``line_runin_spans`` - 1 give
+the passive sigma_b; at the end of every learning span the RMS of sigma_b over the last
+``GUARD_SPANS`` spans is compared with ``line_guard_ratio`` times it, judged once
+``line_guard_spans`` spans have been learned; one span above ``GUARD_HARD_FACTOR`` times the limit
+trips at once; the fall-back is to passive, latched.  Here the force estimate is imposed (an open
+loop): span j's error is a_j cos(w_s t), so its sigma_b is a_j / sqrt(2) exactly, whatever the law
+commands, and the span the guard trips at is known in advance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pac_controller.line_adaptive import GUARD_HARD_FACTOR, GUARD_SPANS, LineAdaptiveLaw
+from pac_controller.parameters import LawParameters
+from pac_model.parameters import TrackParameters
+
+pytestmark = pytest.mark.unit
+
+DT = 1e-3
+F_R = 150.0
+TRACK = TrackParameters(speed_kmh=300.0, span_length=55.0)
+LAWS = LawParameters()
+PASSIVE = 10.0  # N, the error's amplitude over the passive spans
+
+
+def imposed(amplitudes: list[float]) -> tuple[LineAdaptiveLaw, list[str]]:
+    """Span j's F_hat = F_r - a_j cos(w_s t); the law's mode at the first tick of every span, and
+    one more entry: the mode after the last span."""
+    law = LineAdaptiveLaw(TRACK, LAWS, DT)
+    n, w = law.period_ticks, law.omega_span
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    modes = []
+    for j, a in enumerate(amplitudes):
+        modes.append(law.mode)
+        for i in range(n):
+            k = j * n + i
+            u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R - a * math.cos(w * k * DT))
+            law.commit(k, u)
+    modes.append(law.mode)
+    return law, modes
+
+
+def first_judged_span() -> int:
+    """The span at whose end the guard first judges: the line_guard_spans-th learning span."""
+    return LAWS.line_runin_spans + max(LAWS.line_guard_spans, GUARD_SPANS) - 1
+
+
+def amplitudes(learning: list[float]) -> list[float]:
+    """Span 0 (the start transient), the passive spans, then the learning spans' amplitudes."""
+    return [3 * PASSIVE] + [PASSIVE] * (LAWS.line_runin_spans - 1) + learning
+
+
+def test_mild_harm_trips_the_guard_at_the_end_of_its_first_judged_span_exactly():
+    """1.5 times passive from the first learning span on: below the hard limit (3x), above the
+    ratio (1x); only the judged rule can trip it, at the end of the first judged span."""
+    assert 1.5 * LAWS.line_guard_ratio < GUARD_HARD_FACTOR * LAWS.line_guard_ratio
+    ratio = 1.5 * LAWS.line_guard_ratio
+    learning_spans = first_judged_span() - LAWS.line_runin_spans + 4
+    law, modes = imposed(amplitudes([ratio * PASSIVE] * learning_spans))
+    judged = first_judged_span()
+    assert law.tripped
+    assert modes[judged] == "active"  # the span it judges ran active up to its end
+    assert modes[judged + 1] == "passive"  # and the next one starts passive
+    assert set(modes[judged + 1 :]) == {"passive"}  # latched
+    assert law.last_sigma_ratio == pytest.approx(ratio, rel=1e-9)
+    assert np.all(law.u_ff == 0.0)
+
+
+def test_below_the_ratio_the_guard_stays_out():
+    law, modes = imposed(amplitudes([0.9 * LAWS.line_guard_ratio * PASSIVE] * 12))
+    assert not law.tripped and set(modes) == {"active"}
+    assert law.last_sigma_ratio == pytest.approx(0.9 * LAWS.line_guard_ratio, rel=1e-9)
+
+
+def test_one_span_above_the_hard_limit_trips_at_its_own_end():
+    limit = GUARD_HARD_FACTOR * LAWS.line_guard_ratio
+    bad = 2  # the third learning span: long before the guard judges
+    learning = [0.5 * PASSIVE] * 6
+    learning[bad] = 1.05 * limit * PASSIVE
+    law, modes = imposed(amplitudes(learning))
+    span = LAWS.line_runin_spans + bad
+    assert law.tripped
+    assert modes[span] == "active" and modes[span + 1] == "passive"
+
+
+def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judged_spans():
+    """The judged RMS covers the last GUARD_SPANS spans only: an early bad span below the hard
+    limit is out of it by the time the guard judges."""
+    limit = GUARD_HARD_FACTOR * LAWS.line_guard_ratio
+    learning = [0.5 * PASSIVE] * (first_judged_span() - LAWS.line_runin_spans + 3)
+    learning[1] = 0.95 * limit * PASSIVE
+    law, modes = imposed(amplitudes(learning))
+    assert not law.tripped and set(modes) == {"active"}
+
+
+# -- the learning step by property ----------------------------------------------------------
+def span_errors(law: LineAdaptiveLaw, f_hat: np.ndarray, harmonic: int) -> np.ndarray:
+    """|E_h| of every span: (2 / N) |sum e_k exp(-i h w_s t_k)| with e = F_r - F_hat."""
+    n = law.period_ticks
+    spans = len(f_hat) // n
+    t = np.arange(n) * DT
+    e = (F_R - f_hat[: spans * n]).reshape(spans, n)
+    return np.abs(2.0 / n * (e @ np.exp(-1j * harmonic * law.omega_span * t)))
+
+
+def follow(spans: int, u_max: float = math.inf) -> tuple[LineAdaptiveLaw, np.ndarray, np.ndarray, np.ndarray]:
+    """The known linear response F = F_r + d + (u_applied - F_r) one tick late, d two harmonics of
+    the span (40 N and 15 N), the actuator limited to ``u_max``: (law, F_hat, asked, applied)."""
+    law = LineAdaptiveLaw(TRACK, LAWS, DT)
+    n, w = law.period_ticks, law.omega_span
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    f_hats, asked, applied = np.empty(spans * n), np.empty(spans * n), np.empty(spans * n)
+    u_applied = F_R
+    for k in range(spans * n):
+        t = k * DT
+        f_hat = F_R + 40 * math.cos(w * t) + 15 * math.sin(3 * w * t + 0.4) + (u_applied - F_R)
+        u, _ = law.output(k, t, f_r, np.zeros(4), np.zeros(3), f_hat)
+        u_applied = min(u, u_max)
+        law.commit(k, u_applied)
+        f_hats[k], asked[k], applied[k] = f_hat, u, u_applied
+    return law, f_hats, asked, applied
+
+
+def test_the_learning_step_lowers_the_error_harmonics_on_a_known_linear_response():
+    """dF/du = 1 at low frequency (the prior D = -1 is the truth but for the one tick of delay the
+    law advances by): from the first learning span on, |E_h| of both disturbed harmonics falls
+    span after span until it is small."""
+    spans = 14
+    law, f_hats, _, _ = follow(spans)
+    first = LAWS.line_runin_spans  # the first span run with a learned step
+    for harmonic, size in ((1, 40.0), (3, 15.0)):
+        err = span_errors(law, f_hats, harmonic)
+        assert err[1] == pytest.approx(size, rel=0.02)  # passive: the disturbance itself
+        falling = err[first : first + 4]
+        assert np.all(np.diff(falling) < 0.0), (harmonic, err)
+        assert err[-1] < 0.1 * size, (harmonic, err)
+    assert not law.tripped
+
+
+def test_what_the_limits_take_off_the_mean_is_given_back_the_next_span():
+    """u <= F_r + 30 N against peaks of up to 55 N: the feedforward's peaks are clipped, which takes
+    ~2 N off the applied command's mean every span. The law measures that loss on the applied
+    command and adds it back the next span (C), so once the loss has settled the force's mean
+    (mean(F) = mean(u) here) is on F_r in every span, within a few percent of the loss: not only
+    after the slow mean correction U_0 (gain gamma per span) has caught up with it."""
+    spans = 20
+    law, f_hats, asked, applied = follow(spans, u_max=F_R + 30.0)
+    n = law.period_ticks
+    loss = (asked - applied).reshape(spans, n).mean(axis=1)
+    mean_force = f_hats.reshape(spans, n).mean(axis=1) - F_R
+    settled = slice(spans // 2, spans)
+    assert np.all(loss[settled] > 1.0), loss  # the limits do take the mean off, every span
+    assert np.all(np.abs(np.diff(loss[settled])) < 0.05), loss
+    assert np.all(np.abs(mean_force[settled]) < 0.03 * loss[settled]), (mean_force, loss)
