@@ -40,7 +40,7 @@ MAX_DEPTH = 32
 #: Digits of an integer in YAML (Python itself refuses more than 4300 with a bare ValueError).
 MAX_INTEGER_DIGITS = 100
 #: Characters of a value quoted in an error message.
-EXCERPT_CHARS = 60
+EXCERPT_CHARS = 240
 
 
 class FileInputError(ValueError):
@@ -146,7 +146,7 @@ def read_yaml(path: str | os.PathLike[str], kind: str) -> Any:
 def _reason(exc: Exception) -> str:
     if isinstance(exc, OSError):
         return exc.strerror or type(exc).__name__
-    return str(exc).splitlines()[0][: 2 * EXCERPT_CHARS] if str(exc) else type(exc).__name__
+    return str(exc).splitlines()[0][:EXCERPT_CHARS] if str(exc) else type(exc).__name__
 
 
 # -- YAML -----------------------------------------------------------------------------------------
