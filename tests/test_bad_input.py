@@ -373,10 +373,12 @@ def test_campaign_says_its_size_before_checking_and_stops_on_ctrl_c(
     capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
 ) -> None:
     spec = tmp_path / "spec.yaml"
-    spec.write_text(SPEC)
+    speeds = ", ".join(str(100.0 + i) for i in range(campaign.ANNOUNCE_POINTS))
+    spec.write_text(SPEC.replace("c1: [20.0]", f"c1: [20.0]\n  speed_kmh: [{speeds}]"))
 
     def interrupted(spec: campaign_spec.Spec) -> list[campaign_spec.Point]:
-        assert "campaign spec: 1 grid points in 1 grid(s); checking them" in capsys.readouterr().out
+        said = f"campaign spec: {campaign.ANNOUNCE_POINTS} grid points in 1 grid(s); checking them"
+        assert said in capsys.readouterr().out
         raise KeyboardInterrupt
 
     monkeypatch.setattr(campaign_spec, "expand", interrupted)

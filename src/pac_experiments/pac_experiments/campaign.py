@@ -83,13 +83,18 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
+#: Grid points from which checking them takes long enough to say so first.
+ANNOUNCE_POINTS = 100
+
+
 def _announce(spec: Spec) -> None:
-    """The campaign's size before its points are checked and run (both may take a while)."""
-    print(
-        f"campaign {spec.name}: {grid_size(spec.grids)} grid points in {len(spec.grids)} grid(s); "
-        "checking them",
-        flush=True,
-    )
+    """The campaign's size before its points are checked (a grid of thousands takes seconds)."""
+    if grid_size(spec.grids) >= ANNOUNCE_POINTS:
+        print(
+            f"campaign {spec.name}: {grid_size(spec.grids)} grid points in {len(spec.grids)} grid(s); "
+            "checking them",
+            flush=True,
+        )
 
 
 def _run(args: argparse.Namespace) -> int:
