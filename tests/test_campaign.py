@@ -275,8 +275,8 @@ GOOD = {"grid": {"speed_kmh": [300.0]}, "fixed": {"duration": 0.5}, "window": WI
             yaml.safe_dump({"grid": GOOD["grid"], "window_spans": [2, 1]}),
             "'window_spans' must be [from, to] spans",
         ),
-        ("grid: {speed_kmh: [300.0\nfixed: [", "is not valid YAML at line 2, column 6"),
-        (None, "cannot read spec"),
+        ("grid: {speed_kmh: [300.0\nfixed: [", "line 2, column 6: is not valid YAML"),
+        (None, "cannot be read (No such file or directory)"),
     ],
     ids=[
         "unknown",

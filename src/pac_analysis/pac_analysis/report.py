@@ -11,6 +11,7 @@ line per problem on stderr, exit status 1, and the results that were computable.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
@@ -126,6 +127,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=None, help="output folder (default reports/<name>)")
     args = parser.parse_args(argv)
+    window_to = math.inf if args.window_to is None else args.window_to
+    if not (math.isfinite(args.window_from) and args.window_from >= 0.0 and args.window_from < window_to):
+        parser.error(
+            f"the window --from {args.window_from:g} --to {window_to:g}: allowed 0 <= from < to, "
+            "both finite (--to may be left out: the end of the run)"
+        )
+    if args.window_to is not None and not math.isfinite(args.window_to):
+        parser.error(f"--to {args.window_to:g}: allowed a finite number of seconds")
     name = "_vs_".join(bag_names(args.bags))
     out = args.out or Path("reports") / name
     try:

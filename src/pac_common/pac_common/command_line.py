@@ -48,17 +48,20 @@ class ParamsFile:
 
     @classmethod
     def read(cls, path: str) -> ParamsFile:
-        """Parse ``path``; :class:`UsageError` (one line) when it is missing or not a params file."""
-        import yaml
+        """Parse ``path`` by the suite's reading discipline (``pac_common.files``): a regular file
+        of at most 256 KiB, UTF-8, YAML without aliases or keys given twice; :class:`UsageError`
+        (one line) when it is missing or not a params file."""
+        from .files import FileInputError, read_yaml
 
         try:
-            with open(path, encoding="utf-8") as handle:
-                data = yaml.safe_load(handle)
-        except OSError as exc:
-            raise UsageError(f"cannot read params file {path}: {exc.strerror or exc}") from None
-        except yaml.YAMLError as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else "invalid YAML"
-            raise UsageError(f"params file {path} is not valid YAML ({first})") from None
+            data = read_yaml(path, "params")
+        except FileInputError as exc:
+            raise UsageError(str(exc)) from None
+        return cls.parse(path, data)
+
+    @classmethod
+    def parse(cls, path: str, data: Any) -> ParamsFile:
+        """The params file ``path`` from its parsed YAML ``data``."""
         sections = data.values() if isinstance(data, dict) else []
         if not isinstance(data, dict) or not all(
             isinstance(v, dict) and isinstance(v.get("ros__parameters"), dict) for v in sections
@@ -68,6 +71,17 @@ class ParamsFile:
                 "(expected '/**:' or '<node>:' sections with 'ros__parameters:')"
             )
         return cls(path, {str(k): _flatten(v["ros__parameters"]) for k, v in data.items()})
+
+    def for_nodes(self, nodes: Sequence[str]) -> dict[str, Any]:
+        """What the nodes ``nodes`` (fully qualified names) take together: the shared sections'
+        keys, then each node's own; sections for other nodes are left out, as ROS does."""
+        shared: dict[str, Any] = {}
+        own: dict[str, Any] = {}
+        for node in nodes:
+            node_shared, node_own = self.for_node(node)
+            shared.update(node_shared)
+            own.update(node_own)
+        return {**shared, **own}
 
     def for_node(self, node: str) -> tuple[dict[str, Any], dict[str, Any]]:
         """(keys from wildcard sections such as ``/**``, keys from sections naming ``node``).

@@ -13,9 +13,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from .files import FileInputError, Map, Seq, excerpt, load_yaml, read_text
 from .parameters import ParameterError
+
+__all__ = ["DataFileError", "Map", "Presets", "Reader", "Seq", "interval"]
 
 
 class DataFileError(ParameterError):
@@ -28,57 +29,8 @@ class DataFileError(ParameterError):
         self.value = value
         self.allowed = allowed
         ValueError.__init__(
-            self, f"invalid {self.KIND} file '{source}'{where}: '{key}' = {value!r}: allowed {allowed}"
+            self, f"invalid {self.KIND} file '{source}'{where}: '{key}' = {excerpt(value)}: allowed {allowed}"
         )
-
-
-# -- YAML with positions --------------------------------------------------------------------------
-class Map(dict):
-    """A mapping that knows where each of its values starts in the file."""
-
-    marks: dict[Any, tuple[int, int]]
-    start: tuple[int, int]
-
-
-class Seq(list):
-    marks: list[tuple[int, int]]
-    start: tuple[int, int]
-
-
-def _mark(node: yaml.Node) -> tuple[int, int]:
-    return node.start_mark.line + 1, node.start_mark.column + 1
-
-
-class _Loader(yaml.SafeLoader):
-    pass
-
-
-class _DuplicateKey(Exception):
-    def __init__(self, key: Any, mark: tuple[int, int]) -> None:
-        self.key, self.mark = key, mark
-
-
-def _construct_map(loader: _Loader, node: yaml.MappingNode) -> Map:
-    loader.flatten_mapping(node)
-    out = Map()
-    out.marks, out.start = {}, _mark(node)
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        if key in out:
-            raise _DuplicateKey(key, _mark(key_node))
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.marks[key] = _mark(value_node)
-    return out
-
-
-def _construct_seq(loader: _Loader, node: yaml.SequenceNode) -> Seq:
-    out = Seq(loader.construct_object(child, deep=True) for child in node.value)
-    out.marks, out.start = [_mark(child) for child in node.value], _mark(node)
-    return out
-
-
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_map)
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_SEQUENCE_TAG, _construct_seq)
 
 
 # -- checking ---------------------------------------------------------------------------------------
@@ -98,15 +50,11 @@ class Reader:
         """The file's top-level mapping (positions kept); invalid YAML, a key given twice, a file
         that is not a mapping or an unknown top-level key: refused."""
         try:
-            raw = yaml.load(text, Loader=_Loader)  # safe: _Loader is a SafeLoader
-        except _DuplicateKey as exc:
-            raise self.fail(str(exc.key), "given twice", "each key once", exc.mark) from None
-        except yaml.YAMLError as exc:
-            mark = getattr(exc, "problem_mark", None)
-            problem = getattr(exc, "problem", None) or type(exc).__name__
-            raise self.fail(
-                "(YAML)", problem, "valid YAML", (mark.line + 1, mark.column + 1) if mark else None
-            ) from None
+            raw = load_yaml(text, self.source)
+        except FileInputError as exc:
+            if exc.duplicate is not None:
+                raise self.fail(str(exc.duplicate), "given twice", "each key once", exc.mark) from None
+            raise self.fail("(YAML)", exc.problem, "valid YAML", exc.mark) from None
         if not isinstance(raw, Map):
             raise self.fail("(file)", raw, f"a mapping with the keys {', '.join(top_keys)}", None)
         self.known(raw, "", top_keys)
@@ -261,7 +209,10 @@ class Presets:
         return str(path), stat.st_mtime_ns, stat.st_size
 
     def text(self, path: str) -> str:
+        """The file's text by the suite's reading discipline (``pac_common.files``)."""
         try:
-            return Path(path).read_text()
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ParameterError(self.parameter, path, f"a readable {self.parameter} file ({exc})") from None
+            return read_text(path, self.parameter)
+        except FileInputError as exc:
+            raise ParameterError(
+                self.parameter, path, f"a readable {self.parameter} file ({exc.problem})"
+            ) from None

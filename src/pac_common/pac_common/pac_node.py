@@ -53,7 +53,7 @@ def pac_parameter_names() -> set[str]:
     import glob
     import os
 
-    import yaml
+    from .files import FileInputError, read_yaml
 
     try:
         from ament_index_python.packages import get_packages_with_prefixes
@@ -65,9 +65,8 @@ def pac_parameter_names() -> set[str]:
             continue
         for path in glob.glob(os.path.join(prefix, "share", package, "config", "*.yaml")):
             try:
-                with open(path, encoding="utf-8") as handle:
-                    data = yaml.safe_load(handle) or {}
-            except (OSError, yaml.YAMLError):
+                data = read_yaml(path, "params") or {}
+            except FileInputError:
                 continue
             for section in data.values() if isinstance(data, dict) else ():
                 if isinstance(section, dict) and isinstance(section.get("ros__parameters"), dict):

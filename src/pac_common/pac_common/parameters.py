@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
+from .files import excerpt
+
 
 class ParameterError(ValueError):
     """A parameter value is outside its allowed range.
@@ -28,7 +30,7 @@ class ParameterError(ValueError):
         self.name = name
         self.value = value
         self.allowed = allowed
-        super().__init__(f"invalid parameter '{name}' = {value!r}: allowed {allowed}")
+        super().__init__(f"invalid parameter '{name}' = {excerpt(value)}: allowed {allowed}")
 
 
 class UnknownParameterError(ParameterError):
@@ -40,7 +42,8 @@ class UnknownParameterError(ParameterError):
         self.allowed = f"a parameter of {program}"
         ValueError.__init__(
             self,
-            f"unknown parameter '{name}' = {value!r}: {program} has no such parameter (--help lists them)",
+            f"unknown parameter '{name}' = {excerpt(value)}: {program} has no such parameter "
+            "(--help lists them)",
         )
 
 
@@ -101,10 +104,12 @@ class ParameterSpec:
                 raise ParameterError(self.name, value, "true or false")
             return value
         if self.kind is tuple:
-            try:
-                items = tuple(float(v) for v in value)
-            except (TypeError, ValueError):
-                raise ParameterError(self.name, value, self.allowed()) from None
+            # A string is no list of numbers ("00" is not (0, 0)), nor is a boolean a number.
+            if not isinstance(value, list | tuple) or not all(
+                isinstance(v, int | float) and not isinstance(v, bool) for v in value
+            ):
+                raise ParameterError(self.name, value, self.allowed())
+            items = tuple(float(v) for v in value)
             if self.length is not None:
                 count_ok = len(items) == self.length
             else:
@@ -144,6 +149,7 @@ class ParameterSpec:
 
 def check_new_directory(name: str, path: Path) -> None:
     """A directory to be created (a bag): it must not exist and its parent must be a writable folder."""
+    _check_path_text(name, path)
     if path.exists():
         raise ParameterError(name, str(path), "a path that does not exist yet")
     check_output_folder(name, path)
@@ -151,7 +157,11 @@ def check_new_directory(name: str, path: Path) -> None:
 
 def check_output_folder(name: str, path: Path) -> None:
     """A folder to write into (it may exist already): it, or its nearest existing parent, must be a
-    folder this process can create files in."""
+    folder this process can create files in and write to (a full disk is refused here, before the
+    work)."""
+    _check_path_text(name, path)
+    if path.exists() and not path.is_dir():
+        raise ParameterError(name, str(path), "a folder (this is a file)")
     if path.is_dir():
         if not _can_create_in(path):
             raise ParameterError(name, str(path), "a folder this process can write in")
@@ -165,16 +175,30 @@ def check_output_folder(name: str, path: Path) -> None:
         )
 
 
+def _check_path_text(name: str, path: Path) -> None:
+    """A path the OS can take: no NUL (``Path.exists`` raises ValueError on one)."""
+    if "\0" in str(path):
+        raise ParameterError(name, str(path), "a path without a NUL character")
+
+
 def _can_create_in(folder: Path) -> bool:
-    """Whether a file can be created in ``folder``: ``os.access`` says yes to root on a read-only
-    file system or /proc, where creating the bag then failed with a traceback."""
+    """Whether a file can be created in ``folder`` and written: ``os.access`` says yes to root on a
+    read-only file system or /proc, where creating the bag then failed with a traceback; an empty
+    file can still be created on a full disk, a block of data cannot."""
     import tempfile
 
     try:
-        with tempfile.TemporaryFile(dir=folder):
+        with tempfile.TemporaryFile(dir=folder) as probe:
+            probe.write(bytes(WRITE_PROBE_BYTES))
+            probe.flush()
+            os.fsync(probe.fileno())
             return True
     except OSError:
         return False
+
+
+#: Bytes written to tell a writable folder from a full disk (one file-system block).
+WRITE_PROBE_BYTES = 4096
 
 
 def _fmt(x: float) -> str:

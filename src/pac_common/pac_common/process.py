@@ -6,12 +6,15 @@ and exit status 2; SIGINT / SIGTERM are a clean shutdown with exit status 0.
 
 from __future__ import annotations
 
+import contextlib
 import faulthandler
+import os
 import signal
 import sys
+import tempfile
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from .command_line import UsageError, check_domain_id, check_ros_arguments, set_process_arguments
 from .discovery import loopback_only
@@ -65,11 +68,17 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
     from rclpy.executors import ExternalShutdownException
     from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
-    try:
-        rclpy.init(args=args)
-    except _rclpy.RCLError as exc:  # anything check_ros_arguments did not foresee
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"{program}: cannot start: {first}", file=sys.stderr)
+    # rcl logs its own "[ERROR] ... Failed to parse global arguments" on stderr before it raises:
+    # held back while it starts, so a refusal is pac's one line; on success it is passed on.
+    refusal = ""
+    with _stderr_held() as held:
+        try:
+            rclpy.init(args=args)
+        except _rclpy.RCLError as exc:  # anything check_ros_arguments did not foresee
+            held.pass_on = False
+            refusal = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    if refusal:
+        print(f"{program}: cannot start: {refusal.split(', at /')[0]}", file=sys.stderr)
         return 2
     nodes: list = []
     executor = None
@@ -123,3 +132,32 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
             node.destroy_node()
         rclpy.try_shutdown()
     return status
+
+
+class _HeldStderr:
+    """What a C library wrote on stderr while it was held; ``pass_on``: copy it to stderr after."""
+
+    pass_on = True
+
+
+@contextlib.contextmanager
+def _stderr_held() -> Iterator[_HeldStderr]:
+    """File descriptor 2 into a temporary file for the block (C libraries write there, not to
+    ``sys.stderr``); what was written is then copied to the real stderr, unless the block set
+    ``pass_on`` False (a refusal that says it all in one line)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    held = _HeldStderr()
+    with tempfile.TemporaryFile() as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            yield held
+        finally:
+            sys.stderr.flush()
+            os.dup2(saved, 2)
+            os.close(saved)
+            capture.seek(0)
+            text = capture.read()
+            if held.pass_on and text:
+                sys.stderr.write(text.decode(errors="replace"))
+                sys.stderr.flush()

@@ -31,11 +31,14 @@ import sys
 import time
 from pathlib import Path
 
+from pac_common.files import FileInputError
 from pac_common.parameters import ParameterError, check_output_folder
 
 from .campaign_dask import Outcome, embedded_cluster, execute, execute_in_process, runs_in_process
-from .campaign_results import RESULTS_FILE, read_done, write_results
-from .campaign_spec import Point, Spec, SpecError, load_points
+from .campaign_results import RESULTS_FILE, RUNS_FILE, read_done, write_results
+from .campaign_spec import Point, Spec, SpecError, grid_size, load_points
+
+INTERRUPTED = "campaign: interrupted; re-run the same command to resume"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -63,6 +66,38 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--bags", action="store_true", help="keep each run's bag in DIR/bags/<key>")
     parser.add_argument("--no-report", action="store_true", help="results.csv only")
     args = parser.parse_args(argv)
+    try:
+        return _run(args)
+    except KeyboardInterrupt:  # Ctrl-C while the SPEC's points are checked, or in a cluster's start
+        print(INTERRUPTED, file=sys.stderr)
+        return 130
+    except FileInputError as exc:  # the --out folder's runs.jsonl cannot be read
+        print(f"campaign: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # the disk filled up or the folder went read-only during the runs
+        print(
+            f"campaign: cannot write in {args.out}: {exc.strerror or exc}; the finished runs are in "
+            f"{RUNS_FILE} (a torn last line is ignored): re-run the same command to resume",
+            file=sys.stderr,
+        )
+        return 1
+
+
+#: Grid points from which checking them takes long enough to say so first.
+ANNOUNCE_POINTS = 100
+
+
+def _announce(spec: Spec) -> None:
+    """The campaign's size before its points are checked (a grid of thousands takes seconds)."""
+    if grid_size(spec.grids) >= ANNOUNCE_POINTS:
+        print(
+            f"campaign {spec.name}: {grid_size(spec.grids)} grid points in {len(spec.grids)} grid(s); "
+            "checking them",
+            flush=True,
+        )
+
+
+def _run(args: argparse.Namespace) -> int:
     # Every error of the command line and the SPEC at once, one line each; nothing runs.
     errors = [
         f"invalid option '--{name.replace('_', '-')}' = {value}: allowed an integer >= 1"
@@ -74,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     except ParameterError as exc:
         errors.append(str(exc))
     try:
-        spec, points = load_points(args.spec)
+        spec, points = load_points(args.spec, _announce)
     except SpecError as exc:
         errors += exc.errors
     if errors:
@@ -133,7 +168,7 @@ def _finish(
     if outcome.batch_error:
         print(f"campaign: the compiled batch failed ({outcome.batch_error}); its runs ran tick by tick")
     if outcome.interrupted:
-        print("campaign: interrupted; re-run the same command to resume", file=sys.stderr)
+        print(INTERRUPTED, file=sys.stderr)
         return 130
     args.out.mkdir(parents=True, exist_ok=True)
     rows = write_results(spec, points, read_done(args.out), args.out)

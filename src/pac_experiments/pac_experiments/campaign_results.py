@@ -6,10 +6,12 @@ from __future__ import annotations
 import csv
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
 from pac_common import jsonio
+from pac_common.files import read_bytes, write_atomic
 
 from .campaign_run import EN50318_COLUMNS, EN50367_COLUMNS, METRIC_COLUMNS
 from .campaign_spec import Point, Spec
@@ -28,22 +30,41 @@ def runs_line(row: dict[str, Any]) -> str:
 
 
 def read_done(out: Path) -> dict[str, dict[str, Any]]:
-    """Rows already in ``DIR/runs.jsonl`` by key (a torn last line, from a kill, is ignored)."""
+    """Rows already in ``DIR/runs.jsonl`` by key. A torn last line (a kill or a full disk
+    mid-write) is ignored; any other line that is no row (not UTF-8, not JSON, nested too deep,
+    no string key) is counted and named on stderr, never used: its run is done again."""
     done: dict[str, dict[str, Any]] = {}
     path = Path(out) / RUNS_FILE
     if not path.exists():
         return done
-    for line in path.read_text().splitlines():
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:
+    lines = read_bytes(path, "runs").split(b"\n")  # not a regular file, or too large: FileInputError
+    damaged: list[int] = []
+    for number, line in enumerate(lines, 1):
+        row = _row(line)
+        if row is None:
+            if line.strip() and number < len(lines) - (lines[-1] == b""):
+                damaged.append(number)
             continue
-        if isinstance(row, dict) and "key" in row:
-            # A measure written as null (not a number) is NaN again, as the run returned it.
-            done[row["key"]] = {
-                k: math.nan if v is None and k in MEASURE_COLUMNS else v for k, v in row.items()
-            }
+        # A measure written as null (not a number) is NaN again, as the run returned it.
+        done[row["key"]] = {k: math.nan if v is None and k in MEASURE_COLUMNS else v for k, v in row.items()}
+    if damaged:
+        print(
+            f"campaign: {path}: {len(damaged)} line(s) are no run row and are ignored (first: line "
+            f"{damaged[0]}); their runs are done again",
+            file=sys.stderr,
+        )
     return done
+
+
+def _row(line: bytes) -> dict[str, Any] | None:
+    """The row on one line of runs.jsonl, or None when it is not one."""
+    try:
+        row = json.loads(line.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError):
+        return None
+    if isinstance(row, dict) and isinstance(row.get("key"), str):
+        return row
+    return None
 
 
 def _cell(value: Any) -> Any:
@@ -68,11 +89,9 @@ def write_results(spec: Spec, points: list[Point], done: dict[str, dict], out: P
     """``results.csv``: one row per grid point that has run, in grid order; returns those rows."""
     columns = result_columns(spec)
     rows = [done[p.key] for p in points if p.key in done]
-    tmp = Path(out) / (RESULTS_FILE + ".tmp")
-    with tmp.open("w", newline="") as f:
+    with write_atomic(Path(out) / RESULTS_FILE, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(columns)
         for row in rows:
             writer.writerow([_cell(row.get(c, "")) for c in columns])
-    tmp.replace(Path(out) / RESULTS_FILE)
     return rows

@@ -27,14 +27,14 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
-from collections.abc import Iterator
+import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from pac_common.contact_statistics import target_mean_force, whole_spans
+from pac_common.files import FileInputError, excerpt, read_yaml
 from pac_common.parameters import ParameterError
 from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig import composition
@@ -46,6 +46,9 @@ STATISTICS = ("raw", "en50318")
 FORCE_TARGETS = ("en50367",)
 #: Spans simulated after a ``window_spans`` window (the zero-phase filter's right-hand side).
 TAIL_SPANS = 0.5
+#: Grid points a SPEC may have (every grid's product of list lengths, summed): checked before a
+#: point is built, so a SPEC of four 100-value lists is refused at once, not expanded.
+MAX_POINTS = 10_000
 KEYS = ("grid", "grids", "fixed", "window", "window_spans", "statistics", "force_target", "name")
 
 
@@ -141,14 +144,17 @@ def load_spec(path: Path) -> Spec:
     return spec
 
 
-def load_points(path: Path) -> tuple[Spec, list[Point]]:
+def load_points(path: Path, announce: Callable[[Spec], None] | None = None) -> tuple[Spec, list[Point]]:
     """The SPEC and its points (:func:`expand`), every error of both in one SpecError.
 
     The points are checked even when the SPEC has shape errors elsewhere, as long as its grids
-    and fixed values could be read, so one run names everything to fix."""
+    and fixed values could be read, so one run names everything to fix. ``announce`` is told
+    the SPEC before its points are checked (which may take a while)."""
     spec, errors = _read_spec(path)
     points: list[Point] = []
     if spec is not None:
+        if announce is not None:
+            announce(spec)
         try:
             points = expand(spec)
         except SpecError as exc:
@@ -162,14 +168,9 @@ def _read_spec(path: Path) -> tuple[Spec | None, list[str]]:
     """The SPEC and every shape error found. Where a field is wrong the spec holds its default
     (its points can still be checked); it is None when the grids or fixed values cannot be read."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        return None, [f"cannot read spec {path}: {exc.strerror or exc}"]
-    except yaml.YAMLError as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        mark = getattr(exc, "problem_mark", None)  # where the parser stopped (0-based)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        return None, [f"spec {path} is not valid YAML{where} ({first})"]
+        data = read_yaml(path, "spec")
+    except FileInputError as exc:
+        return None, [str(exc)]
     if not isinstance(data, dict):
         return None, [f"spec {path} must be a mapping with 'grid' (or 'grids'), 'fixed', 'window'"]
     errors: list[str] = []
@@ -178,7 +179,7 @@ def _read_spec(path: Path) -> tuple[Spec | None, list[str]]:
         errors.append(f"spec {path}: {text}")
 
     for key in sorted(set(data) - set(KEYS), key=str):
-        error(f"unknown key '{key}' = {data[key]!r} (allowed: {', '.join(KEYS)})")
+        error(f"unknown key '{key}' = {excerpt(data[key])} (allowed: {', '.join(KEYS)})")
     readable = True  # grids and fixed usable: the points can be checked
     if ("grid" in data) == ("grids" in data):
         error("give exactly one of 'grid' (a mapping) or 'grids' (a list of mappings)")
@@ -186,28 +187,32 @@ def _read_spec(path: Path) -> tuple[Spec | None, list[str]]:
     given = ([data["grid"]] if "grid" in data else data.get("grids")) if readable else []
     raw_grids: list[Any] = given if isinstance(given, list) else []
     if readable and not raw_grids:
-        error(f"'grids' = {given!r}: allowed a non-empty list of mappings")
+        error(f"'grids' = {excerpt(given)}: allowed a non-empty list of mappings")
         readable = False
     fixed = data.get("fixed") or {}
     if not isinstance(fixed, dict):
-        error(f"'fixed' = {fixed!r}: allowed a mapping of parameter: value")
+        error(f"'fixed' = {excerpt(fixed)}: allowed a mapping of parameter: value")
         readable, fixed = False, {}
     grids = []
     for i, grid in enumerate(raw_grids):
         where = "grid" if "grid" in data else f"grids[{i}]"
         if not isinstance(grid, dict) or not grid:
-            error(f"'{where}' is empty or not a mapping (parameter: [values, ...]), got {grid!r}")
+            error(f"'{where}' is empty or not a mapping (parameter: [values, ...]), got {excerpt(grid)}")
             readable = False
             continue
         for name, values in grid.items():
             if not isinstance(values, list) or not values:
-                error(f"{where}.{name} must be a non-empty list of values, got {values!r}")
+                error(f"{where}.{name} must be a non-empty list of values, got {excerpt(values)}")
                 readable = False
             if name in fixed:
                 # The grid's values would run while the report claims the fixed one.
                 error(f"parameter '{name}' is both in 'fixed' and in '{where}': give it in one place")
                 readable = False
         grids.append({str(k): list(v) if isinstance(v, list) else [v] for k, v in grid.items()})
+    total = grid_size(grids)
+    if total > MAX_POINTS:
+        error(f"the grids have {total} points: allowed at most {MAX_POINTS} (split the campaign)")
+        readable = False
     window_spans = None
     window = data.get("window", [3.0, None])
     #: The points' windows are not checked where the window itself is wrong (the whole run).
@@ -218,21 +223,21 @@ def _read_spec(path: Path) -> tuple[Spec | None, list[str]]:
     elif "window_spans" in data:
         ws = data["window_spans"]
         if not _number_pair(ws) or ws[1] is None or not 0.0 <= ws[0] < ws[1]:
-            error(f"'window_spans' must be [from, to] spans, 0 <= from < to, got {ws!r}")
+            error(f"'window_spans' must be [from, to] spans, 0 <= from < to, got {excerpt(ws)}")
             window = unchecked_window
         else:
             window_spans = (float(ws[0]), float(ws[1]))
     if not _number_pair(window):
-        error(f"'window' must be [from, to] in seconds, got {window!r}")
+        error(f"'window' must be [from, to] in seconds, got {excerpt(window)}")
         window = unchecked_window
     statistics = data.get("statistics", "raw")
     if statistics not in STATISTICS:
-        error(f"'statistics' = {statistics!r}: allowed {', '.join(STATISTICS)}")
+        error(f"'statistics' = {excerpt(statistics)}: allowed {', '.join(STATISTICS)}")
         statistics = "raw"
     force_target = data.get("force_target")
     if force_target is not None:
         if force_target not in FORCE_TARGETS:
-            error(f"'force_target' = {force_target!r}: allowed {', '.join(FORCE_TARGETS)}")
+            error(f"'force_target' = {excerpt(force_target)}: allowed {', '.join(FORCE_TARGETS)}")
             force_target = None
         elif "force_amplitude" in fixed or any("force_amplitude" in g for g in grids):
             error("'force_target' sets force_amplitude: do not give it too")
@@ -249,6 +254,11 @@ def _read_spec(path: Path) -> tuple[Spec | None, list[str]]:
         force_target,
     )
     return spec, errors
+
+
+def grid_size(grids: tuple[dict[str, list[Any]], ...] | list[dict[str, list[Any]]]) -> int:
+    """The number of points of the grids (before a point two grids share is counted once)."""
+    return sum(math.prod(len(values) for values in grid.values()) for grid in grids)
 
 
 def point_key(scenario: Scenario, window: tuple[float, float], statistics: str = "raw") -> str:
@@ -280,7 +290,7 @@ def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
                 break  # refused for a value the point does not give: nothing more to drop
             del rest[exc.name]
         except (TypeError, ValueError) as exc:
-            errors.append(f"invalid point {values}: {exc}")
+            errors.append(f"invalid point {excerpt(values)}: {excerpt(str(exc))}")
             break
         else:
             if not errors:

@@ -33,12 +33,14 @@ from __future__ import annotations
 import copy
 import functools
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 from numba import njit
 
+from pac_common.parameters import ParameterError
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
@@ -415,9 +417,24 @@ def _s_z_maps(
 
     a, c, sigma = model.state_matrix(pantograph), model.OUTPUT_MATRIX, np.diag(sigma_diag)
     shifted = a + 0.5 * rho_z * np.eye(4)
-    half_map = scipy.linalg.expm(-shifted * (0.5 * dt))
-    limit = scipy.linalg.solve_continuous_lyapunov(shifted.T, c.T @ sigma @ c)
-    half_input = limit - half_map.T @ limit @ half_map
+    # A pantograph far stiffer than the sample period resolves (a tiny mass) overflows the
+    # exponential: refused in one line, not numpy's warnings followed by a diverged run.
+    try:
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)  # scipy's "solution perturbed" too
+            half_map = scipy.linalg.expm(-shifted * (0.5 * dt))
+            limit = scipy.linalg.solve_continuous_lyapunov(shifted.T, c.T @ sigma @ c)
+            half_input = limit - half_map.T @ limit @ half_map
+        finite = all(np.isfinite(m).all() for m in (half_map, limit, half_input))
+    except (ValueError, RuntimeWarning):  # non-finite input refused (LinAlgError is a ValueError)
+        finite = False
+    if not finite:
+        raise ParameterError(
+            "pantograph",
+            f"m1={pantograph.m1:g} kg, m2={pantograph.m2:g} kg",
+            f"a pantograph whose observer design is finite at a {dt:g} s sample period "
+            "(its fastest mode resolved: larger masses or a higher rate_hz)",
+        )
     for shared in (half_map, limit, half_input):  # cached and shared by every observer built alike
         shared.setflags(write=False)
     return half_map, limit, half_input

@@ -2,7 +2,10 @@
 
 The syntax is the one ``ros2 run ... --ros-args -p name:=value`` uses; a params file may be
 flat (``name: value``) or a ROS 2 parameter file (``/**: {ros__parameters: {...}}``), so the
-node defaults shipped in ``share/<pkg>/config/`` work here too.
+node defaults shipped in ``share/<pkg>/config/`` work here too. A ROS 2 parameter file is read
+as the rig's nodes read it: the ``/**`` sections and those naming one of the rig's nodes
+(``/plant_node``, ...), nothing else. Files and values go through the suite's reading
+discipline (``pac_common.files``).
 """
 
 from __future__ import annotations
@@ -11,9 +14,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-import yaml
+from pac_common.command_line import ROS_OWN_PARAMETERS, ParamsFile, UsageError
+from pac_common.files import FileInputError, excerpt, load_yaml, read_yaml
 
-from pac_common.command_line import ROS_OWN_PARAMETERS
+from .nodes import LOOP_NODES, NODES
+
+#: The nodes an offline tool stands for: a params-file section for any other node is not its.
+RIG_NODE_NAMES = tuple(f"/{NODES[role].executable}" for role in ("recorder", *LOOP_NODES))
 
 
 class OverrideError(ValueError):
@@ -48,32 +55,32 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     for item in items:
         name, sep, value = item.partition(":=") if ":=" in item else item.partition("=")
         if not sep or not name.strip():
-            raise OverrideError(f"override '{item}' is not name:=value")
+            raise OverrideError(f"override {excerpt(item)} is not name:=value")
         try:
-            out[name.strip()] = yaml.safe_load(value)
-        except yaml.YAMLError as exc:
-            raise OverrideError(f"override '{item}': value is not YAML ({_first_line(exc)})") from None
+            out[name.strip()] = load_yaml(value, f"override {excerpt(item)}")
+        except FileInputError as exc:
+            raise OverrideError(str(exc)) from None
     return out
 
 
 def load_params_file(path: Path) -> dict[str, Any]:
-    """Flat ``name: value`` pairs from a YAML file (a ROS 2 parameter file is flattened)."""
+    """Flat ``name: value`` pairs from a YAML file; of a ROS 2 parameter file, what the rig's
+    nodes take (its ``/**`` sections and their own)."""
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise OverrideError(f"cannot read params file {path}: {exc.strerror or exc}") from None
-    except yaml.YAMLError as exc:
-        raise OverrideError(f"params file {path} is not valid YAML ({_first_line(exc)})") from None
+        data = read_yaml(path, "params")
+    except FileInputError as exc:
+        raise OverrideError(str(exc)) from None
     if data is None:
         return {}
     if not isinstance(data, dict):
-        raise OverrideError(f"params file {path} must be a mapping of name: value")
-    out: dict[str, Any] = {}
-    for key, value in data.items():
-        if isinstance(value, dict) and isinstance(value.get("ros__parameters"), dict):
-            out.update(value["ros__parameters"])  # /**: or /node_name: sections, in file order
-        else:
-            out[key] = value
+        raise OverrideError(f"params file {excerpt(str(path))} must be a mapping of name: value")
+    sections = {k: v for k, v in data.items() if isinstance(v, dict) and "ros__parameters" in v}
+    try:
+        ros = ParamsFile.parse(str(path), sections).for_nodes(RIG_NODE_NAMES) if sections else {}
+    except UsageError as exc:
+        raise OverrideError(str(exc)) from None
+    out = {k: v for k, v in data.items() if k not in sections}
+    out.update(ros)
     for name in ROS_OWN_PARAMETERS:  # in every `ros2 param dump`; nothing to do offline
         out.pop(name, None)
     return out
@@ -86,7 +93,3 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         values.update(load_params_file(path))
     values.update(parse_overrides(args.param))
     return values
-
-
-def _first_line(exc: Exception) -> str:
-    return str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

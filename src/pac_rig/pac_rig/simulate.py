@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import shutil
 import signal
 import sys
 import threading
@@ -268,13 +269,15 @@ def main(argv: list[str] | None = None) -> int:
     try:
         check_new_directory("bag", args.bag)
         values = overrides_from_args(args)
+        # simulate's own parameter before the nodes' are dropped: the recorder node has one of
+        # the same name, and simulate's was dropped with them (every bag zstd).
+        compression = values.pop("compression", DEFAULT_COMPRESSION)
+        if compression not in COMPRESSIONS:
+            raise ParameterError("compression", compression, "one of " + ", ".join(COMPRESSIONS))
         ignored = node_only(values)
         if ignored:
             print(f"simulate: ignoring the nodes' own parameters: {', '.join(ignored)}", file=sys.stderr)
             values = {k: v for k, v in values.items() if k not in ignored}
-        compression = values.pop("compression", DEFAULT_COMPRESSION)
-        if compression not in COMPRESSIONS:
-            raise ParameterError("compression", compression, " or ".join(COMPRESSIONS))
         scenario_from_flat(values)  # every value valid before anything is derived from them
         values, derived = composition.derive(values)
         for note in derived:
@@ -310,7 +313,13 @@ def main(argv: list[str] | None = None) -> int:
             stop_requested=requested.is_set,
         )
     except OSError as exc:  # e.g. the disk filled up or the folder vanished mid-run
-        print(f"simulate: cannot write {args.bag}: {exc.strerror or exc}", file=sys.stderr)
+        # The bag is cut short where the write failed: removed, so no truncated bag is taken for
+        # a run (the folder did not exist before: check_new_directory).
+        shutil.rmtree(args.bag, ignore_errors=True)
+        print(
+            f"simulate: cannot write {args.bag}: {exc.strerror or exc}; the incomplete bag was removed",
+            file=sys.stderr,
+        )
         return 1
     finally:
         signal.signal(signal.SIGINT, previous)
