@@ -57,6 +57,8 @@ KEY_NEUTRAL_DEFAULTS = {
     "pantograph": "",
     "nominal_pantograph": "",
     "wind_uplift": 0.0,
+    "actuator": "ideal",
+    "actuator_static_force": 100.0,
     "pantographs": (0.0,),
     "controlled_pantograph": 0,
     "passive_pantograph": "three_mass",

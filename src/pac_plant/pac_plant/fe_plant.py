@@ -227,13 +227,12 @@ class FEPlant(Plant):
         return out
 
     def advance(self, u: float) -> None:
-        """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
-        if not math.isfinite(u):
-            raise ValueError(f"actuator force must be finite, got {u!r}")
+        """Apply ``u`` [N] over [t_k, t_{k+1}] (held, through the actuator) and move to tick k + 1."""
+        applied = self._actuate(u)
         # The pantograph's own uplift and the wind act with u on the actuator's mass.
-        self.sim.advance(u + self.uplift, self.options.fe_substeps, self._flex, self._readings)
+        self.sim.advance(applied + self.uplift, self.options.fe_substeps, self._flex, self._readings)
         self.tick += 1
-        self.u_applied = float(u)
+        self.u_applied = applied
 
 
 def several_pantographs(plant: Plant) -> FEPlant | None:

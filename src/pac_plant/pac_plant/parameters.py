@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
+from .hardware.actuators import ACTUATORS
+
 #: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
 #: moving window grows by that distance (its cost with it).
 MAX_PANTOGRAPHS = 4
@@ -66,6 +68,23 @@ class PlantOptions(ParameterSet):
         "N",
         low=-200.0,
         high=200.0,
+    )
+    actuator: str = parameter(
+        "ideal",
+        "the actuator between the command and the pantograph: 'ideal' the command is the force "
+        "(today's rig); 'electromechanical' (+-100 N about actuator_static_force, 5 kN/s, lag 20 ms, "
+        "delay 5 ms) or 'pneumatic' (+-100 N, 500 N/s, lag 200 ms, delay 20 ms); "
+        "docs/vehicle_and_hardware.md gives each number's source",
+        choices=tuple(ACTUATORS),
+    )
+    actuator_static_force: float = parameter(
+        100.0,
+        "the static force F0 the actuator's range is about (the pneumatic uplift a fast actuator acts "
+        "on top of; set it to the run's force_amplitude, whose default it is); the actuator holds it "
+        "at tick 0 (not used by 'ideal')",
+        "N",
+        low=0.0,
+        high=1000.0,
     )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20

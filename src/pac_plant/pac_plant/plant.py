@@ -13,6 +13,7 @@ from pac_model import model
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
 from .catenary.pantographs import plant_chain
+from .hardware.actuators import Actuator, actuator_model
 from .parameters import PlantOptions
 
 
@@ -162,10 +163,22 @@ class Plant:
         self._init_sensor()
 
     def _init_sensor(self) -> None:
-        """Sensor noise state (shared with FEPlant, which reuses ``measurement``)."""
+        """Sensor noise state and the actuator (shared with FEPlant, which reuses ``measurement``
+        and ``_actuate``)."""
         self._noisy = any(s > 0.0 for s in self.options.noise_std)
         self._noise_block_index = -1
         self._noise_block = np.zeros((0, 2))
+        options = self.options
+        self.actuator = Actuator(
+            actuator_model(options.actuator), options.actuator_static_force, self.sample_period
+        )
+
+    def _actuate(self, u: float) -> float:
+        """The force the actuator applies over this tick for the command ``u`` (held over it): its
+        mean over the tick (pac_plant.hardware.actuators); ``u`` itself for the ideal actuator."""
+        if not math.isfinite(u):
+            raise ValueError(f"actuator force must be finite, got {u!r}")
+        return float(u) if self.actuator.ideal else self.actuator.apply(u)
 
     @property
     def time(self) -> float:
@@ -238,16 +251,15 @@ class Plant:
         )
 
     def advance(self, u: float) -> None:
-        """Apply ``u`` [N] over [t_k, t_{k+1}] and move to tick k + 1."""
-        if not math.isfinite(u):
-            raise ValueError(f"actuator force must be finite, got {u!r}")
+        """Apply ``u`` [N] over [t_k, t_{k+1}] (through the actuator) and move to tick k + 1."""
+        applied = self._actuate(u)
         p = self.pantograph
         self.z = plant_advance(
             self.z,
             self.time,
             self.sample_period,
             self.options.substeps,
-            float(u) + self.uplift,  # the pantograph's own uplift and the wind act with u
+            applied + self.uplift,  # the pantograph's own uplift and the wind act with u
             self._a,
             self._theta,
             self._omega,
@@ -256,4 +268,4 @@ class Plant:
             self._unilateral,
         )
         self.tick += 1
-        self.u_applied = float(u)
+        self.u_applied = applied

@@ -43,6 +43,7 @@ from pac_observer.contact_force import ContactForceObserver, contact_force_advan
 from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
 from pac_plant.catenary import kernels as fe
 from pac_plant.fe_plant import FEPlant, several_pantographs
+from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
 from pac_plant.parameters import MAX_PANTOGRAPHS
 from pac_plant.plant import Plant, plant_advance_inplace, quantise
 
@@ -83,6 +84,10 @@ PLANT_PARAMS = np.dtype(
         # order of ``pantographs`` (``FEPlant.contact_of`` where ``fe_plant.several_pantographs``)
         ("pantographs", "i8"),
         ("contact_of", "i8", MAX_PANTOGRAPHS),
+        (
+            "actuator",
+            ACTUATOR_PARAMS,
+        ),  # the actuator's (Plant.actuator; kind IDEAL: the command is the force)
     ]
 )
 
@@ -93,6 +98,7 @@ PLANT_STATE = np.dtype(
         ("pending", "f8", MAX_DELAY),  # commands sent, not yet applied (a ring)
         ("head", "i8"),
         ("readings", "f8", 5),  # scratch: kernels.readings_at one pantograph's contact point
+        ("actuator", ACTUATOR_STATE),
     ]
 )
 
@@ -281,13 +287,15 @@ def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, o
     out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
     out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
     out.saturated, out.mode = u != u_law, mode
-    # Command delay, then the plant over [t_k, t_k+1] (zero-order hold).
+    # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
     if pp.delay == 0:
         applied = u
     else:
         applied = ps.pending[ps.head]
         ps.pending[ps.head] = u
         ps.head = (ps.head + 1) % pp.delay
+    # The actuator's dynamics (Plant._actuate): its mean force over the tick.
+    applied = actuator_apply(pp.actuator, ps.actuator, applied)
     if _plant_advance(k, pp, ps, fe_args, applied):
         return OFF_LINE, out.contact_position
     return 0, 0.0
@@ -392,6 +400,7 @@ def compile_loop(
     p["substeps"], p["delay"], p["uplift"] = plant.options.substeps, delay, plant.uplift
     ps = np.zeros(1, PLANT_STATE)
     ps[0]["z"], ps[0]["u_applied"] = plant.z, plant.u_applied
+    p["actuator"], ps[0]["actuator"] = plant.actuator.params[0], plant.actuator.state[0]  # copies
     if isinstance(plant, FEPlant):
         sim = plant.sim
         p["kind"], p["substeps"] = FE, plant.options.fe_substeps
