@@ -7,6 +7,8 @@ from dataclasses import dataclass
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
 from .hardware.actuators import ACTUATORS
+from .hardware.car_body import CAR_BODIES, TRACKS
+from .hardware.sensors import SENSORS
 
 #: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
 #: moving window grows by that distance (its cost with it).
@@ -85,6 +87,27 @@ class PlantOptions(ParameterSet):
         "N",
         low=0.0,
         high=1000.0,
+    )
+    roof_motion: str = parameter(
+        "",
+        "the car body moves: the pantograph's base rides on the roof of a car body in bounce and pitch "
+        "over a seeded track of this irregularity class ('german_low' or 'german_high'); '' = a fixed "
+        "base (today's rig). docs/vehicle_and_hardware.md gives the model and its numbers",
+        choices=("", *TRACKS),
+    )
+    roof_seed: int = parameter(0, "seed of the track under the car body (roof_motion)", low=0)
+    car_body: str = parameter(
+        "high_speed_trailer",
+        "the car body whose roof carries the pantograph (roof_motion; docs/vehicle_and_hardware.md)",
+        choices=tuple(CAR_BODIES),
+    )
+    sensors: str = parameter(
+        "ground",
+        "the sensor suite: 'ground' z1, z2 from a fixed datum with noise_std and quantisation "
+        "(today's rig); 'train' head and frame positions from the roof and head and frame "
+        "accelerometers, 'train_load_cell' also a head load cell, each channel with noise, bandwidth "
+        "and latency (seeded by noise_seed; docs/vehicle_and_hardware.md gives each number's source)",
+        choices=tuple(SENSORS),
     )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
@@ -177,6 +200,12 @@ class PlantOptions(ParameterSet):
                 "controlled_pantograph",
                 self.controlled_pantograph,
                 f"an index into pantographs, an integer in [0, {len(spacings) - 1}]",
+            )
+        if len(spacings) > 1 and self.roof_motion:
+            raise ParameterError(
+                "roof_motion",
+                self.roof_motion,
+                "'' with several pantographs (the roof motion under the passive ones is not wired yet)",
             )
         if len(spacings) > 1:
             load_pantograph_file(self.passive_pantograph, "passive_pantograph")

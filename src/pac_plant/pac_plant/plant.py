@@ -10,10 +10,13 @@ import numpy as np
 from numba import njit
 
 from pac_model import model
+from pac_model.pantograph_file import PantographFile
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
 from .catenary.pantographs import plant_chain
 from .hardware.actuators import Actuator, actuator_model
+from .hardware.car_body import CAR_BODIES, TRACKS, RoofMotion, roof_attachment, roof_force, roof_motion
+from .hardware.sensors import Sensors, sensor_step, sensor_suite
 from .parameters import PlantOptions
 
 
@@ -27,6 +30,13 @@ class Measurement:
     z2: float
     #: Force the actuator applied over the sample period that ends at this tick [N].
     actuator_force: float
+    #: What the sensor suite (``sensors``) adds: head and frame accelerometers [m/s^2] and the
+    #: head's load cell [N]; NaN where the suite has none (``ground``, today's: all NaN).
+    head_acceleration: float = math.nan
+    frame_acceleration: float = math.nan
+    head_force: float = math.nan
+    #: z1, z2 are measured from the roof (a train's sensors), not from the ground.
+    from_roof: bool = False
 
 
 @dataclass(frozen=True)
@@ -46,6 +56,9 @@ class Truth:
     support_uplift: float = math.nan
     #: Distance of the contact point along the line [m] (FE line only).
     contact_position: float = math.nan
+    #: Height of the roof under the pantograph from its rest [m] (0: a fixed base; z is from the
+    #: ground either way).
+    roof_height: float = 0.0
 
 
 @njit(cache=True)
@@ -160,7 +173,35 @@ class Plant:
         self.tick = 0
         self.z = np.zeros(4) if z0 is None else np.array(z0, dtype=float)
         self.u_applied = 0.0
+        self._init_roof(chain, track.speed_kmh, 0.0)
         self._init_sensor()
+
+    def _init_roof(self, chain: PantographFile, speed_kmh: float, behind: float) -> None:
+        """The roof motion under this pantograph (``behind`` [m] behind the train's first one) and
+        the roof spring and damper it reaches the actuator's mass through; None: a fixed base
+        (shared with FEPlant)."""
+        options = self.options
+        self.roof: RoofMotion | None = None
+        self._roof_k = self._roof_c = 0.0
+        if options.roof_motion:
+            track, car = TRACKS[options.roof_motion], CAR_BODIES[options.car_body]
+            self.roof = roof_motion(track, car, speed_kmh / 3.6, options.roof_seed, behind)
+            self._roof_k, self._roof_c = roof_attachment(chain)
+
+    def _with_roof(self, force: float) -> float:
+        """``force`` on the actuator's mass over this tick plus the moving roof's, through the roof
+        spring and damper (their mean over the tick); ``force`` itself for a fixed base."""
+        roof = self.roof
+        if roof is None:
+            return force
+        t0, t1 = self.time, self.time + self.sample_period
+        return force + roof_force(
+            roof.amplitude, roof.frequency, roof.phase, self._roof_k, self._roof_c, t0, t1
+        )
+
+    def roof_height(self) -> float:
+        """The roof's height under the pantograph from its rest at this tick [m] (0: a fixed base)."""
+        return 0.0 if self.roof is None else self.roof.at(self.time)[0]
 
     def _init_sensor(self) -> None:
         """Sensor noise state and the actuator (shared with FEPlant, which reuses ``measurement``
@@ -169,6 +210,11 @@ class Plant:
         self._noise_block_index = -1
         self._noise_block = np.zeros((0, 2))
         options = self.options
+        suite = sensor_suite(options.sensors)
+        # ``ground`` is today's sensing, done here (noise_std, quantisation): the core is not called.
+        self.sensors = None if suite.name == "ground" else Sensors(suite, self.sample_period)
+        self._sensed_tick = -1  # the tick whose readings ``_sensed`` holds
+        self._sensed = np.full(5, math.nan)
         self.actuator = Actuator(
             actuator_model(options.actuator), options.actuator_static_force, self.sample_period
         )
@@ -195,7 +241,11 @@ class Plant:
         return plant_rhs(t, z, f, self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
 
     def measurement(self) -> Measurement:
-        """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
+        """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution; or
+        what the sensor suite reads (positions from the roof, accelerometers, load cell)."""
+        if self.sensors is not None:
+            r, roof = self._sense().tolist(), self.sensors.suite.datum == "roof"
+            return Measurement(self.tick, self.time, r[0], r[1], self.u_applied, r[2], r[3], r[4], roof)
         z = self.z  # once: FEPlant computes it from its state
         z1, z2 = float(z[0]), float(z[1])
         if self._noisy:
@@ -204,6 +254,33 @@ class Plant:
         q = self.options.quantisation
         z1, z2 = quantise(z1, q), quantise(z2, q)
         return Measurement(self.tick, self.time, z1, z2, self.u_applied)
+
+    def _sense(self) -> np.ndarray:
+        """The suite's five readings of this tick (sensors.CHANNELS), each tick's once: the low-pass
+        and the latency advance one tick per tick whether or not a measurement is asked for."""
+        sensors = self.sensors
+        assert sensors is not None
+        if self._sensed_tick != self.tick:
+            truth = self.truth()
+            a1, a2 = self._accelerations()
+            noise = np.random.default_rng([self.options.noise_seed, 0x5E5, self.tick]).standard_normal(5)
+            z1, z2 = truth.z[0], truth.z[1]
+            sensor_step(
+                sensors.params[0], sensors.state[0], z1, z2, a1, a2, truth.roof_height,
+                truth.contact_force, noise, self._sensed,
+            )  # fmt: skip
+            self._sensed_tick = self.tick
+        return self._sensed
+
+    def _accelerations(self) -> tuple[float, float]:
+        """(z1'', z2'') at this tick, from the ground, with the forces of the period that ends here
+        (the left limit: the next period's command is not known yet)."""
+        force = self.u_applied
+        if self.roof is not None:  # the roof's spring and damper force at this instant
+            height, velocity, _ = self.roof.at(self.time)
+            force += self._roof_k * height + self._roof_c * velocity
+        d = self.derivative(self.time, self.z, force)
+        return float(d[2]), float(d[3])
 
     _NOISE_BLOCK = 4096
 
@@ -248,10 +325,13 @@ class Plant:
             contact_force=force,
             in_contact=force > 0.0,
             u_applied=self.u_applied,
+            roof_height=self.roof_height(),
         )
 
     def advance(self, u: float) -> None:
         """Apply ``u`` [N] over [t_k, t_{k+1}] (through the actuator) and move to tick k + 1."""
+        if self.sensors is not None:
+            self._sense()  # every tick is sensed once (the suite's filters step per tick)
         applied = self._actuate(u)
         p = self.pantograph
         self.z = plant_advance(
@@ -259,7 +339,7 @@ class Plant:
             self.time,
             self.sample_period,
             self.options.substeps,
-            applied + self.uplift,  # the pantograph's own uplift and the wind act with u
+            self._with_roof(applied + self.uplift),  # its own uplift, the wind and the roof act with u
             self._a,
             self._theta,
             self._omega,

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from pac_common.parameters import ParameterError
+from pac_model.pantograph_file import PantographFile
 
 
 @dataclass(frozen=True)
@@ -204,3 +205,37 @@ def roof_series(amplitude, frequency, phase, t, out) -> None:
     for k in range(t.shape[0]):
         roof_at(amplitude, frequency, phase, t[k], one)
         out[0, k], out[1, k], out[2, k] = one[0], one[1], one[2]
+
+
+@njit(cache=True, error_model="numpy")
+def roof_force(amplitude, frequency, phase, stiffness: float, damping: float, t0: float, t1: float) -> float:
+    """The mean over [t0, t1] of k z_roof + c z_roof': what a roof spring k and damper c pass to the
+    mass they join when the roof moves (its base excitation). The mean, not a sample: the plant holds
+    the tick's forces over the tick (zero-order hold), and the mean is the held force that carries
+    the tick's impulse exactly (closed form: the cosines' integral, and z_roof(t1) - z_roof(t0))."""
+    h = t1 - t0
+    mean_height = 0.0
+    rise = 0.0
+    for i in range(amplitude.shape[0]):
+        w = frequency[i]
+        a1, a0 = w * t1 + phase[i], w * t0 + phase[i]
+        mean_height += amplitude[i] * (math.sin(a1) - math.sin(a0)) / w
+        rise += amplitude[i] * (math.cos(a1) - math.cos(a0))
+    return (stiffness * mean_height + damping * rise) / h
+
+
+def roof_attachment(chain: PantographFile) -> tuple[float, float]:
+    """(k, c): the roof spring and damper of a pantograph file's actuator mass, the one mass the
+    roof's motion may reach here (the plant adds it as a force on that mass, with the actuator's);
+    a chain with another mass on the roof: ParameterError (one line)."""
+    others = [i for i, j, _ in (*chain.springs, *chain.dampers) if j < 0 and i != chain.actuator]
+    if others:
+        raise ParameterError(
+            "roof_motion",
+            chain.path or chain.name,
+            "a pantograph whose only mass on the roof is the actuator's (this one has "
+            f"'{chain.mass_names[others[0]]}' on it too)",
+        )
+    k = sum(v for i, j, v in chain.springs if j < 0)
+    c = sum(v for i, j, v in chain.dampers if j < 0)
+    return float(k), float(c)
