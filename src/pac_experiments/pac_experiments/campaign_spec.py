@@ -63,6 +63,8 @@ KEY_NEUTRAL_DEFAULTS = {
     "roof_seed": 0,
     "car_body": "high_speed_trailer",
     "sensors": "ground",
+    "aero_turbulence": 0.0,
+    "aero_turbulence_seed": 0,
     "pantographs": (0.0,),
     "controlled_pantograph": 0,
     "passive_pantograph": "three_mass",

@@ -101,6 +101,15 @@ class PlantOptions(ParameterSet):
         "the car body whose roof carries the pantograph (roof_motion; docs/vehicle_and_hardware.md)",
         choices=tuple(CAR_BODIES),
     )
+    aero_turbulence: float = parameter(
+        0.0,
+        "turbulent uplift: RMS of a seeded fluctuation of the pantograph's mean uplift (static + "
+        "aerodynamic + wind), as a fraction of it, flat over 0.5-20 Hz (0: none, today's; 0.05-0.1 is "
+        "the judgement of docs/vehicle_and_hardware.md)",
+        low=0.0,
+        high=0.5,
+    )
+    aero_turbulence_seed: int = parameter(0, "seed of the turbulent uplift (aero_turbulence)", low=0)
     sensors: str = parameter(
         "ground",
         "the sensor suite: 'ground' z1, z2 from a fixed datum with noise_std and quantisation "

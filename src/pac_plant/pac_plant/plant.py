@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pac_common.parameters import ParameterError
 from pac_model import model
 from pac_model.pantograph_file import PantographFile
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
@@ -17,6 +18,7 @@ from .catenary.pantographs import plant_chain
 from .hardware.actuators import Actuator, actuator_model
 from .hardware.car_body import CAR_BODIES, TRACKS, RoofMotion, roof_attachment, roof_force, roof_motion
 from .hardware.sensors import Sensors, sensor_step, sensor_suite
+from .hardware.turbulence import gusts
 from .parameters import PlantOptions
 
 
@@ -187,17 +189,30 @@ class Plant:
             track, car = TRACKS[options.roof_motion], CAR_BODIES[options.car_body]
             self.roof = roof_motion(track, car, speed_kmh / 3.6, options.roof_seed, behind)
             self._roof_k, self._roof_c = roof_attachment(chain)
+        # The turbulent uplift: its cosines (the force as their "height") on the actuator's mass.
+        self.gusts: RoofMotion | None = None
+        if options.aero_turbulence > 0.0:
+            if not self.uplift > 0.0:
+                raise ParameterError(
+                    "aero_turbulence",
+                    options.aero_turbulence,
+                    f"0 for a pantograph pressed by no uplift of its own (mean uplift {self.uplift:g} N)",
+                )
+            self.gusts = gusts(options.aero_turbulence * self.uplift, options.aero_turbulence_seed)
 
     def _with_roof(self, force: float) -> float:
         """``force`` on the actuator's mass over this tick plus the moving roof's, through the roof
-        spring and damper (their mean over the tick); ``force`` itself for a fixed base."""
-        roof = self.roof
-        if roof is None:
-            return force
+        spring and damper, and the turbulent uplift (each its mean over the tick); ``force`` itself
+        for a fixed base and no turbulence."""
+        roof, wind = self.roof, self.gusts
         t0, t1 = self.time, self.time + self.sample_period
-        return force + roof_force(
-            roof.amplitude, roof.frequency, roof.phase, self._roof_k, self._roof_c, t0, t1
-        )
+        if roof is not None:
+            force = force + roof_force(
+                roof.amplitude, roof.frequency, roof.phase, self._roof_k, self._roof_c, t0, t1
+            )
+        if wind is not None:  # the turbulent uplift's mean over the tick (k = 1, c = 0: the cosines')
+            force = force + roof_force(wind.amplitude, wind.frequency, wind.phase, 1.0, 0.0, t0, t1)
+        return force
 
     def roof_height(self) -> float:
         """The roof's height under the pantograph from its rest at this tick [m] (0: a fixed base)."""
@@ -279,6 +294,8 @@ class Plant:
         if self.roof is not None:  # the roof's spring and damper force at this instant
             height, velocity, _ = self.roof.at(self.time)
             force += self._roof_k * height + self._roof_c * velocity
+        if self.gusts is not None:
+            force += self.gusts.at(self.time)[0]
         d = self.derivative(self.time, self.z, force)
         return float(d[2]), float(d[3])
 

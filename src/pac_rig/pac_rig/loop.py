@@ -97,6 +97,11 @@ PLANT_PARAMS = np.dtype(
         ("roof_amplitude", "f8", TERMS),
         ("roof_frequency", "f8", TERMS),
         ("roof_phase", "f8", TERMS),
+        # The turbulent uplift (Plant.gusts; gusts False: none): its cosines [N]
+        ("gusts", "b1"),
+        ("gust_amplitude", "f8", TERMS),
+        ("gust_frequency", "f8", TERMS),
+        ("gust_phase", "f8", TERMS),
     ]
 )
 
@@ -231,6 +236,11 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
         t0 = k * pp.dt
         force = force + roof_force(
             pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, pp.roof_k, pp.roof_c, t0, t0 + pp.dt
+        )
+    if pp.gusts:  # and the turbulent uplift's mean over the tick (Plant._with_roof)
+        t0 = k * pp.dt
+        force = force + roof_force(
+            pp.gust_amplitude, pp.gust_frequency, pp.gust_phase, 1.0, 0.0, t0, t0 + pp.dt
         )
     if pp.kind == FE:
         cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
@@ -429,6 +439,9 @@ def compile_loop(
         p["roof"], p["roof_k"], p["roof_c"] = True, plant._roof_k, plant._roof_c
         p["roof_amplitude"], p["roof_frequency"] = plant.roof.amplitude, plant.roof.frequency
         p["roof_phase"] = plant.roof.phase
+    if plant.gusts is not None:
+        p["gusts"], p["gust_amplitude"] = True, plant.gusts.amplitude
+        p["gust_frequency"], p["gust_phase"] = plant.gusts.frequency, plant.gusts.phase
     if isinstance(plant, FEPlant):
         sim = plant.sim
         p["kind"], p["substeps"] = FE, plant.options.fe_substeps
