@@ -30,8 +30,15 @@ def messages_of(bag: Path) -> list[tuple[str, int, bytes]]:
         {"duration": 0.5, "noise_std": (1e-5, 1e-5), "command_delay_ticks": 2, "law": "pid"},
         {"duration": 5.0, "shape": "square", "period": 1.0},  # more than one block of ticks
         {"duration": 1.0, "c1": 400.0, "c2": 400.0, "u_min": -1e7, "u_max": 1e7, "slew_rate_max": 1e12},
+        {
+            "duration": 1.0,
+            "actuator": "electromechanical",
+            "command_delay_ticks": 2,
+            "shape": "square",
+            "period": 0.4,
+        },
     ],
-    ids=["noisy-pid", "blocks", "diverges"],
+    ids=["noisy-pid", "blocks", "diverges", "actuator"],
 )
 @pytest.mark.slow
 def test_compiled_bag_equals_the_per_record_bag(tmp_path, values):

@@ -234,6 +234,27 @@ def test_a_file_of_the_papers_shape_with_other_values_reaches_observer_and_contr
 
 
 @pytest.mark.unit
+def test_the_contact_force_observer_takes_a_nominal_pantograph_file(tmp_path):
+    """observer:=contact_force with a nominal_pantograph: its filter bank is the file's 2-DOF with the
+    bank's frame masses, the same bank as for the file's numbers given one by one (each member used
+    to re-check its m2 against the file, so every file was refused: "'m2' = 8.4: allowed 12")."""
+    from pac_observer.contact_force import ContactForceObserver
+    from pac_observer.parameters import ObserverParameters
+
+    heavy = tmp_path / "heavy.yaml"
+    heavy.write_text(PAPER.read_text().replace("mass: 12.0", "mass: 15.0"))
+    params = ObserverParameters(observer="contact_force")
+    for named, plain in (("paper_2dof", PantographParameters()), (str(heavy), PantographParameters(m2=15.0))):
+        got = ContactForceObserver(
+            PantographParameters(nominal_pantograph=named), TrackParameters(), params, 1e-3
+        )
+        want = ContactForceObserver(plain, TrackParameters(), params, 1e-3)
+        assert len(got.frame_mass_scales) > 1  # a bank, not the single filter
+        for a, b in zip(got.bank, want.bank, strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.unit
 def test_the_lumped_plant_refuses_a_chain_it_cannot_simulate_and_runs_one_it_can():
     from pac_plant.parameters import PlantOptions
     from pac_plant.plant import Plant

@@ -8,7 +8,7 @@ package_name = "pac_plant"
 setup(
     name=package_name,
     version="0.1.0",
-    packages=[package_name, package_name + ".catenary"],
+    packages=[package_name, package_name + ".catenary", package_name + ".hardware"],
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),

@@ -81,6 +81,10 @@ def measurement_fields(m: Any, stamp_ns: int) -> dict[str, Any]:
         "z1": m.z1,
         "z2": m.z2,
         "actuator_force": m.actuator_force,
+        "head_acceleration": float(getattr(m, "head_acceleration", math.nan)),
+        "frame_acceleration": float(getattr(m, "frame_acceleration", math.nan)),
+        "head_force": float(getattr(m, "head_force", math.nan)),
+        "from_roof": bool(getattr(m, "from_roof", False)),
     }
 
 
@@ -112,6 +116,7 @@ def truth_fields(
         "contact_uplift": float(getattr(t, "contact_uplift", math.nan)),
         "support_uplift": float(getattr(t, "support_uplift", math.nan)),
         "contact_position": float(getattr(t, "contact_position", math.nan)),
+        "roof_height": float(getattr(t, "roof_height", 0.0)),
     }
 
 
@@ -272,6 +277,11 @@ def tick_columns(block: Any, rate_hz: float, command_delay_ticks: int) -> dict[s
             "z1": block["y"][:, 0],
             "z2": block["y"][:, 1],
             "actuator_force": block["actuator_force"],
+            # The compiled loop runs the ground suite only: no accelerometers, no load cell.
+            "head_acceleration": nan,
+            "frame_acceleration": nan,
+            "head_force": nan,
+            "from_roof": np.zeros(ticks.size, dtype=bool),
         },
         "plant_truth": {
             **head,
@@ -291,6 +301,7 @@ def tick_columns(block: Any, rate_hz: float, command_delay_ticks: int) -> dict[s
             "contact_uplift": block["contact_uplift"],  # NaN on the lumped line
             "support_uplift": block["support_uplift"],
             "contact_position": block["contact_position"],
+            "roof_height": block["roof_height"],
         },
         "estimate": {
             **head,

@@ -214,7 +214,9 @@ class ContactForceObserver:
         self.frame_mass_scales = frame_mass_scales(params)
         designs = [
             kalman_design(
-                replace(pantograph, m2=pantograph.m2 * scale),
+                # A member is the nominal 2-DOF with another m2: its numbers are already the file's
+                # (check_consistency wrote them in), so it names no file that would re-check m2.
+                replace(pantograph, m2=pantograph.m2 * scale, nominal_pantograph=""),
                 params.force_process_noise,
                 params.position_noise,
                 sample_period,

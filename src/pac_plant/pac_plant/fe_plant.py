@@ -161,6 +161,7 @@ class FEPlant(Plant):
         self.sim.readings(self._flex, self._readings)
         self.tick = 0
         self.u_applied = 0.0
+        self._init_roof(chain, track.speed_kmh, spacings[ctrl])
         self._init_sensor()
 
     @property
@@ -202,6 +203,7 @@ class FEPlant(Plant):
             contact_uplift=r[kernels.CONTACT_UPLIFT],
             support_uplift=r[kernels.SUPPORT_UPLIFT],  # at the support nearest x
             contact_position=s.position - s.lags[0],
+            roof_height=self.roof_height(),
         )
 
     def pantograph_truths(self) -> list[PantographTruth]:
@@ -221,14 +223,22 @@ class FEPlant(Plant):
             )
         return out
 
+    def _accelerations(self) -> tuple[float, float]:
+        """(z1'', z2'') at this tick: the Newmark state's (the end of the period that ends here)."""
+        ap = self.sim.state.ap
+        return float(ap[0]), float(ap[1])
+
     def advance(self, u: float) -> None:
-        """Apply ``u`` [N] over [t_k, t_{k+1}] (held) and move to tick k + 1."""
-        if not math.isfinite(u):
-            raise ValueError(f"actuator force must be finite, got {u!r}")
+        """Apply ``u`` [N] over [t_k, t_{k+1}] (held, through the actuator) and move to tick k + 1."""
+        if self.sensors is not None:
+            self._sense()  # every tick is sensed once (the suite's filters step per tick)
+        applied = self._actuate(u)
         # The pantograph's own uplift and the wind act with u on the actuator's mass.
-        self.sim.advance(u + self.uplift, self.options.fe_substeps, self._flex, self._readings)
+        self.sim.advance(
+            self._with_roof(applied + self.uplift), self.options.fe_substeps, self._flex, self._readings
+        )
         self.tick += 1
-        self.u_applied = float(u)
+        self.u_applied = applied
 
 
 def several_pantographs(plant: Plant) -> FEPlant | None:

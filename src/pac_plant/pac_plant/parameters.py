@@ -6,6 +6,10 @@ from dataclasses import dataclass
 
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
+from .hardware.actuators import ACTUATORS
+from .hardware.car_body import CAR_BODIES, TRACKS
+from .hardware.sensors import SENSORS
+
 #: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
 #: moving window grows by that distance (its cost with it).
 MAX_PANTOGRAPHS = 4
@@ -66,6 +70,53 @@ class PlantOptions(ParameterSet):
         "N",
         low=-200.0,
         high=200.0,
+    )
+    actuator: str = parameter(
+        "ideal",
+        "the actuator between the command and the pantograph: 'ideal' the command is the force "
+        "(today's rig); 'electromechanical' (+-100 N about actuator_static_force, 5 kN/s, lag 20 ms, "
+        "delay 5 ms) or 'pneumatic' (+-100 N, 500 N/s, lag 200 ms, delay 20 ms); "
+        "docs/vehicle_and_hardware.md gives each number's source",
+        choices=tuple(ACTUATORS),
+    )
+    actuator_static_force: float = parameter(
+        100.0,
+        "the static force F0 the actuator's range is about (the pneumatic uplift a fast actuator acts "
+        "on top of; set it to the run's force_amplitude, whose default it is); the actuator holds it "
+        "at tick 0 (not used by 'ideal')",
+        "N",
+        low=0.0,
+        high=1000.0,
+    )
+    roof_motion: str = parameter(
+        "",
+        "the car body moves: the pantograph's base rides on the roof of a car body in bounce and pitch "
+        "over a seeded track of this irregularity class ('german_low' or 'german_high'); '' = a fixed "
+        "base (today's rig). docs/vehicle_and_hardware.md gives the model and its numbers",
+        choices=("", *TRACKS),
+    )
+    roof_seed: int = parameter(0, "seed of the track under the car body (roof_motion)", low=0)
+    car_body: str = parameter(
+        "high_speed_trailer",
+        "the car body whose roof carries the pantograph (roof_motion; docs/vehicle_and_hardware.md)",
+        choices=tuple(CAR_BODIES),
+    )
+    aero_turbulence: float = parameter(
+        0.0,
+        "turbulent uplift: RMS of a seeded fluctuation of the pantograph's mean uplift (static + "
+        "aerodynamic + wind), as a fraction of it, flat over 0.5-20 Hz (0: none, today's; 0.05-0.1 is "
+        "the judgement of docs/vehicle_and_hardware.md)",
+        low=0.0,
+        high=0.5,
+    )
+    aero_turbulence_seed: int = parameter(0, "seed of the turbulent uplift (aero_turbulence)", low=0)
+    sensors: str = parameter(
+        "ground",
+        "the sensor suite: 'ground' z1, z2 from a fixed datum with noise_std and quantisation "
+        "(today's rig); 'train' head and frame positions from the roof and head and frame "
+        "accelerometers, 'train_load_cell' also a head load cell, each channel with noise, bandwidth "
+        "and latency (seeded by noise_seed; docs/vehicle_and_hardware.md gives each number's source)",
+        choices=tuple(SENSORS),
     )
     fe_substeps: int = parameter(
         1, "fe: Newmark steps per sample period (docs/catenary.md: convergence)", low=1, high=20
@@ -165,6 +216,12 @@ class PlantOptions(ParameterSet):
                 "controlled_pantograph",
                 self.controlled_pantograph,
                 f"an index into pantographs, an integer in [0, {len(spacings) - 1}]",
+            )
+        if len(spacings) > 1 and self.roof_motion:
+            raise ParameterError(
+                "roof_motion",
+                self.roof_motion,
+                "'' with several pantographs (the roof motion under the passive ones is not wired yet)",
             )
         if len(spacings) > 1:
             load_pantograph_file(self.passive_pantograph, "passive_pantograph")

@@ -9,10 +9,16 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pac_common.parameters import ParameterError
 from pac_model import model
+from pac_model.pantograph_file import PantographFile
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
 from .catenary.pantographs import plant_chain
+from .hardware.actuators import Actuator, actuator_model
+from .hardware.car_body import CAR_BODIES, TRACKS, RoofMotion, roof_attachment, roof_force, roof_motion
+from .hardware.sensors import Sensors, sensor_step, sensor_suite
+from .hardware.turbulence import gusts
 from .parameters import PlantOptions
 
 
@@ -26,6 +32,13 @@ class Measurement:
     z2: float
     #: Force the actuator applied over the sample period that ends at this tick [N].
     actuator_force: float
+    #: What the sensor suite (``sensors``) adds: head and frame accelerometers [m/s^2] and the
+    #: head's load cell [N]; NaN where the suite has none (``ground``, today's: all NaN).
+    head_acceleration: float = math.nan
+    frame_acceleration: float = math.nan
+    head_force: float = math.nan
+    #: z1, z2 are measured from the roof (a train's sensors), not from the ground.
+    from_roof: bool = False
 
 
 @dataclass(frozen=True)
@@ -45,6 +58,9 @@ class Truth:
     support_uplift: float = math.nan
     #: Distance of the contact point along the line [m] (FE line only).
     contact_position: float = math.nan
+    #: Height of the roof under the pantograph from its rest [m] (0: a fixed base; z is from the
+    #: ground either way).
+    roof_height: float = 0.0
 
 
 @njit(cache=True)
@@ -159,13 +175,71 @@ class Plant:
         self.tick = 0
         self.z = np.zeros(4) if z0 is None else np.array(z0, dtype=float)
         self.u_applied = 0.0
+        self._init_roof(chain, track.speed_kmh, 0.0)
         self._init_sensor()
 
+    def _init_roof(self, chain: PantographFile, speed_kmh: float, behind: float) -> None:
+        """The roof motion under this pantograph (``behind`` [m] behind the train's first one) and
+        the roof spring and damper it reaches the actuator's mass through; None: a fixed base
+        (shared with FEPlant)."""
+        options = self.options
+        self.roof: RoofMotion | None = None
+        self._roof_k = self._roof_c = 0.0
+        if options.roof_motion:
+            track, car = TRACKS[options.roof_motion], CAR_BODIES[options.car_body]
+            self.roof = roof_motion(track, car, speed_kmh / 3.6, options.roof_seed, behind)
+            self._roof_k, self._roof_c = roof_attachment(chain)
+        # The turbulent uplift: its cosines (the force as their "height") on the actuator's mass.
+        self.gusts: RoofMotion | None = None
+        if options.aero_turbulence > 0.0:
+            if not self.uplift > 0.0:
+                raise ParameterError(
+                    "aero_turbulence",
+                    options.aero_turbulence,
+                    f"0 for a pantograph pressed by no uplift of its own (mean uplift {self.uplift:g} N)",
+                )
+            self.gusts = gusts(options.aero_turbulence * self.uplift, options.aero_turbulence_seed)
+
+    def _with_roof(self, force: float) -> float:
+        """``force`` on the actuator's mass over this tick plus the moving roof's, through the roof
+        spring and damper, and the turbulent uplift (each its mean over the tick); ``force`` itself
+        for a fixed base and no turbulence."""
+        roof, wind = self.roof, self.gusts
+        t0, t1 = self.time, self.time + self.sample_period
+        if roof is not None:
+            force = force + roof_force(
+                roof.amplitude, roof.frequency, roof.phase, self._roof_k, self._roof_c, t0, t1
+            )
+        if wind is not None:  # the turbulent uplift's mean over the tick (k = 1, c = 0: the cosines')
+            force = force + roof_force(wind.amplitude, wind.frequency, wind.phase, 1.0, 0.0, t0, t1)
+        return force
+
+    def roof_height(self) -> float:
+        """The roof's height under the pantograph from its rest at this tick [m] (0: a fixed base)."""
+        return 0.0 if self.roof is None else self.roof.at(self.time)[0]
+
     def _init_sensor(self) -> None:
-        """Sensor noise state (shared with FEPlant, which reuses ``measurement``)."""
+        """Sensor noise state and the actuator (shared with FEPlant, which reuses ``measurement``
+        and ``_actuate``)."""
         self._noisy = any(s > 0.0 for s in self.options.noise_std)
         self._noise_block_index = -1
         self._noise_block = np.zeros((0, 2))
+        options = self.options
+        suite = sensor_suite(options.sensors)
+        # ``ground`` is today's sensing, done here (noise_std, quantisation): the core is not called.
+        self.sensors = None if suite.name == "ground" else Sensors(suite, self.sample_period)
+        self._sensed_tick = -1  # the tick whose readings ``_sensed`` holds
+        self._sensed = np.full(5, math.nan)
+        self.actuator = Actuator(
+            actuator_model(options.actuator), options.actuator_static_force, self.sample_period
+        )
+
+    def _actuate(self, u: float) -> float:
+        """The force the actuator applies over this tick for the command ``u`` (held over it): its
+        mean over the tick (pac_plant.hardware.actuators); ``u`` itself for the ideal actuator."""
+        if not math.isfinite(u):
+            raise ValueError(f"actuator force must be finite, got {u!r}")
+        return float(u) if self.actuator.ideal else self.actuator.apply(u)
 
     @property
     def time(self) -> float:
@@ -182,7 +256,11 @@ class Plant:
         return plant_rhs(t, z, f, self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
 
     def measurement(self) -> Measurement:
-        """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution."""
+        """y_k: positions plus the seeded noise of this tick, rounded to the sensor resolution; or
+        what the sensor suite reads (positions from the roof, accelerometers, load cell)."""
+        if self.sensors is not None:
+            r, roof = self._sense().tolist(), self.sensors.suite.datum == "roof"
+            return Measurement(self.tick, self.time, r[0], r[1], self.u_applied, r[2], r[3], r[4], roof)
         z = self.z  # once: FEPlant computes it from its state
         z1, z2 = float(z[0]), float(z[1])
         if self._noisy:
@@ -191,6 +269,35 @@ class Plant:
         q = self.options.quantisation
         z1, z2 = quantise(z1, q), quantise(z2, q)
         return Measurement(self.tick, self.time, z1, z2, self.u_applied)
+
+    def _sense(self) -> np.ndarray:
+        """The suite's five readings of this tick (sensors.CHANNELS), each tick's once: the low-pass
+        and the latency advance one tick per tick whether or not a measurement is asked for."""
+        sensors = self.sensors
+        assert sensors is not None
+        if self._sensed_tick != self.tick:
+            truth = self.truth()
+            a1, a2 = self._accelerations()
+            noise = np.random.default_rng([self.options.noise_seed, 0x5E5, self.tick]).standard_normal(5)
+            z1, z2 = truth.z[0], truth.z[1]
+            sensor_step(
+                sensors.params[0], sensors.state[0], z1, z2, a1, a2, truth.roof_height,
+                truth.contact_force, noise, self._sensed,
+            )  # fmt: skip
+            self._sensed_tick = self.tick
+        return self._sensed
+
+    def _accelerations(self) -> tuple[float, float]:
+        """(z1'', z2'') at this tick, from the ground, with the forces of the period that ends here
+        (the left limit: the next period's command is not known yet)."""
+        force = self.u_applied
+        if self.roof is not None:  # the roof's spring and damper force at this instant
+            height, velocity, _ = self.roof.at(self.time)
+            force += self._roof_k * height + self._roof_c * velocity
+        if self.gusts is not None:
+            force += self.gusts.at(self.time)[0]
+        d = self.derivative(self.time, self.z, force)
+        return float(d[2]), float(d[3])
 
     _NOISE_BLOCK = 4096
 
@@ -235,19 +342,21 @@ class Plant:
             contact_force=force,
             in_contact=force > 0.0,
             u_applied=self.u_applied,
+            roof_height=self.roof_height(),
         )
 
     def advance(self, u: float) -> None:
-        """Apply ``u`` [N] over [t_k, t_{k+1}] and move to tick k + 1."""
-        if not math.isfinite(u):
-            raise ValueError(f"actuator force must be finite, got {u!r}")
+        """Apply ``u`` [N] over [t_k, t_{k+1}] (through the actuator) and move to tick k + 1."""
+        if self.sensors is not None:
+            self._sense()  # every tick is sensed once (the suite's filters step per tick)
+        applied = self._actuate(u)
         p = self.pantograph
         self.z = plant_advance(
             self.z,
             self.time,
             self.sample_period,
             self.options.substeps,
-            float(u) + self.uplift,  # the pantograph's own uplift and the wind act with u
+            self._with_roof(applied + self.uplift),  # its own uplift, the wind and the roof act with u
             self._a,
             self._theta,
             self._omega,
@@ -256,4 +365,4 @@ class Plant:
             self._unilateral,
         )
         self.tick += 1
-        self.u_applied = float(u)
+        self.u_applied = applied

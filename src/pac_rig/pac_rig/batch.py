@@ -87,7 +87,7 @@ def prepare(i: int, s: Scenario) -> tuple[CompiledLoop, np.ndarray]:
         raise ValueError(
             f"scenario {i}: the compiled loop has no form for catenary_model {s.plant.catenary_model}, "
             f"observer {s.observer.observer}, law {s.controller.effective_law}, "
-            f"command_delay_ticks {s.loop.command_delay_ticks}"
+            f"command_delay_ticks {s.loop.command_delay_ticks}, sensors {s.plant.sensors}"
         )
     noisy = any(v > 0.0 for v in s.plant.noise_std)
     return loop, cores[0].noise_rows(0, s.loop.ticks) if noisy else np.zeros((1, 2))
@@ -127,7 +127,8 @@ def actuator_violation(u: np.ndarray, s: Scenario) -> tuple[int, str] | None:
 def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
     parameters without building the cores: every line, observer and law; the delay it holds."""
-    return s.controller.effective_law in LAW_CODES and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
+    laws_and_delay = s.controller.effective_law in LAW_CODES and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
+    return laws_and_delay and s.plant.sensors == "ground"  # a train's sensors: the core steps them
 
 
 def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:

@@ -159,8 +159,8 @@ def divergence_reason(code: int, value: float) -> str:
 
 _RECORD_COLUMNS = (
     "tick", "time", "y", "actuator_force", "z", "stiffness", "contact_force", "in_contact", "u_applied",
-    "contact_uplift", "support_uplift", "contact_position", "stiffness_hat", "contact_force_hat", "u",
-    "u_unsaturated", "force_reference", "tracking_error", "saturated", "mode",
+    "contact_uplift", "support_uplift", "contact_position", "roof_height", "stiffness_hat",
+    "contact_force_hat", "u", "u_unsaturated", "force_reference", "tracking_error", "saturated", "mode",
 )  # fmt: skip
 
 
@@ -201,7 +201,7 @@ def tick_records(block: np.ndarray, controlled: Sequence[bool] = ()) -> Iterator
             Truth(
                 tick, t, (z0, z1, z2, z3), col["stiffness"][i], col["contact_force"][i],
                 col["in_contact"][i], col["u_applied"][i], col["contact_uplift"][i],
-                col["support_uplift"][i], col["contact_position"][i],
+                col["support_uplift"][i], col["contact_position"][i], col["roof_height"][i],
             ),
             Estimate(
                 tick, t, z_hat[i], theta_hat[i], col["stiffness_hat"][i], col["contact_force_hat"][i],

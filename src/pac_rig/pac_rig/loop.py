@@ -43,6 +43,8 @@ from pac_observer.contact_force import ContactForceObserver, contact_force_advan
 from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
 from pac_plant.catenary import kernels as fe
 from pac_plant.fe_plant import FEPlant, several_pantographs
+from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
+from pac_plant.hardware.car_body import TERMS, roof_at, roof_force
 from pac_plant.parameters import MAX_PANTOGRAPHS
 from pac_plant.plant import Plant, plant_advance_inplace, quantise
 
@@ -81,6 +83,23 @@ PLANT_PARAMS = np.dtype(
         # order of ``pantographs`` (``FEPlant.contact_of`` where ``fe_plant.several_pantographs``)
         ("pantographs", "i8"),
         ("contact_of", "i8", MAX_PANTOGRAPHS),
+        (
+            "actuator",
+            ACTUATOR_PARAMS,
+        ),  # the actuator's (Plant.actuator; kind IDEAL: the command is the force)
+        # The moving roof (Plant.roof; roof False: a fixed base): its cosines and the roof spring and
+        # damper of the actuator's mass
+        ("roof", "b1"),
+        ("roof_k", "f8"),
+        ("roof_c", "f8"),
+        ("roof_amplitude", "f8", TERMS),
+        ("roof_frequency", "f8", TERMS),
+        ("roof_phase", "f8", TERMS),
+        # The turbulent uplift (Plant.gusts; gusts False: none): its cosines [N]
+        ("gusts", "b1"),
+        ("gust_amplitude", "f8", TERMS),
+        ("gust_frequency", "f8", TERMS),
+        ("gust_phase", "f8", TERMS),
     ]
 )
 
@@ -91,6 +110,8 @@ PLANT_STATE = np.dtype(
         ("pending", "f8", MAX_DELAY),  # commands sent, not yet applied (a ring)
         ("head", "i8"),
         ("readings", "f8", 5),  # scratch: kernels.readings_at one pantograph's contact point
+        ("actuator", ACTUATOR_STATE),
+        ("roof", "f8", 3),  # scratch: the roof's height, velocity, acceleration (car_body.roof_at)
     ]
 )
 
@@ -111,6 +132,7 @@ TICK = np.dtype(
         ("contact_uplift", "f8"),  # FE line only (NaN on the lumped one), as plant.Truth
         ("support_uplift", "f8"),
         ("contact_position", "f8"),
+        ("roof_height", "f8"),  # the roof under the pantograph from its rest (0: a fixed base)
         # every pantograph (PLANT_PARAMS.pantographs of them, in the order of ``pantographs``; NaN
         # beyond, and everywhere with one pantograph): fe_plant.PantographTruth's fields
         ("pantograph_contact_force", "f8", MAX_PANTOGRAPHS),
@@ -172,6 +194,10 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
     out.actuator_force = ps.u_applied
     out.z[:] = z
     out.stiffness, out.contact_force, out.in_contact, out.u_applied = stiff, force, force > 0.0, ps.u_applied
+    out.roof_height = 0.0
+    if pp.roof:
+        roof_at(pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, t, ps.roof)
+        out.roof_height = ps.roof[0]
     return y1, y2
 
 
@@ -203,10 +229,21 @@ def _no_pantographs(out, first) -> None:
 @njit(cache=True, error_model="numpy")
 def _plant_advance(k, pp, ps, fe_args, applied) -> int:
     """The plant over [t_k, t_k+1] with ``applied`` held (zero-order hold); 0 or OFF_LINE."""
+    force = applied + pp.uplift  # the pantograph's own uplift and the wind act with u
+    if pp.roof:  # and the moving roof's force (Plant._with_roof)
+        t0 = k * pp.dt
+        force = force + roof_force(
+            pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, pp.roof_k, pp.roof_c, t0, t0 + pp.dt
+        )
+    if pp.gusts:  # and the turbulent uplift's mean over the tick (Plant._with_roof)
+        t0 = k * pp.dt
+        force = force + roof_force(
+            pp.gust_amplitude, pp.gust_frequency, pp.gust_phase, 1.0, 0.0, t0, t0 + pp.dt
+        )
     if pp.kind == FE:
         cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
         c, st = fe.unpack(cf, ci, cl, sf, si, sl)
-        if fe.fe_advance(c, st, applied + pp.uplift, pp.substeps, flexibility, readings) != fe.STEP_OK:
+        if fe.fe_advance(c, st, force, pp.substeps, flexibility, readings) != fe.STEP_OK:
             return OFF_LINE
     else:
         plant_advance_inplace(
@@ -214,7 +251,7 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
             k * pp.dt,
             pp.dt,
             pp.substeps,
-            applied + pp.uplift,
+            force,
             pp.a,
             pp.theta,
             pp.omega,
@@ -279,13 +316,15 @@ def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, o
     out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
     out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
     out.saturated, out.mode = u != u_law, mode
-    # Command delay, then the plant over [t_k, t_k+1] (zero-order hold).
+    # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
     if pp.delay == 0:
         applied = u
     else:
         applied = ps.pending[ps.head]
         ps.pending[ps.head] = u
         ps.head = (ps.head + 1) % pp.delay
+    # The actuator's dynamics (Plant._actuate): its mean force over the tick.
+    applied = actuator_apply(pp.actuator, ps.actuator, applied)
     if _plant_advance(k, pp, ps, fe_args, applied):
         return OFF_LINE, out.contact_position
     return 0, 0.0
@@ -373,7 +412,8 @@ def compile_loop(
     """The records of the cores as built (``closed_loop.build_cores``; copies: the cores are not
     changed by running them), or None if the loop has no compiled form for them: a plant other
     than :class:`Plant` / :class:`FEPlant`, an observer other than the two, a law without kernel
-    (not a :class:`KernelLaw`), more delay than :data:`MAX_DELAY`."""
+    (not a :class:`KernelLaw`), more delay than :data:`MAX_DELAY`, a sensor suite other than
+    ``ground``."""
     if (
         type(plant) not in (Plant, FEPlant)
         or type(observer) not in (AdaptiveObserver, ContactForceObserver)
@@ -381,6 +421,8 @@ def compile_loop(
     ):
         return None
     if not isinstance(controller.law, KernelLaw) or not 0 <= delay <= MAX_DELAY:
+        return None
+    if plant.sensors is not None:  # a train's sensor suite: not compiled yet (the core steps it)
         return None
     pp = np.zeros(1, PLANT_PARAMS)
     p = pp[0]
@@ -390,6 +432,14 @@ def compile_loop(
     p["substeps"], p["delay"], p["uplift"] = plant.options.substeps, delay, plant.uplift
     ps = np.zeros(1, PLANT_STATE)
     ps[0]["z"], ps[0]["u_applied"] = plant.z, plant.u_applied
+    p["actuator"], ps[0]["actuator"] = plant.actuator.params[0], plant.actuator.state[0]  # copies
+    if plant.roof is not None:
+        p["roof"], p["roof_k"], p["roof_c"] = True, plant._roof_k, plant._roof_c
+        p["roof_amplitude"], p["roof_frequency"] = plant.roof.amplitude, plant.roof.frequency
+        p["roof_phase"] = plant.roof.phase
+    if plant.gusts is not None:
+        p["gusts"], p["gust_amplitude"] = True, plant.gusts.amplitude
+        p["gust_frequency"], p["gust_phase"] = plant.gusts.frequency, plant.gusts.phase
     if isinstance(plant, FEPlant):
         sim = plant.sim
         p["kind"], p["substeps"] = FE, plant.options.fe_substeps
