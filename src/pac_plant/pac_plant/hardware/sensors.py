@@ -81,7 +81,7 @@ _TRAIN_SOURCES = (
     "positions relative to the roof, 0.1 mm noise, 200 Hz, 2 ms: judgement (a laser or draw-wire "
     "sensor resolves 0.1 mm; the fibre link's 'a few ms' of docs/catenary_data.md section 9); "
     "accelerometers 0.05 m/s^2 noise, 50 Hz, 2 ms: judgement, 50 Hz the band RTRI reaches with "
-    "several head accelerometers (section 8); "
+    "several head accelerometers (section 9); "
 )
 
 #: Sensor suites by name (the ``sensors`` parameter).
@@ -118,7 +118,7 @@ SENSORS: dict[str, SensorSuite] = {
         _LOAD_CELL,
         1.0,
         _TRAIN_SOURCES + "a fibre-Bragg-grating load cell, 2 N noise (the 2-5 N resolution of "
-        "section 8, its fine end), 20 Hz (RTRI's accelerometer correction holds to ~20 Hz with "
+        "section 9, its fine end), 20 Hz (RTRI's accelerometer correction holds to ~20 Hz with "
         "one accelerometer), 3 ms; the strip above it 1 kg: judgement (a carbon strip with its "
         "horn-to-horn carrier weighs a few kg, about half of it per cell)",
     ),
