@@ -8,6 +8,8 @@ import json
 from pathlib import Path
 from typing import Any
 
+from pac_common.files import FileInputError, read_yaml
+
 from .names import topic_key
 
 #: The custom-data key (``pac.lost_messages``) of the messages per topic that DDS reported lost to
@@ -18,14 +20,18 @@ LOST_MESSAGES = "lost_messages"
 def bag_info(path: Path, warnings: list[str] | None = None) -> dict[str, Any]:
     """metadata.yaml's ``rosbag2_bagfile_information`` (empty when there is none or it is unreadable,
     which is said on ``warnings`` when given)."""
-    import yaml
-
     file = path / "metadata.yaml"
-    if not file.is_file():
+    if not file.exists():
         return {}
     try:
-        info = yaml.safe_load(file.read_text())["rosbag2_bagfile_information"]
-    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError) as exc:
+        # One reading discipline (pac_common.files): a regular file of bounded size, YAML without
+        # aliases or duplicate keys; a FIFO or device is refused, never opened.
+        info = read_yaml(file, "metadata")["rosbag2_bagfile_information"]
+    except FileInputError as exc:
+        if warnings is not None:
+            warnings.append(f"metadata.yaml unreadable: {exc.problem}: ignored")
+        return {}
+    except (KeyError, TypeError) as exc:
         if warnings is not None:
             warnings.append(f"metadata.yaml unreadable ({type(exc).__name__}): ignored")
         return {}

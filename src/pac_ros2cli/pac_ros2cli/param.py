@@ -113,12 +113,17 @@ def param_get(args: list[str]) -> int:
 
 def param_set(args: list[str]) -> int:
     """The value is YAML, as in ros2cli; the node converts an integer for a double parameter."""
-    import yaml
     from rclpy.parameter import Parameter
 
+    from pac_common.files import FileInputError, load_yaml
+
     node, (name, text) = _args(args, 2)
+    try:  # the one YAML loader: no aliases (an alias bomb is refused, not expanded)
+        value = load_yaml(text, f"the value of {name}")
+    except FileInputError as exc:
+        fail(str(exc), 2)
     with _client(node) as c:
-        result = c.call(c.client.set_parameters([Parameter(name, value=yaml.safe_load(text))])).results[0]
+        result = c.call(c.client.set_parameters([Parameter(name, value=value)])).results[0]
     if not result.successful:
         fail(f"setting parameter failed: {result.reason}")
     print("Set parameter successful")
