@@ -260,3 +260,23 @@ def test_the_plant_runs_a_whole_line_once_from_its_first_support() -> None:
     assert p.truth().contact_position == pytest.approx(p.line.layout.support_x[1] + 2000 * 300.0 / 3.6e3)
     assert 0.0 < p.truth().contact_force < 400.0
     assert plant(2).data != p.data  # line_seed draws another line
+
+
+def test_a_run_longer_than_the_whole_line_is_refused_before_it_starts() -> None:
+    """The whole line ends: a duration that would take the pantograph past its end is refused in one
+    line before any tick (it stopped mid-run with 'ran off the line'); one that ends on it runs."""
+    from pac_common.parameters import ParameterError
+    from pac_rig.closed_loop import build_cores, run
+    from pac_rig.simulate import scenario_from_flat
+
+    flat = {"catenary_model": "fe", "catenary": WHOLE_SHORT, "speed_kmh": 300.0, "law": "passive"}
+    plant = build_cores(scenario_from_flat({**flat, "duration": 0.1}))[0]
+    longest = plant.run_length / (300.0 / 3.6)
+    assert 0.0 < longest < 60.0
+    with pytest.raises(ParameterError) as info:
+        build_cores(scenario_from_flat({**flat, "duration": longest + 0.01}))
+    message = str(info.value)
+    assert info.value.name == "duration" and "the line ends" in message and "\n" not in message
+    # Two ticks short of the end runs to its last tick (the bound is where the step stops).
+    scenario = scenario_from_flat({**flat, "duration": round(longest - 2e-3, 3)})
+    assert sum(1 for _ in run(scenario)) == scenario.loop.ticks

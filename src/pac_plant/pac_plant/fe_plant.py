@@ -185,6 +185,12 @@ class FEPlant(Plant):
             datum, rate = float(self.datum), 0.0
         return (p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate)
 
+    @property
+    def run_length(self) -> float:
+        """How far [m] the pantograph can travel from where it starts: the rest of a whole line (it
+        ends there), any distance on the endless window of a periodic one."""
+        return self.line.length - self.sim.x if self.data.whole_line else math.inf
+
     def stiffness_at(self, t: float | None = None) -> float:
         """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""
         return float(self._readings[kernels.STATIC_STIFFNESS])

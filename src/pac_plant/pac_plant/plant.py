@@ -245,6 +245,11 @@ class Plant:
     def time(self) -> float:
         return self.tick * self.sample_period
 
+    @property
+    def run_length(self) -> float:
+        """How far [m] the pantograph can travel from where it starts: the lumped line is endless."""
+        return math.inf
+
     def stiffness_at(self, t: float) -> float:
         return model.stiffness(t, self._omega, self._theta)
 

@@ -105,6 +105,15 @@ def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObse
     plant = make_plant(
         s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt
     )  # lumped | fe
+    speed = s.track.speed_kmh / 3.6
+    if s.loop.duration * speed > plant.run_length:
+        # Refused before the run, not when the pantograph runs off the line's end mid-run.
+        raise ParameterError(
+            "duration",
+            s.loop.duration,
+            f"at most {plant.run_length / speed:.3f} s at {s.track.speed_kmh:g} km/h: the line ends "
+            f"{plant.run_length:.1f} m after the pantograph's start",
+        )
     observer = make_observer(s.pantograph, s.track, s.observer, dt)  # observer: adaptive | contact_force
     # backstepping_known is told the plant's own catenary: the oracle.
     controller = make_controller(s.pantograph, s.track, s.controller, s.reference, dt, s.laws, s.catenary)
