@@ -206,14 +206,20 @@ def test_ctrl_c_during_simulate_closes_the_bag_with_what_was_simulated(tmp_path)
 @pytest.mark.slow
 def test_simulate_announces_the_line_warns_on_a_span_mismatch_and_a_diverged_run_fails(tmp_path):
     env = node_env()
+    # No span named: the FE line's is derived and said; a span named that differs: a warning.
     fe = simulate(str(tmp_path / "fe"), "-p", "catenary_model:=fe", "-p", "duration:=0.02", env=env)
     assert fe.returncode == 0, fe.stderr
-    assert (
-        "the plant runs the fe line with 55 m spans but observer and controller assume span_length 65 m"
-        in (fe.stderr)
-    )
+    assert "simulate: span_length:=55 (the mean span of the FE line benchmark_55m)" in fe.stderr
+    assert "warning" not in fe.stderr
     status = read_bag(tmp_path / "fe").topics["run_status"]
     assert set(status["catenary_model"]) == {"fe"} and set(status["span_length"]) == {55.0}
+    told = ("-p", "catenary_model:=fe", "-p", "span_length:=65.0", "-p", "duration:=0.02")
+    fe65 = simulate(str(tmp_path / "fe65"), *told, env=env)
+    assert fe65.returncode == 0, fe65.stderr
+    assert (
+        "the plant runs the fe line with 55 m spans but observer and controller assume span_length 65 m"
+        in fe65.stderr
+    )
     paper_gains = ["c1:=400.0", "c2:=400.0", "c3:=50.0", "u_min:=-1.0e+7", "u_max:=1.0e+7"]
     paper_gains.append("slew_rate_max:=1.0e+12")  # reproduce's paper_gains: diverges at 0.234 s
     args = [a for p in [*paper_gains, "theta_hat0:=[3000.0, 0.0, 0.0]", "duration:=1.0"] for a in ("-p", p)]
