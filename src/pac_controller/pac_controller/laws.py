@@ -65,7 +65,7 @@ class LawEntry:
 
     build: Callable[..., Law]
     needs: frozenset[str] = frozenset()
-    observer: str = "adaptive"
+    observer: str | None = None  # None: the default observer
 
 
 THETA = frozenset({"theta_hat"})

@@ -325,9 +325,11 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     """The point's scenario, its values with what the SPEC derives, and its window [s]."""
     # What the parts imply (pac_rig.composition): the observer a law needs, and on the FE line the
     # span of the line the plant runs (a campaign may vary the file).
-    _scenario(values, composed=False)  # every value valid before anything is derived from them
-    values, _ = composition.derive(values)
-    scenario = _scenario(values)
+    scenario = _scenario(values, composed=False)  # every value valid before anything is derived
+    derived, _ = composition.derive(values)
+    if derived != values:
+        scenario = _scenario(derived, composed=False)
+    values = derived  # a copy: what follows adds to it, never to the caller's values
     if spec.force_target == "en50367":
         values["force_amplitude"] = target_mean_force(scenario.track.speed_kmh)
     if spec.window_spans is not None:

@@ -41,8 +41,8 @@ def derive(
     values: Mapping[str, Any], defaults: Mapping[str, Any] | None = None
 ) -> tuple[dict[str, Any], list[str]]:
     """``values`` (flat parameter names) with what the named parts imply where the user named
-    nothing, and one line per derived value (for a log). ``defaults``: values the caller's own
-    context fixes (a campaign's ``fixed``), consulted like ``values``."""
+    nothing, and one line per derived value (for a log). ``defaults``: values the caller holds
+    elsewhere (the rig launcher: the observer node's parameters), consulted like ``values``."""
     from pac_controller.laws import LAWS
     from pac_controller.parameters import ControllerParameters
 
@@ -50,7 +50,7 @@ def derive(
     out = dict(values)
     notes: list[str] = []
     law = str(given.get("law", ControllerParameters().law))
-    if "observer" not in given and law in LAWS and LAWS[law].observer != "adaptive":
+    if "observer" not in given and law in LAWS and LAWS[law].observer is not None:
         out["observer"] = LAWS[law].observer
         notes.append(f"observer:={out['observer']} (what law {law} runs on)")
     if given.get("catenary_model") == "fe" and "span_length" not in given:

@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from pac_observer.parameters import ObserverParameters
+
 from . import composition
 from .configs import parameter_sets
 from .nodes import LOOP_NODES, NODES
@@ -166,7 +168,8 @@ class Rig:
             return
         derived, _ = composition.derive({"law": law}, self.params["observer"])
         self.params["observer"].update({k: v for k, v in derived.items() if k != "law"})
-        composition.check_pair(str(law), str(self.params["observer"].get("observer", "adaptive")))
+        observer = self.params["observer"].get("observer", ObserverParameters().observer)
+        composition.check_pair(str(law), str(observer))
 
     def composed_command(self) -> list[str]:
         """``composed`` with a params file holding one section per node (by node name)."""

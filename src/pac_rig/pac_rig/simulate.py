@@ -278,11 +278,12 @@ def main(argv: list[str] | None = None) -> int:
         if ignored:
             print(f"simulate: ignoring the nodes' own parameters: {', '.join(ignored)}", file=sys.stderr)
             values = {k: v for k, v in values.items() if k not in ignored}
-        scenario_from_flat(values)  # every value valid before anything is derived from them
-        values, derived = composition.derive(values)
-        for note in derived:
+        scenario = scenario_from_flat(values)  # every value valid before anything is derived
+        derived, notes = composition.derive(values)
+        for note in notes:
             print(f"simulate: {note}", file=sys.stderr)
-        scenario = scenario_from_flat(values)
+        if derived != values:
+            values, scenario = derived, scenario_from_flat(derived)
         build_cores(scenario)  # parts that do not fit, or a law design the parameters do not allow
     except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
