@@ -26,15 +26,15 @@ SPACING = 200.0  # m
 SPEED = 300.0  # km/h
 FE = {"catenary_model": "fe", "speed_kmh": SPEED, "span_length": 55.0}
 #: Two passive benchmark-like 3-mass pantographs pressed by the EN 50367 target at SPEED (the
-#: controlled one too: law passive with a zero reference, its file's uplift), as the
-#: two-pantograph experiment runs them; the observer that needs no F = k z1.
+#: controlled one by law passive, whose reference rises to it; the other by its file's uplift, the
+#: target), as the two-pantograph experiment runs them; the observer that needs no F = k z1.
 PASSIVE_PAIR = {
     **FE,
     "pantographs": (0.0, SPACING),
     "pantograph": "three_mass",
     "passive_pantograph": "three_mass",
     "law": "passive",
-    "force_amplitude": 0.0,
+    "force_amplitude": target_mean_force(SPEED),
     "observer": "contact_force",
 }
 
@@ -120,19 +120,35 @@ def test_one_pantograph_has_no_pantograph_truth_as_live(tmp_path):
     assert channels(tmp_path / "fe") == channels(tmp_path / "lumped") == loop
 
 
-def experiment_series(ticks: int) -> tuple[np.ndarray, np.ndarray]:
-    """Contact forces and positions (ticks x 2, leading first) of the two-pantograph experiment's own
-    run at SPEED (``two_pantographs``: ``ContactSimulation`` stepped directly with both 3-mass
-    pantographs pressed by ``target_mean_force``), its initial state as tick 0, as a bag starts."""
-    from pac_experiments.two_pantographs import _Runs
+def experiment_series(applied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Contact forces and positions (ticks x 2, leading first) of the two-pantograph experiment's
+    simulation of the run (``ContactSimulation`` stepped directly on its endless window, both 3-mass
+    pantographs relaxed under ``target_mean_force``), the trailing one pressed by ``applied`` (the
+    force the rig's plant applied at each tick), the leading one by the target; tick 0 the initial
+    state, as a bag starts."""
+    from pac_experiments.two_pantographs import DT, _Runs
+    from pac_plant.catenary.integrator import ContactSimulation, PassivePantograph
+    from pac_plant.catenary.pantographs import three_mass_pantograph
 
     runs = _Runs("benchmark_55m", SPACING)
-    sim = runs.simulation(SPEED, two=True)
     force = target_mean_force(SPEED)
+    leading = PassivePantograph(three_mass_pantograph(), 0.0, force)
+    sim = ContactSimulation(
+        runs.line,
+        three_mass_pantograph(),
+        DT,
+        SPEED / 3.6,
+        runs.x0,
+        endless=True,
+        lag=SPACING,
+        passive=(leading,),
+    )
+    sim.relax_roof_springs(force)
+    ticks = len(applied)
     forces, positions = np.empty((ticks, 2)), np.empty((ticks, 2))
     for k in range(ticks):
-        forces[k], positions[k] = sim.contact_forces, sim.contact_positions
-        sim.step(force)
+        forces[k], positions[k] = sim.contact_forces[::-1], sim.contact_positions[::-1]
+        sim.step(float(applied[k]))
     return forces, positions
 
 
@@ -151,7 +167,10 @@ def test_the_analysis_of_an_offline_bag_equals_the_two_pantograph_experiment(tmp
     assert rows == pantograph_statistics(read_bag(tmp_path / "pair"), window_from=1.0)
     assert [r["controlled"] for r in rows] == [False, True] and [r["spacing"] for r in rows] == [0.0, SPACING]
     assert "## Every pantograph: pair" in (tmp_path / "report" / "metrics.md").read_text()
-    forces, positions = experiment_series(result.ticks)
+    truth = by_topic(tmp_path / "pair")["/plant_truth"]
+    # PlantTruth at tick k + 1 carries the force applied over [t_k, t_k+1].
+    applied = np.array([truth[k + 1].u_applied for k in range(result.ticks - 1)] + [0.0])
+    forces, positions = experiment_series(applied)
     bag = by_topic(tmp_path / "pair")["/pantograph_truth"]
     recorded = np.array([bag[k].contact_position for k in range(result.ticks)])
     np.testing.assert_allclose(recorded, positions, rtol=0.0, atol=1e-9)  # the same contact points

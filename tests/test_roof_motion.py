@@ -238,7 +238,7 @@ def test_the_turbulent_uplift_acts_on_the_frame():
 
     nominal = PantographParameters(nominal_pantograph="three_mass_identified_2dof")
     moving, got, _ = _added_response(ticks, nominal, aero_turbulence=0.08, aero_turbulence_seed=4)
-    assert moving.gusts is not None and moving.uplift > 100.0
+    assert moving.gusts is not None and moving.own_uplift > 100.0
     fine = np.arange(ticks * 10) * (PERIOD / 10)
     want = _frame_force_response(dataclasses.asdict(moving.pantograph), moving.gusts.series(fine)[0], fine)[
         ::10

@@ -326,12 +326,12 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     # What the parts imply (pac_rig.composition): the observer a law needs, and on the FE line the
     # span of the line the plant runs (a campaign may vary the file).
     scenario = _scenario(values, composed=False)  # every value valid before anything is derived
+    if spec.force_target == "en50367":  # before deriving: what follows the reference derives from it
+        values = {**values, "force_amplitude": target_mean_force(scenario.track.speed_kmh)}
     derived, _ = composition.derive(values)
     if derived != values:
         scenario = _scenario(derived, composed=False)
     values = derived  # a copy: what follows adds to it, never to the caller's values
-    if spec.force_target == "en50367":
-        values["force_amplitude"] = target_mean_force(scenario.track.speed_kmh)
     if spec.window_spans is not None:
         fe_span = load_catenary(scenario.plant.catenary).data.span
         if scenario.plant.catenary_model == "fe" and scenario.track.span_length != fe_span:

@@ -130,7 +130,8 @@ class FEPlant(Plant):
         if data.whole_line:  # the first interior support with every pantograph on the line
             start = max(1, int(np.searchsorted(self.line.layout.support_x, spacings[-1])))
         start_x = float(self.line.layout.support_x[start]) if data.whole_line else start * data.period
-        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
+        chain, self.own_uplift = plant_chain(pantograph, options, track.speed_kmh)
+        self.uplift = options.wind_uplift  # acts with u (the own uplift is part of u: plant_chain)
         ctrl = options.controlled_pantograph
         model, force = passive_pantograph(options, track.speed_kmh)
         passive = tuple(PassivePantograph(model, lag, force) for k, lag in enumerate(spacings) if k != ctrl)
@@ -146,11 +147,11 @@ class FEPlant(Plant):
             lag=spacings[ctrl],
             passive=passive,
         )
-        if np.any(self.sim.uplifts[1:]) or (self.uplift and np.any(self.sim.panto.ground_stiffness)):
+        if np.any(self.sim.uplifts[1:]) or (self.own_uplift and np.any(self.sim.panto.ground_stiffness)):
             # A pantograph's static uplift is its force on the wire at its working height: its roof
             # springs are relaxed in the static state under its own uplift (not at the touching
             # start, where they would take k_roof times the wire's static rise off the force).
-            self.sim.relax_roof_springs(self.uplift)
+            self.sim.relax_roof_springs(self.own_uplift)
         # Every contact column of the stretch the contact point sweeps in the window (~10 ms):
         # no tick pays one later.
         # On a whole line, the first two spans' (the step solves the others' at first use).
@@ -239,7 +240,7 @@ class FEPlant(Plant):
         if self.sensors is not None:
             self._sense()  # every tick is sensed once (the suite's filters step per tick)
         applied = self._actuate(u)
-        # The pantograph's own uplift and the wind act with u on the actuator's mass.
+        # The wind acts with u on the actuator's mass (the pantograph's own uplift is part of u).
         self.sim.advance(
             self._with_roof(applied + self.uplift), self.options.fe_substeps, self._flex, self._readings
         )

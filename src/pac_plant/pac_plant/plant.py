@@ -160,7 +160,10 @@ class Plant:
         z0: np.ndarray | None = None,
     ) -> None:
         positive_period(sample_period)
-        chain, self.uplift = plant_chain(pantograph, options, track.speed_kmh)
+        chain, self.own_uplift = plant_chain(pantograph, options, track.speed_kmh)
+        #: The steady force that acts with u on the actuator's mass: the wind (plant_chain: the
+        #: pantograph's own uplift is part of u, not added to it).
+        self.uplift = options.wind_uplift
         if options.pantograph:  # eq. (5) is the paper's 2-DOF: a file of that shape, or refused
             pantograph = PantographParameters(**chain.table1("pantograph"))
         self.pantograph = pantograph
@@ -192,13 +195,13 @@ class Plant:
         # The turbulent uplift: its cosines (the force as their "height") on the actuator's mass.
         self.gusts: RoofMotion | None = None
         if options.aero_turbulence > 0.0:
-            if not self.uplift > 0.0:
+            if not self.own_uplift > 0.0:
                 raise ParameterError(
                     "aero_turbulence",
                     options.aero_turbulence,
-                    f"0 for a pantograph pressed by no uplift of its own (mean uplift {self.uplift:g} N)",
+                    f"0 for a pantograph with no uplift of its own (mean uplift {self.own_uplift:g} N)",
                 )
-            self.gusts = gusts(options.aero_turbulence * self.uplift, options.aero_turbulence_seed)
+            self.gusts = gusts(options.aero_turbulence * self.own_uplift, options.aero_turbulence_seed)
 
     def _with_roof(self, force: float) -> float:
         """``force`` on the actuator's mass over this tick plus the moving roof's, through the roof
@@ -257,7 +260,7 @@ class Plant:
         """f(t, z) with the actuator force u held: eq. (5) (or its unilateral variant)."""
         p = self.pantograph
         z = np.asarray(z, dtype=np.float64)
-        f = float(u) + self.uplift  # the pantograph's own uplift and the wind act with u
+        f = float(u) + self.uplift  # the wind acts with u
         return plant_rhs(t, z, f, self._a, self._theta, self._omega, p.m1, p.m2, self._unilateral)
 
     def measurement(self) -> Measurement:
@@ -361,7 +364,7 @@ class Plant:
             self.time,
             self.sample_period,
             self.options.substeps,
-            self._with_roof(applied + self.uplift),  # its own uplift, the wind and the roof act with u
+            self._with_roof(applied + self.uplift),  # the wind and the roof act with u
             self._a,
             self._theta,
             self._omega,

@@ -8,7 +8,8 @@ it gives (``pac_observer.parameters.OBSERVER_GIVES``). From them:
 - **derived**, where the user named nothing: ``law:=line_adaptive`` alone runs on the observer it
   needs (``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the observer and
   the controller are told the span of the line the plant runs (its catenary file's mean span),
-  not the 65 m default of the lumped model;
+  not the 65 m default of the lumped model; an actuator as hardware works about the run's
+  reference (``actuator_static_force`` = ``force_amplitude``);
 - **refused**, with one line naming both parts and what would fit: a law that needs what its
   observer does not give (``pid`` on ``observer:=contact_force`` would run on theta_hat = 0 and
   saturate).
@@ -44,7 +45,7 @@ def derive(
     nothing, and one line per derived value (for a log). ``defaults``: values the caller holds
     elsewhere (the rig launcher: the observer node's parameters), consulted like ``values``."""
     from pac_controller.laws import LAWS
-    from pac_controller.parameters import ControllerParameters
+    from pac_controller.parameters import ControllerParameters, ReferenceParameters
 
     given = {**(defaults or {}), **values}
     out = dict(values)
@@ -60,6 +61,16 @@ def derive(
         catenary = str(given.get("catenary", PlantOptions().catenary))
         out["span_length"] = load_catenary(catenary).data.span
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
+    actuator = str(given.get("actuator", "ideal"))
+    if actuator != "ideal" and "actuator_static_force" not in given:
+        # The actuator's range is about the static force the pantograph is pressed with: the
+        # run's reference (a passive law commands it; its default is the reference's default).
+        default = ReferenceParameters().force_amplitude
+        out["actuator_static_force"] = float(given.get("force_amplitude", default))
+        notes.append(
+            f"actuator_static_force:={out['actuator_static_force']:g} (the run's force_amplitude: "
+            f"the {actuator} actuator's range is about it)"
+        )
     return out, notes
 
 

@@ -77,7 +77,7 @@ PLANT_PARAMS = np.dtype(
         # FE line (fe_plant.FEPlant): the fixed datum, or the static wire under the contact point
         ("static_wire", "b1"),
         ("datum", "f8"),
-        ("uplift", "f8"),  # the pantograph's own uplift + wind, acting with u (Plant.uplift)
+        ("uplift", "f8"),  # the wind, acting with u (Plant.uplift; the own uplift is part of u)
         # Every pantograph's truth (``pantograph_truth``): how many (0: one pantograph, PlantTruth
         # is all, as the plant node publishes) and each one's contact in the simulation, in the
         # order of ``pantographs`` (``FEPlant.contact_of`` where ``fe_plant.several_pantographs``)
@@ -229,7 +229,7 @@ def _no_pantographs(out, first) -> None:
 @njit(cache=True, error_model="numpy")
 def _plant_advance(k, pp, ps, fe_args, applied) -> int:
     """The plant over [t_k, t_k+1] with ``applied`` held (zero-order hold); 0 or OFF_LINE."""
-    force = applied + pp.uplift  # the pantograph's own uplift and the wind act with u
+    force = applied + pp.uplift  # the wind acts with u
     if pp.roof:  # and the moving roof's force (Plant._with_roof)
         t0 = k * pp.dt
         force = force + roof_force(
