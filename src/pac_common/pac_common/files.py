@@ -31,6 +31,7 @@ MAX_BYTES = {
     "params": 256 << 10,  # --params-file of the nodes and the offline tools
     "catenary": 256 << 10,
     "pantograph": 256 << 10,
+    "scenario": 64 << 10,
     "spec": 256 << 10,  # a campaign SPEC
     "metadata": 4 << 20,  # a bag's metadata.yaml
     "runs": 256 << 20,  # a campaign's runs.jsonl

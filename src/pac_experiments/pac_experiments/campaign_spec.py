@@ -55,6 +55,7 @@ KEYS = ("grid", "grids", "fixed", "window", "window_spans", "statistics", "force
 #: Parameters added after campaigns were run, and the default that reproduces those runs: at it
 #: they stay out of a point's key, so the results of earlier runs stay valid (resumable).
 KEY_NEUTRAL_DEFAULTS = {
+    "scenario": "",
     "catenary": "benchmark_55m",
     "fe_height_error": 0.0,
     "fe_wear": 0.0,

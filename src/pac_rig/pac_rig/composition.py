@@ -27,6 +27,8 @@ from typing import Any
 
 from pac_common.parameters import ParameterError
 
+from . import scenario_file
+
 
 class CompositionError(ParameterError):
     """Two parts of a run that cannot work together (one line: both parts, and what would fit)."""
@@ -38,6 +40,17 @@ class CompositionError(ParameterError):
         ValueError.__init__(self, message)
 
 
+def actuator_static_force(given: Mapping[str, Any]) -> float | None:
+    """The static force an actuator as hardware works about when ``given`` names none: the run's
+    force reference (a passive law commands it; its default is the reference's default); None for
+    the ideal actuator or a value given."""
+    from pac_controller.parameters import ReferenceParameters
+
+    if str(given.get("actuator", "ideal")) == "ideal" or "actuator_static_force" in given:
+        return None
+    return float(given.get("force_amplitude", ReferenceParameters().force_amplitude))
+
+
 def derive(
     values: Mapping[str, Any], defaults: Mapping[str, Any] | None = None
 ) -> tuple[dict[str, Any], list[str]]:
@@ -45,11 +58,13 @@ def derive(
     nothing, and one line per derived value (for a log). ``defaults``: values the caller holds
     elsewhere (the rig launcher: the observer node's parameters), consulted like ``values``."""
     from pac_controller.laws import LAWS
-    from pac_controller.parameters import ControllerParameters, ReferenceParameters
+    from pac_controller.parameters import ControllerParameters
 
-    given = {**(defaults or {}), **values}
+    # A scenario file's parts count as named (its values are consulted, not copied: ``scenario``
+    # stays in the result, which the cores expand again).
+    expanded, notes = scenario_file.expand(values)
+    given = {**(defaults or {}), **expanded}
     out = dict(values)
-    notes: list[str] = []
     law = str(given.get("law", ControllerParameters().law))
     if "observer" not in given and law in LAWS and LAWS[law].observer is not None:
         out["observer"] = LAWS[law].observer
@@ -61,15 +76,12 @@ def derive(
         catenary = str(given.get("catenary", PlantOptions().catenary))
         out["span_length"] = load_catenary(catenary).data.span
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
-    actuator = str(given.get("actuator", "ideal"))
-    if actuator != "ideal" and "actuator_static_force" not in given:
-        # The actuator's range is about the static force the pantograph is pressed with: the
-        # run's reference (a passive law commands it; its default is the reference's default).
-        default = ReferenceParameters().force_amplitude
-        out["actuator_static_force"] = float(given.get("force_amplitude", default))
+    static_force = actuator_static_force(given)
+    if static_force is not None:
+        out["actuator_static_force"] = static_force
         notes.append(
-            f"actuator_static_force:={out['actuator_static_force']:g} (the run's force_amplitude: "
-            f"the {actuator} actuator's range is about it)"
+            f"actuator_static_force:={static_force:g} (the run's force_amplitude: the "
+            f"{given['actuator']} actuator's range is about it)"
         )
     return out, notes
 

@@ -19,7 +19,7 @@ from typing import Any
 
 from pac_observer.parameters import ObserverParameters
 
-from . import composition
+from . import composition, scenario_file
 from .configs import parameter_sets
 from .nodes import LOOP_NODES, NODES
 
@@ -127,7 +127,8 @@ class Rig:
             # recorder (seen: two lock-step rigs at once lost the last third of a bag) and has no
             # deadline to meet anyway.
             priorities = REALTIME_PRIORITIES if timing_mode == "realtime" else {}
-        shared = {"wait_for_recorder": record, **(params or {}).get("all", {})}
+        # A scenario file's values go to the nodes that have them, under the user's own.
+        shared, _ = scenario_file.expand({"wait_for_recorder": record, **(params or {}).get("all", {})})
 
         def common(name: str) -> dict[str, Any]:
             # "all" goes to every loop node that has the parameter (an unknown name is refused).
@@ -161,8 +162,14 @@ class Rig:
         self.processes: dict[str, Process] = {}
 
     def _compose(self) -> None:
-        """The observer the controller's law needs where none was named, and a refusal
-        (CompositionError, one line) of a law on an observer that does not give what it needs."""
+        """The observer the controller's law needs where none was named, the static force of an
+        actuator as hardware (the run's reference), and a refusal (CompositionError, one line) of a
+        law on an observer that does not give what it needs."""
+        static_force = composition.actuator_static_force(
+            {**self.params["controller"], **self.params["plant"]}
+        )
+        if static_force is not None:
+            self.params["plant"]["actuator_static_force"] = static_force
         law = self.params["controller"].get("law")
         if law is None or self.relay:
             return

@@ -22,7 +22,7 @@ from pac_common import messages
 from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
 from pac_plant.fe_plant import several_pantographs
 
-from . import composition
+from . import composition, scenario_file
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
 from .closed_loop import (
     BLOCK,
@@ -51,7 +51,9 @@ def scenario_to_flat(s: Scenario) -> dict[str, Any]:
 
 
 def scenario_from_flat(values: dict[str, Any], base: Scenario | None = None) -> Scenario:
-    """A scenario with ``values`` (flat parameter names) over ``base``; unknown names are errors."""
+    """A scenario with ``values`` (flat parameter names) over ``base``; unknown names are errors.
+    A ``scenario`` file's values come in where ``values`` gives none (``scenario_file.expand``)."""
+    values, _ = scenario_file.expand(values)
     base = base or Scenario()
     known: set[str] = set()
     updated: dict[str, Any] = {}
@@ -249,7 +251,8 @@ def main(argv: list[str] | None = None) -> int:
         "catenary file's format is documented in docs/catenary.md, 'The catenary file'. The "
         "pantograph: -p pantograph:=FILE (or a preset's name: config/pantographs/) for the plant, "
         "-p nominal_pantograph:=FILE for the observer and controller; the pantograph file's format "
-        "is documented in docs/catenary.md, 'The pantograph file'. Several pantographs "
+        "is documented in docs/catenary.md, 'The pantograph file'. A whole scenario: -p "
+        "scenario:=FILE (or a preset's name: config/scenarios/; docs/scenarios.md). Several pantographs "
         "(-p pantographs:=[0.0,200.0]): the bag carries pantograph_truth too, every pantograph each "
         "tick, as the plant node publishes it (docs/catenary.md, 'Several pantographs').",
     )
@@ -261,6 +264,9 @@ def main(argv: list[str] | None = None) -> int:
         for pset in scenario_sets(Scenario()).values():
             for spec in pset.specs():
                 print(f"{spec.name:22s} {spec.default!s:22s} {spec.allowed():40s} {spec.description}")
+        presets = "|".join(scenario_file.PRESETS.names()) + "|PATH"
+        about = "the run's parts from a scenario file (docs/scenarios.md); your values win"
+        print(f"{'scenario':22s} {scenario_file.DEFAULT:22s} {presets:40s} {about}")
         allowed = "|".join(COMPRESSIONS)
         print(f"{'compression':22s} {DEFAULT_COMPRESSION:22s} {allowed:40s} MCAP chunk compression")
         return 0
