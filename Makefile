@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -114,6 +114,12 @@ sweep: setup
 
 # Fresh runs (runs.jsonl removed: its rows are keyed by parameters, not by code version);
 # the campaign CLI itself resumes when called again on the same --out.
+# The passive pantograph on the realistic scenario beside the ideal rig: 20 drawn lines per speed
+# (config/campaigns/realistic_passive.yaml -> reports/realistic/passive/; docs/realistic_scenario.md).
+# Resumable: an interrupted run goes on where it stopped (ARGS="--workers N").
+realistic-passive: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_passive.yaml --out reports/realistic/passive $(ARGS)
+
 campaigns: setup
 	set -e; for c in $(CAMPAIGNS); do \
 		rm -f reports/campaigns/$$c/runs.jsonl; \
