@@ -141,3 +141,30 @@ def test_on_the_contact_force_observer_the_law_tracks_its_reference_on_the_fe_li
     limit = ControllerParameters().u_max
     assert abs(mean - reference) <= MEAN_BAND * reference, (mean, reference)
     assert u_max_abs < limit, u_max_abs
+
+
+@pytest.mark.parametrize("law", ["pid", "lqr"])
+def test_lockstep_rig_on_the_contact_force_observer_equals_the_offline_simulation(rigs, tmp_path, law):
+    """The node path: the launcher tells the controller node the form of F_hat the filter gives
+    (force_estimate), and the four processes in lock step give the offline loop's commands bit for
+    bit (lumped line, 1 s)."""
+    from pac_bag.reader import read_bag
+    from pac_rig.launcher import NODES
+    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+    duration = 1.0
+    params = {"controller": {"law": law}, "observer": {"observer": "contact_force"}}
+    rig = rigs(law, duration=duration, timing_mode="lockstep", params=params)
+    assert rig.params["controller"]["force_estimate"] == "contact_force_hat"
+    rig.start()
+    rig.wait_finished(timeout=120)
+    assert rig.exit_codes() == dict.fromkeys(NODES, 0), {n: p.log()[-500:] for n, p in rig.processes.items()}
+    flat, _ = composition.derive({"duration": duration, "law": law, "observer": "contact_force"})
+    simulate_to_bag(scenario_from_flat(flat), tmp_path / "offline")
+    live = read_bag(rig.bag_path).topics["command"]
+    offline = read_bag(tmp_path / "offline").topics["command"]
+    ticks, idx = np.unique(live["tick"], return_index=True)
+    np.testing.assert_array_equal(ticks, np.arange(1000))
+    for column in ("u", "u_unsaturated", "tracking_error", "mode"):
+        np.testing.assert_array_equal(live[column][idx], offline[column], err_msg=column)
+    assert np.all(np.abs(offline["u"]) < ControllerParameters().u_max)  # not the +500 N of theta_hat = 0
