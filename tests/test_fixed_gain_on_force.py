@@ -148,9 +148,9 @@ def test_lockstep_rig_on_the_contact_force_observer_equals_the_offline_simulatio
     """The node path: the launcher tells the controller node the form of F_hat the filter gives
     (force_estimate), and the four processes in lock step give the offline loop's commands bit for
     bit (lumped line, 1 s)."""
-    from pac_bag.reader import read_bag
+    from conftest import assert_lockstep_equals_offline
+
     from pac_rig.launcher import NODES
-    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
     duration = 1.0
     params = {"controller": {"law": law}, "observer": {"observer": "contact_force"}}
@@ -160,11 +160,7 @@ def test_lockstep_rig_on_the_contact_force_observer_equals_the_offline_simulatio
     rig.wait_finished(timeout=120)
     assert rig.exit_codes() == dict.fromkeys(NODES, 0), {n: p.log()[-500:] for n, p in rig.processes.items()}
     flat, _ = composition.derive({"duration": duration, "law": law, "observer": "contact_force"})
-    simulate_to_bag(scenario_from_flat(flat), tmp_path / "offline")
-    live = read_bag(rig.bag_path).topics["command"]
-    offline = read_bag(tmp_path / "offline").topics["command"]
-    ticks, idx = np.unique(live["tick"], return_index=True)
-    np.testing.assert_array_equal(ticks, np.arange(1000))
-    for column in ("u", "u_unsaturated", "tracking_error", "mode"):
-        np.testing.assert_array_equal(live[column][idx], offline[column], err_msg=column)
-    assert np.all(np.abs(offline["u"]) < ControllerParameters().u_max)  # not the +500 N of theta_hat = 0
+    columns = {"command": ["u", "u_unsaturated", "tracking_error", "mode"]}
+    offline = assert_lockstep_equals_offline(rig.bag_path, flat, tmp_path / "offline", columns)
+    u = np.asarray(offline["command"]["u"])
+    assert np.all(np.abs(u) < ControllerParameters().u_max)  # not the +500 N of theta_hat = 0
