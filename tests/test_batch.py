@@ -10,6 +10,7 @@ from pac_controller.laws import LAWS
 from pac_controller.parameters import COMPILED_LAW_NAMES, LAW_NAMES
 from pac_experiments.reproduce import COMMON, PAPER_GAINS
 from pac_observer.parameters import OBSERVER_GIVES
+from pac_rig import composition
 from pac_rig.batch import TRACES, _run_one, actuator_violation, batchable, prepare, run_batch
 from pac_rig.closed_loop import DivergenceError, build_cores, run, run_cores
 from pac_rig.loop import MAX_DELAY, TICK, compile_loop
@@ -142,10 +143,10 @@ def test_every_law_and_observer_is_batchable_on_both_lines():
     for law in LAW_NAMES:
         for line in ("lumped", "fe"):
             for observer in ("adaptive", "contact_force"):
-                if LAWS[law].needs - OBSERVER_GIVES[observer]:
-                    continue  # refused before any run (tests/test_composition.py)
                 flat = {"law": law, "catenary_model": line, "observer": observer, "duration": 0.01}
-                s = scenario_from_flat(flat)
+                s = scenario_from_flat(composition.derive(flat)[0])  # as a run composes it
+                if LAWS[law].needs_of(s.laws.force_estimate) - OBSERVER_GIVES[observer]:
+                    continue  # refused before any run (tests/test_composition.py)
                 assert batchable(s)
                 # told from the parameters: the same answer as compiling the cores
                 assert compile_loop(*build_cores(s), s.loop.command_delay_ticks) is not None
@@ -162,6 +163,14 @@ FE_SCENARIOS = {
         "command_delay_ticks": 2, "speed_kmh": 300.0,
     },
     "pid_adaptive_observer": {"law": "pid", "observer": "adaptive", "speed_kmh": 250.0},
+    # the fixed-gain laws on the filter's own F_hat (force_estimate), as composition derives them
+    "pid_force_filter": {
+        "law": "pid", "observer": "contact_force", "force_estimate": "contact_force_hat", "speed_kmh": 300.0,
+    },
+    "lqr_force_filter": {
+        "law": "lqr", "observer": "contact_force", "force_estimate": "contact_force_hat", "speed_kmh": 300.0,
+        "lqr_force_scale": 3.0,
+    },
 }  # fmt: skip
 
 

@@ -1,6 +1,7 @@
-"""Parts that fit: the observer a law needs and the FE line's span are derived where the user names
-nothing; a law on an observer that does not give what it needs is refused before any run, with one
-line naming both (pac_rig.composition), on every entry point."""
+"""Parts that fit: the observer a law needs, the form of F_hat a fixed-gain law reads from its
+observer and the FE line's span are derived where the user names nothing; a law on an observer that
+does not give what it needs is refused before any run, with one line naming both
+(pac_rig.composition), on every entry point."""
 
 from __future__ import annotations
 
@@ -17,30 +18,64 @@ from pac_rig.composition import CompositionError
 from pac_rig.launcher import Rig
 from pac_rig.simulate import scenario_from_flat
 
-#: The pairs that cannot work: each law that needs theta_hat on the filter that gives none.
-REFUSED = {("adaptive_backstepping", "contact_force"), ("pid", "contact_force"), ("lqr", "contact_force")}
+#: The pairs that cannot work as a run composes them: the law built on theta_hat on the filter that
+#: gives none (pid and lqr read that filter's own F_hat there).
+REFUSED = {("adaptive_backstepping", "contact_force")}
 
 
 @pytest.mark.unit
-def test_every_law_states_what_it_needs_and_exactly_the_theta_laws_are_refused_on_the_force_filter():
+def test_every_law_states_what_it_needs_and_exactly_the_theta_law_is_refused_on_the_force_filter():
     assert tuple(LAWS) == LAW_NAMES
     for law in LAW_NAMES:
         for observer in OBSERVER_GIVES:
+            values, _ = composition.derive({"law": law, "observer": observer})
+            form = values.get("force_estimate")
             if (law, observer) in REFUSED:
                 with pytest.raises(CompositionError) as info:
-                    composition.check_pair(law, observer)
+                    composition.check_pair(law, observer, form)
                 message = str(info.value)
                 assert "\n" not in message
                 assert f"law '{law}'" in message and f"observer '{observer}'" in message
                 assert "observer:=adaptive" in message  # what would fit
             else:
-                composition.check_pair(law, observer)
+                composition.check_pair(law, observer, form)
+
+
+@pytest.mark.unit
+def test_a_fixed_gain_law_reads_the_force_estimate_its_observer_gives():
+    """k_hat z1 on the paper's observer (nothing derived: it runs as it always has), the filter's own
+    F_hat on the contact-force one; told k_hat z1 there, it is refused, naming the form that fits."""
+    for law in ("pid", "lqr"):
+        assert composition.derive({"law": law, "observer": "adaptive"}) == (
+            {"law": law, "observer": "adaptive"},
+            [],
+        )
+        values, notes = composition.derive({"law": law, "observer": "contact_force"})
+        assert values["force_estimate"] == "contact_force_hat" and len(notes) == 1
+        with pytest.raises(CompositionError) as info:
+            composition.check_pair(law, "contact_force", "k_hat_z1")
+        message = str(info.value)
+        assert "\n" not in message and "needs theta_hat" in message
+        assert "force_estimate:=contact_force_hat" in message
+        # Named by the user, the form is kept (and then checked, not overridden).
+        kept, _ = composition.derive({"law": law, "observer": "contact_force", "force_estimate": "k_hat_z1"})
+        assert kept["force_estimate"] == "k_hat_z1"
+    # The law built on theta_hat has no other form to offer.
+    with pytest.raises(CompositionError) as info:
+        composition.check_pair("adaptive_backstepping", "contact_force", "contact_force_hat")
+    assert "force_estimate" not in str(info.value)
 
 
 @pytest.mark.unit
 def test_the_cores_of_a_refused_pair_are_never_built():
     """build_cores is the one place every offline path builds a run (simulate, batch, campaigns)."""
     with pytest.raises(CompositionError):
+        build_cores(
+            scenario_from_flat(
+                {"law": "adaptive_backstepping", "observer": "contact_force", "duration": 0.01}
+            )
+        )
+    with pytest.raises(CompositionError):  # pid told to build F_hat from the theta_hat it does not get
         build_cores(scenario_from_flat({"law": "pid", "observer": "contact_force", "duration": 0.01}))
 
 
@@ -66,20 +101,37 @@ def test_line_adaptive_brings_its_observer_and_the_fe_line_its_span():
 def test_the_rig_derives_the_observer_and_refuses_a_pair_that_cannot_work(tmp_path):
     rig = Rig(tmp_path / "bag", duration=1.0, params={"controller": {"law": "line_adaptive"}}, record=False)
     assert rig.params["observer"]["observer"] == "contact_force"
-    with pytest.raises(CompositionError, match="law 'lqr' needs theta_hat"):
+    with pytest.raises(CompositionError, match="law 'adaptive_backstepping' needs theta_hat"):
         Rig(
             tmp_path / "bag2",
             duration=1.0,
-            params={"controller": {"law": "lqr"}, "observer": {"observer": "contact_force"}},
+            params={
+                "controller": {"law": "adaptive_backstepping"},
+                "observer": {"observer": "contact_force"},
+            },
             record=False,
         )
+    # lqr on the filter: the controller node is told to read the filter's F_hat.
+    rig = Rig(
+        tmp_path / "bag3",
+        duration=1.0,
+        params={"controller": {"law": "lqr"}, "observer": {"observer": "contact_force"}},
+        record=False,
+    )
+    assert rig.params["controller"]["force_estimate"] == "contact_force_hat"
+    assert "force_estimate" not in rig.params["observer"]
 
 
 @pytest.mark.offline
 @pytest.mark.slow
-def test_simulate_refuses_a_pair_that_cannot_work_in_one_line(tmp_path):
-    line = simulate_refusal(tmp_path / "bag", "law:=pid", "observer:=contact_force")
-    assert "law 'pid' needs theta_hat" in line and "observer 'contact_force'" in line
+@pytest.mark.parametrize(
+    "law, named",
+    [("adaptive_backstepping", ()), ("pid", ("force_estimate:=k_hat_z1",))],
+    ids=["theta_law", "pid_told_k_hat_z1"],
+)
+def test_simulate_refuses_a_pair_that_cannot_work_in_one_line(tmp_path, law, named):
+    line = simulate_refusal(tmp_path / "bag", f"law:={law}", "observer:=contact_force", *named)
+    assert f"law '{law}' needs theta_hat" in line and "observer 'contact_force'" in line
 
 
 @pytest.mark.offline
@@ -87,10 +139,13 @@ def test_a_campaign_refuses_a_pair_that_cannot_work_before_any_run(tmp_path):
     from pac_experiments.campaign_spec import SpecError, load_points
 
     spec = tmp_path / "spec.yaml"
-    spec.write_text("grid:\n  law: [passive, lqr]\n  observer: [contact_force]\nfixed:\n  duration: 5.0\n")
+    spec.write_text(
+        "grid:\n  law: [passive, adaptive_backstepping]\n  observer: [contact_force]\n"
+        "fixed:\n  duration: 5.0\n"
+    )
     with pytest.raises(SpecError) as info:
         load_points(spec)
-    assert info.value.errors == [str(_refusal("lqr", "contact_force"))]
+    assert info.value.errors == [str(_refusal("adaptive_backstepping", "contact_force"))]
 
 
 def _refusal(law: str, observer: str) -> CompositionError:

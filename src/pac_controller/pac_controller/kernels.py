@@ -184,6 +184,15 @@ def _contact_force_estimate(t: float, omega: float, z_hat, theta_hat) -> float:
 
 
 @njit(cache=True, error_model="numpy")
+def _fed_back_force(p, t: float, z_hat, theta_hat, f_hat: float) -> float:
+    """The F_hat pid and lqr feed back (``force_estimate``): the estimate's own contact_force_hat
+    when the law reads it (``uses_contact_force``), else k_hat z_hat_1 (eqs. (6), (8))."""
+    if p.uses_contact_force:
+        return f_hat
+    return _contact_force_estimate(t, p.omega, z_hat, theta_hat)
+
+
+@njit(cache=True, error_model="numpy")
 def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
     """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
     if p.law == _LINE:
@@ -205,7 +214,8 @@ def law_output(
     """The unlimited force u_law for ``tick`` and three law-specific errors; remembers them for commit.
 
     ``table``, ``memory``: the law's arrays (line_adaptive; NO_TABLE for the others); ``f_hat``:
-    the estimate's contact force (read by line_adaptive only)."""
+    the estimate's contact force (read by the laws with ``uses_contact_force``: line_adaptive, and
+    pid and lqr with force_estimate contact_force_hat)."""
     law = p.law
     if law == _LINE:
         return line_adaptive_kernels.line_output(p, s, table, memory, tick, f_r[0], f_hat)
@@ -219,7 +229,7 @@ def law_output(
             p.c1, p.c2, p.c3, p.stiffness_hat_min,
         )  # fmt: skip
     if law == _PID:  # pac_controller.pid (module docstring)
-        e = f_r[0] - _contact_force_estimate(t, p.omega, z_hat, theta_hat)
+        e = f_r[0] - _fed_back_force(p, t, z_hat, theta_hat, f_hat)
         if s.started:
             h = (tick - s.law_last_tick) * p.dt
             integral = s.integral + h * s.rate
@@ -252,7 +262,7 @@ def law_output(
         else:
             integral = 0.0
         u = u_ss - feedback - k_q * integral
-        error = _contact_force_estimate(t, p.omega, z_hat, theta_hat) - u_ss
+        error = _fed_back_force(p, t, z_hat, theta_hat, f_hat) - u_ss
         s.pending_error, s.pending_integral, s.pending_u = error, integral, u
         return u, -error, integral, 0.0
     return f_r[0], 0.0, 0.0, 0.0  # passive: u = F_r
@@ -462,7 +472,7 @@ class KernelLaw:
         f_r: np.ndarray,
         z_hat: np.ndarray,
         theta_hat: np.ndarray,
-        contact_force_hat: float = math.nan,  # F_hat: read by line_adaptive only
+        contact_force_hat: float = math.nan,  # F_hat: read by the laws with uses_contact_force
     ) -> tuple[float, tuple[float, float, float]]:
         u, e1, e2, e3 = _output_one(
             self.params, self.state, self.table, self.memory, int(tick), float(t), float(f_r[0]),

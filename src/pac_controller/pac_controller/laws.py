@@ -4,8 +4,8 @@
 |---|---|---|
 | adaptive_backstepping | backstepping.BacksteppingController | z_hat, theta_hat (eq. (43)) |
 | backstepping_known | backstepping.KnownThetaBackstepping | z_hat, the true theta (oracle) |
-| pid | pid.PidLaw (gains from pid.design_pid) | F_hat = k_hat z_hat_1 |
-| lqr | lqr.LqrLaw (gains from lqr.design_lqr) | z_hat, F_hat |
+| pid | pid.PidLaw (gains from pid.design_pid) | F_hat in the form force_estimate |
+| lqr | lqr.LqrLaw (gains from lqr.design_lqr) | z_hat, F_hat in the form force_estimate |
 | passive | passive.PassiveLaw | nothing (u = F_r) |
 | line_adaptive | line_adaptive.LineAdaptiveLaw | F_hat of the estimate (observer:=contact_force) |
 
@@ -25,9 +25,9 @@ from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
 from .line_adaptive import LineAdaptiveLaw
 from .lqr import LqrLaw, design_lqr
-from .parameters import LAW_NAMES, ControllerParameters, LawParameters, ReferenceParameters
+from .parameters import FORCE_ESTIMATES, LAW_NAMES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
-from .pid import PidLaw, design_pid
+from .pid import PidLaw, design_pid, least_derivative_filter
 
 #: Laws that need the catenary parameters (k0, alpha, beta): the controller is told them.
 NEEDS_CATENARY = frozenset({"backstepping_known"})
@@ -42,11 +42,13 @@ def _known(pantograph, track, params, reference, laws, catenary, dt) -> Law:
 
 
 def _pid(pantograph, track, params, reference, laws, catenary, dt) -> Law:
-    return PidLaw(design_pid(pantograph, laws, dt), track, dt)
+    return PidLaw(design_pid(pantograph, laws, dt), track, dt, laws.force_estimate)
 
 
 def _lqr(pantograph, track, params, reference, laws, catenary, dt) -> Law:
-    return LqrLaw(design_lqr(pantograph, laws, dt), pantograph, track, dt, laws.lqr_integral_time)
+    return LqrLaw(
+        design_lqr(pantograph, laws, dt), pantograph, track, dt, laws.lqr_integral_time, laws.force_estimate
+    )
 
 
 def _passive(pantograph, track, params, reference, laws, catenary, dt) -> Law:
@@ -57,24 +59,61 @@ def _line_adaptive(pantograph, track, params, reference, laws, catenary, dt) -> 
     return LineAdaptiveLaw(track, laws, dt, pantograph)
 
 
+THETA = frozenset({"theta_hat"})
+
+#: What each form of F_hat a fixed-gain law feeds back (``force_estimate``) needs of the estimate:
+#: k_hat z_hat_1 is built from theta_hat (eqs. (6), (8)); the estimate's own F_hat is its
+#: contact_force_hat. In this order a run derives the form from its observer (pac_rig.composition):
+#: the paper's first, so a law on the paper's observer runs as it always has.
+FORCE_ESTIMATE_NEEDS: dict[str, frozenset[str]] = {
+    "k_hat_z1": THETA,
+    "contact_force_hat": frozenset({"contact_force_hat"}),
+}
+assert tuple(FORCE_ESTIMATE_NEEDS) == FORCE_ESTIMATES, "every form of F_hat states what it needs"
+
+
 @dataclass(frozen=True)
 class LawEntry:
     """One law of the registry: its builder, what it needs of the estimate besides z_hat
-    (pac_observer.parameters.OBSERVER_GIVES names what each observer gives) and the observer a
-    run gives it when none is named (pac_rig.composition)."""
+    (pac_observer.parameters.OBSERVER_GIVES names what each observer gives), the observer a run
+    gives it when none is named (pac_rig.composition), and whether it is a fixed-gain law
+    (``fixed_gain``: gains designed on the linear contact model at ``design_stiffness``, feedback
+    on F_hat in the form ``force_estimate``, which adds that form's needs)."""
 
     build: Callable[..., Law]
     needs: frozenset[str] = frozenset()
     observer: str | None = None  # None: the default observer
+    fixed_gain: bool = False
+    #: A fixed-gain law's design values on the FE line besides its stiffness, from the pantograph,
+    #: the design (LawParameters at the line's stiffness) and the period (docs/laws.md).
+    fe_line: Callable[[PantographParameters, LawParameters, float], dict[str, float]] | None = None
+
+    def needs_of(self, force_estimate: str) -> frozenset[str]:
+        """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
+        ``force_estimate`` (which only a fixed-gain law reads)."""
+        return self.needs | FORCE_ESTIMATE_NEEDS[force_estimate] if self.fixed_gain else self.needs
 
 
-THETA = frozenset({"theta_hat"})
+#: lqr_force_scale on the FE line: judgement, from a scan on the design line at 300 km/h (docs/laws.md,
+#: "Fixed-gain laws on the FE line"); 1 N, the lumped design's, leaves the loop unstable there.
+FE_LINE_LQR_FORCE_SCALE = 3.0
+
+
+def _pid_on_fe_line(pantograph: PantographParameters, laws: LawParameters, dt: float) -> dict[str, float]:
+    """The least derivative filter ratio the crossover rule allows (pid.least_derivative_filter)."""
+    n = least_derivative_filter(pantograph, laws, dt)
+    return {} if n is None else {"pid_derivative_filter": n}
+
+
+def _lqr_on_fe_line(pantograph: PantographParameters, laws: LawParameters, dt: float) -> dict[str, float]:
+    return {"lqr_force_scale": FE_LINE_LQR_FORCE_SCALE}
+
 
 LAWS: dict[str, LawEntry] = {
     "adaptive_backstepping": LawEntry(_adaptive, THETA),
     "backstepping_known": LawEntry(_known),  # told the true theta: z_hat only
-    "pid": LawEntry(_pid, THETA),  # F_hat = k_hat z1
-    "lqr": LawEntry(_lqr, THETA),
+    "pid": LawEntry(_pid, fixed_gain=True, fe_line=_pid_on_fe_line),
+    "lqr": LawEntry(_lqr, fixed_gain=True, fe_line=_lqr_on_fe_line),
     "passive": LawEntry(_passive),
     "line_adaptive": LawEntry(_line_adaptive, frozenset({"contact_force_hat"}), observer="contact_force"),
 }

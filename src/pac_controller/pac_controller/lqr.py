@@ -18,6 +18,8 @@ du = lqr_input_scale; pending commands unweighted).  The law, on the observer's 
 
     u_k = u_ss - K xi_k,    q_{k+1} = q_k + h (F_hat_k - F_r,k),   F_hat = k_hat z_hat_1 (eqs. (6), (8))
 
+(or the estimate's own F_hat with ``force_estimate`` contact_force_hat: the contact-force observer's).
+
 The integral uses the observer's force estimate, so at rest F_hat = F_r whatever the
 true mean stiffness (zero steady-state error on a constant reference at constant
 stiffness); the gains stay those of k_d (fixed, non-adaptive).  Anti-windup by
@@ -125,6 +127,7 @@ class LqrLaw(KernelLaw):
         track: TrackParameters,
         sample_period: float,
         tracking_time: float,
+        force_estimate: str = "k_hat_z1",
     ) -> None:
         if gains.delay > MAX_PENDING:
             raise ValueError(f"lqr: at most {MAX_PENDING} pending commands, got {gains.delay}")
@@ -132,6 +135,7 @@ class LqrLaw(KernelLaw):
         self.pantograph = pantograph
         self.omega = track.omega
         self.sample_period = sample_period
+        self.uses_contact_force = force_estimate == "contact_force_hat"  # F_hat: module docstring
         super().__init__("lqr", sample_period)
         p = self.params[0]
         p["omega"], p["k1"], p["delay"], p["design_stiffness"] = (

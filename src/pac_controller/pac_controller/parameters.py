@@ -43,6 +43,9 @@ class ReferenceParameters(ParameterSet):
 
 #: The control laws ``law`` selects (pac_controller.laws.LAWS maps them to their cores).
 LAW_NAMES = ("adaptive_backstepping", "backstepping_known", "pid", "lqr", "passive", "line_adaptive")
+#: The forms of F_hat the fixed-gain laws (pid, lqr) can feed back (``force_estimate``);
+#: pac_controller.laws.FORCE_ESTIMATE_NEEDS says what each needs of the observer.
+FORCE_ESTIMATES = ("k_hat_z1", "contact_force_hat")
 #: The laws with a compiled kernel (pac_controller.kernels): the compiled loop and the batch run
 #: these.  Every law has one.
 COMPILED_LAW_NAMES = LAW_NAMES
@@ -142,11 +145,20 @@ class LawParameters(ParameterSet):
 
     design_stiffness: float = parameter(
         4000.0,
-        "catenary stiffness of the linear design model of pid and lqr (the mean stiffness k0 of the line)",
+        "catenary stiffness of the linear design model of pid and lqr (the mean stiffness k0 of the line; "
+        "on the FE line derived from it when not named: the mean static stiffness over a period of its "
+        "design spans, docs/laws.md)",
         "N/m",
         low=0.0,
         low_open=True,
         high=1e6,
+    )
+    force_estimate: str = parameter(
+        "k_hat_z1",
+        "pid, lqr: the contact-force estimate F_hat they feed back: 'k_hat_z1' k_hat z_hat_1 of the "
+        "paper's observer (eqs. (6), (8): needs its theta_hat), 'contact_force_hat' the estimate's own "
+        "F_hat (what observer:=contact_force gives; derived from the observer when not named)",
+        choices=FORCE_ESTIMATES,
     )
     design_delay_ticks: int = parameter(
         1, "command delay the pid and lqr designs assume (1: the rig's loop)", "ticks", low=0, high=10

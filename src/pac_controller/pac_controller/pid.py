@@ -1,7 +1,9 @@
 """The pid law: PID on the estimated contact force, with anti-windup and a filtered derivative.
 
-Measured variable F_hat = k_hat z_hat_1 (eq. (6) with k_hat = v(t)^T theta_hat, eq. (8)),
-error e = F_r - F_hat.  At tick k (h = the time since the law's previous tick):
+Measured variable F_hat = k_hat z_hat_1 (eq. (6) with k_hat = v(t)^T theta_hat, eq. (8)) on the
+paper's observer, or the estimate's own F_hat (``force_estimate`` contact_force_hat: the
+contact-force observer's state), error e = F_r - F_hat.  At tick k (h = the time since the
+law's previous tick):
 
     P_k = Kp e_k
     D_k = Tf / (Tf + h) D_{k-1} + Kd / (Tf + h) (e_k - e_{k-1})    (Kd s / (1 + Tf s), backward Euler)
@@ -131,11 +133,35 @@ def design_pid(pantograph: PantographParameters, laws: LawParameters, dt: float)
     return dataclasses.replace(gains, spectral_radius=rho, max_sensitivity=ms)
 
 
+#: Step of pid_derivative_filter in :func:`least_derivative_filter`, from the parameter's floor.
+DERIVATIVE_FILTER_STEP = 0.5
+
+
+def least_derivative_filter(pantograph: PantographParameters, laws: LawParameters, dt: float) -> float | None:
+    """The smallest derivative filter ratio N (in DERIVATIVE_FILTER_STEP steps from the parameter's
+    floor up to ``laws.pid_derivative_filter``) for which :func:`design_pid` meets its crossover and
+    phase margin; None if none does. The PID's gain far above the crossover is Kp (1 + N), and the
+    smallest N that still gives the margin gives the smallest such gain (docs/laws.md, the FE line:
+    what the loop cannot reduce, it should not pass to the actuator)."""
+    floor = next(spec.low for spec in LawParameters.specs() if spec.name == "pid_derivative_filter")
+    assert floor is not None, "pid_derivative_filter has a lower bound"
+    for n in np.arange(floor, laws.pid_derivative_filter + 1e-9, DERIVATIVE_FILTER_STEP):
+        try:
+            design_pid(pantograph, dataclasses.replace(laws, pid_derivative_filter=float(n)), dt)
+        except ParameterError:
+            continue
+        return float(n)
+    return None
+
+
 class PidLaw(KernelLaw):
     """The pid law core (module docstring). State (I, D, e and tick of the previous output) and
     arithmetic: ``kernels.CONTROLLER_STATE`` / ``kernels.law_output``, shared with the compiled loop."""
 
-    def __init__(self, gains: PidGains, track: TrackParameters, sample_period: float) -> None:
+    def __init__(
+        self, gains: PidGains, track: TrackParameters, sample_period: float, force_estimate: str = "k_hat_z1"
+    ) -> None:
+        self.uses_contact_force = force_estimate == "contact_force_hat"  # F_hat: module docstring
         super().__init__("pid", sample_period)
         self.omega = track.omega
         self.sample_period = sample_period

@@ -76,6 +76,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "controlled_pantograph": 0,
     "passive_pantograph": "three_mass",
     "passive_pantograph_uplift": 0.0,
+    "force_estimate": "k_hat_z1",
 }
 
 
@@ -305,7 +306,11 @@ def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
             if not errors:
                 try:
                     if composed:
-                        composition.check_pair(scenario.controller.effective_law, scenario.observer.observer)
+                        composition.check_pair(
+                            scenario.controller.effective_law,
+                            scenario.observer.observer,
+                            scenario.laws.force_estimate,
+                        )
                 except CompositionError as exc:
                     raise SpecError(str(exc)) from None
                 return scenario

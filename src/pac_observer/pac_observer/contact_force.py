@@ -36,8 +36,9 @@ F_hat most (error 21.3 N RMS at 20 Hz against 1.4 N); the head mass m1 is not id
 without F (z1's innovation is flattest away from it) and costs only Delta m1 z1'' (F_hat error
 1.4-4.3 N for m1 x1.0-1.3 with the right m2).  ``frame_mass_range`` = 0 is the single filter.
 This observer estimates no theta: ``theta_hat`` and ``stiffness_hat`` are published as
-zeros, so the laws built on F = k_hat z1 (backstepping, pid, lqr) need the adaptive
-observer; ``line_adaptive`` and ``passive`` run on this one.
+zeros, so the law built on F = k_hat z1 (adaptive backstepping) needs the adaptive
+observer; ``line_adaptive``, ``passive``, and ``pid`` and ``lqr`` on its F_hat
+(``force_estimate`` contact_force_hat) run on this one.
 """
 
 from __future__ import annotations

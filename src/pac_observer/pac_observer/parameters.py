@@ -8,7 +8,8 @@ from pac_common.parameters import ParameterSet, parameter
 
 #: What each observer gives a law besides z_hat (``observer`` chooses one): the paper's observer the
 #: catenary parameters theta_hat, and with them F_hat = k_hat z1 (eqs. (6), (8)); the contact-force
-#: filter F_hat as a state of its own and no theta_hat (it publishes zeros there).
+#: filter F_hat as a state of its own and no theta_hat (it publishes zeros there). A fixed-gain law
+#: (pid, lqr) reads F_hat in the first form its observer gives (pac_controller.laws.FORCE_ESTIMATE_NEEDS).
 OBSERVER_GIVES: dict[str, frozenset[str]] = {
     "adaptive": frozenset({"theta_hat", "contact_force_hat"}),
     "contact_force": frozenset({"contact_force_hat"}),
@@ -24,7 +25,7 @@ class ObserverParameters(ParameterSet):
         "adaptive",
         "'adaptive' the paper's observer, eq. (17) (theta_hat, F_hat = k_hat z1); 'contact_force' a "
         "Kalman filter on the nominal pantograph with F as a random-walk state (no F = k z1; no "
-        "theta_hat: for law line_adaptive or passive)",
+        "theta_hat: for laws line_adaptive, pid, lqr (on its F_hat) or passive)",
         choices=tuple(OBSERVER_GIVES),
     )
     force_process_noise: float = parameter(

@@ -83,6 +83,29 @@ def line_and_flexibility(
     return line, line.element_flexibility()
 
 
+#: Points per period of the line at which equivalent_contact_stiffness samples the static stiffness
+#: (every 0.25 m on a 55 m span: finer than the 0.5 m elements, so each element counts).
+STIFFNESS_POINTS = 220
+
+
+@functools.lru_cache(maxsize=8)
+def equivalent_contact_stiffness(catenary: str, element_size: float) -> float:
+    """The FE line's equivalent contact stiffness for a linear design (pid, lqr): the mean over one
+    period of its design spans of the static point stiffness at the contact point (``Line.static_stiffness``,
+    droppers taut), sampled at STIFFNESS_POINTS midpoints, on the mesh the plant uses. The mean is what
+    the lumped model's k0 is (eq. (7): k(t) = k0 (1 + alpha cos(omega t - beta)) averages to k0). The
+    design line, the file's stated period, not a line drawn from it (layout, deviation) nor the
+    imperfections: what the infrastructure manager publishes, which a train may know."""
+    line_file = load_catenary(catenary)
+    data = line_file.drawing.base if line_file.drawing is not None else line_file.data
+    numerics = dataclasses.replace(line_file.numerics, element_size=element_size)
+    periods, start = window_periods(data)
+    # The same line (and cache entry) as a plant on the design line, so that plant's set-up is paid once.
+    line, _ = line_and_flexibility(data, numerics, periods * len(data.spans))
+    xs = (start + (np.arange(STIFFNESS_POINTS) + 0.5) / STIFFNESS_POINTS) * data.period
+    return float(np.mean(line.static_stiffness(xs)))
+
+
 @dataclasses.dataclass(frozen=True)
 class PantographTruth:
     """One pantograph's contact at a tick: force [N], position along the line [m], the wire's uplift

@@ -94,7 +94,7 @@ class DivergenceError(RuntimeError):
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
     """The plant, observer and controller of ``s``; ParameterError (one line) for parts that do not
     fit together (pac_rig.composition) or a design the parameters do not allow."""
-    composition.check_pair(s.controller.effective_law, s.observer.observer)
+    composition.check_pair(s.controller.effective_law, s.observer.observer, s.laws.force_estimate)
     dt = s.loop.sample_period
     if (s.plant.pantograph or s.pantograph.nominal_pantograph) and s.mismatch.plant_mass_scale != 1.0:
         raise ParameterError(

@@ -2,17 +2,23 @@
 refuses before it starts.
 
 A law states what it needs of the estimate besides z_hat (``pac_controller.laws.LAWS``:
-``needs``) and the observer it runs on when none is named (``observer``); an observer states what
-it gives (``pac_observer.parameters.OBSERVER_GIVES``). From them:
+``needs``; a fixed-gain law, pid or lqr, needs what its form of F_hat needs,
+``FORCE_ESTIMATE_NEEDS``) and the observer it runs on when none is named (``observer``); an
+observer states what it gives (``pac_observer.parameters.OBSERVER_GIVES``). From them:
 
 - **derived**, where the user named nothing: ``law:=line_adaptive`` alone runs on the observer it
-  needs (``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the observer and
+  needs (``observer:=contact_force``); a fixed-gain law feeds back F_hat in the first form its
+  observer gives (``force_estimate``: k_hat z1 on the paper's observer, the filter's own F_hat on
+  ``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the observer and
   the controller are told the span of the line the plant runs (its catenary file's mean span),
-  not the 65 m default of the lumped model; an actuator as hardware works about the run's
-  reference (``actuator_static_force`` = ``force_amplitude``);
+  not the 65 m default of the lumped model, and a fixed-gain law is designed at the line's
+  equivalent stiffness (``design_stiffness``: its mean static stiffness over a period of the design
+  spans, ``pac_plant.fe_plant.equivalent_contact_stiffness``), not the lumped model's k0; an
+  actuator as hardware works about the run's reference (``actuator_static_force`` =
+  ``force_amplitude``);
 - **refused**, with one line naming both parts and what would fit: a law that needs what its
-  observer does not give (``pid`` on ``observer:=contact_force`` would run on theta_hat = 0 and
-  saturate).
+  observer does not give (``adaptive_backstepping`` on ``observer:=contact_force`` would run on
+  theta_hat = 0; so would ``pid`` told ``force_estimate:=k_hat_z1`` there).
 
 Every offline entry point applies both: ``simulate`` and campaign points derive
 (:func:`derive`), and :func:`check_pair` runs wherever the cores are built
@@ -23,11 +29,14 @@ refused pair.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pac_common.parameters import ParameterError
 
 from . import scenario_file
+
+if TYPE_CHECKING:
+    from pac_controller.laws import LawEntry
 
 
 class CompositionError(ParameterError):
@@ -57,8 +66,10 @@ def derive(
     """``values`` (flat parameter names) with what the named parts imply where the user named
     nothing, and one line per derived value (for a log). ``defaults``: values the caller holds
     elsewhere (the rig launcher: the observer node's parameters), consulted like ``values``."""
-    from pac_controller.laws import LAWS
-    from pac_controller.parameters import ControllerParameters
+    from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS
+    from pac_controller.parameters import ControllerParameters, LawParameters
+    from pac_observer.parameters import OBSERVER_GIVES, ObserverParameters
+    from pac_plant.parameters import PlantOptions
 
     # A scenario file's parts count as named (its values are consulted, not copied: ``scenario``
     # stays in the result, which the cores expand again).
@@ -66,14 +77,30 @@ def derive(
     given = {**(defaults or {}), **expanded}
     out = dict(values)
     law = str(given.get("law", ControllerParameters().law))
-    if "observer" not in given and law in LAWS and LAWS[law].observer is not None:
-        out["observer"] = LAWS[law].observer
+    entry = LAWS.get(law)
+    if "observer" not in given and entry is not None and entry.observer is not None:
+        out["observer"] = entry.observer
         notes.append(f"observer:={out['observer']} (what law {law} runs on)")
-    if given.get("catenary_model") == "fe" and "span_length" not in given:
+    observer = str(out.get("observer", given.get("observer", ObserverParameters().observer)))
+    fe_line = given.get("catenary_model") == "fe"
+    catenary = str(given.get("catenary", PlantOptions().catenary))
+    if (
+        entry is not None
+        and entry.fixed_gain
+        and "force_estimate" not in given
+        and observer in OBSERVER_GIVES
+    ):
+        form = next(
+            (f for f, needs in FORCE_ESTIMATE_NEEDS.items() if needs <= OBSERVER_GIVES[observer]), None
+        )
+        if form is not None and form != LawParameters().force_estimate:
+            out["force_estimate"] = form
+            notes.append(f"force_estimate:={form} (the F_hat observer {observer} gives law {law})")
+    if entry is not None and entry.fixed_gain and fe_line:
+        notes += _fe_line_design(entry, law, given, out, catenary)
+    if fe_line and "span_length" not in given:
         from pac_plant.catenary.catenary_file import load_catenary
-        from pac_plant.parameters import PlantOptions
 
-        catenary = str(given.get("catenary", PlantOptions().catenary))
         out["span_length"] = load_catenary(catenary).data.span
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
     static_force = actuator_static_force(given)
@@ -86,21 +113,63 @@ def derive(
     return out, notes
 
 
-def check_pair(law: str, observer: str) -> None:
+def _fe_line_design(
+    entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any], catenary: str
+) -> list[str]:
+    """A fixed-gain law's design for the FE line, into ``out`` where the user named nothing: its
+    stiffness (the line's equivalent one), then what the law derives at it (``LawEntry.fe_line``)."""
+    from pac_common.parameters import RateParameters
+    from pac_controller.parameters import LawParameters
+    from pac_model.parameters import PantographParameters
+    from pac_plant.fe_plant import equivalent_contact_stiffness
+    from pac_plant.parameters import PlantOptions
+
+    notes = []
+    if "design_stiffness" not in given:
+        element_size = float(given.get("fe_element_size", PlantOptions().fe_element_size))
+        # To 0.1 N/m: a value that does not move with the last bits of a sum (campaign keys hash it).
+        out["design_stiffness"] = round(equivalent_contact_stiffness(catenary, element_size), 1)
+        notes.append(
+            f"design_stiffness:={out['design_stiffness']:g} (the mean static stiffness of the FE line "
+            f"{catenary})"
+        )
+    if entry.fe_line is not None:
+        run = {**given, **out}  # the run's parameters as its scenario will hold them
+        laws = LawParameters.from_mapping(run)
+        pantograph, dt = (
+            PantographParameters.from_mapping(run),
+            RateParameters.from_mapping(run).sample_period,
+        )
+        for name, value in entry.fe_line(pantograph, laws, dt).items():
+            if name not in given and value != getattr(laws, name):
+                out[name] = value
+                notes.append(f"{name}:={value:g} (law {law}'s design for the FE line)")
+    return notes
+
+
+def check_pair(law: str, observer: str, force_estimate: str | None = None) -> None:
     """Refuse (CompositionError) law ``law`` on observer ``observer`` if it needs what that one
-    does not give; one line naming both and what would fit."""
-    from pac_controller.laws import LAWS
+    does not give (a fixed-gain law: with F_hat in the form ``force_estimate``, None: the
+    parameter's default); one line naming both and what would fit."""
+    from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS
+    from pac_controller.parameters import LawParameters
     from pac_observer.parameters import OBSERVER_GIVES
 
-    missing = LAWS[law].needs - OBSERVER_GIVES[observer]
+    form = force_estimate or LawParameters().force_estimate
+    needs, gives = LAWS[law].needs_of(form), OBSERVER_GIVES[observer]
+    missing = needs - gives
     if not missing:
         return
-    fitting_laws = [name for name, entry in LAWS.items() if entry.needs <= OBSERVER_GIVES[observer]]
-    fitting_observers = [name for name, gives in OBSERVER_GIVES.items() if LAWS[law].needs <= gives]
+    fitting_laws = [name for name, entry in LAWS.items() if entry.needs_of(form) <= gives]
+    fitting_observers = [name for name, offers in OBSERVER_GIVES.items() if needs <= offers]
+    fitting_forms = (
+        [f for f in FORCE_ESTIMATE_NEEDS if LAWS[law].needs_of(f) <= gives] if LAWS[law].fixed_gain else []
+    )
+    with_form = f", or force_estimate:={' or '.join(fitting_forms)}" if fitting_forms else ""
     raise CompositionError(
         "law",
         law,
         f"law '{law}' needs {', '.join(sorted(missing))}, which observer '{observer}' does not give: "
-        f"run it on observer:={' or '.join(fitting_observers)}, or on observer '{observer}' one of "
-        f"law:={', '.join(fitting_laws)}",
+        f"run it on observer:={' or '.join(fitting_observers)}{with_form}, or on observer '{observer}' "
+        f"one of law:={', '.join(fitting_laws)}",
     )

@@ -162,9 +162,10 @@ class Rig:
         self.processes: dict[str, Process] = {}
 
     def _compose(self) -> None:
-        """The observer the controller's law needs where none was named, the static force of an
-        actuator as hardware (the run's reference), and a refusal (CompositionError, one line) of a
-        law on an observer that does not give what it needs."""
+        """The observer the controller's law needs where none was named (and the form of F_hat a
+        fixed-gain law reads from it), the static force of an actuator as hardware (the run's
+        reference), and a refusal (CompositionError, one line) of a law on an observer that does
+        not give what it needs."""
         static_force = composition.actuator_static_force(
             {**self.params["controller"], **self.params["plant"]}
         )
@@ -173,10 +174,14 @@ class Rig:
         law = self.params["controller"].get("law")
         if law is None or self.relay:
             return
-        derived, _ = composition.derive({"law": law}, self.params["observer"])
-        self.params["observer"].update({k: v for k, v in derived.items() if k != "law"})
+        derived, _ = composition.derive(
+            {"law": law}, {**self.params["observer"], **self.params["controller"]}
+        )
+        for name in ("observer", "controller"):  # each derived value to the node that has it
+            names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
+            self.params[name].update({k: v for k, v in derived.items() if k != "law" and k in names})
         observer = self.params["observer"].get("observer", ObserverParameters().observer)
-        composition.check_pair(str(law), str(observer))
+        composition.check_pair(str(law), str(observer), self.params["controller"].get("force_estimate"))
 
     def composed_command(self) -> list[str]:
         """``composed`` with a params file holding one section per node (by node name)."""
