@@ -25,7 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded
+from scipy.linalg import cho_solve_banded, cholesky_banded, lu_factor, lu_solve
 
 from .data import CatenaryData, NumericalOptions, WireData
 from .layout import WS, build_layout, span_marks
@@ -306,9 +306,16 @@ class Line:
         """Unstrained dropper lengths that put the static contact wire at -presag at every dropper.
 
         The static solution is linear in the dropper pre-tension terms p_j = k_j (H - L0_j):
-        w = K^-1 (f_g + B p), so p solves a small linear system; k_j = EA / L0_j depends on
-        L0, hence fixed-point passes until L0 moves less than ``tolerance`` [m].
+        w = K^-1 (f_g + B p), so p solves a small linear system W p = -presag - w_g with
+        W = (K^-1 B) at the droppers' contact-wire DOFs; k_j = EA / L0_j depends on L0, hence
+        passes until L0 moves less than ``tolerance`` [m]. A periodic line solves W afresh each
+        pass (a few dozen droppers; its committed results were computed so); a whole line's ~500
+        droppers would make that 500 solves a pass (48 s of its set-up), so it takes chord steps
+        (:meth:`_chord_dropper_lengths`).
         """
+        if self.data.whole_line:
+            self._chord_dropper_lengths(tolerance, max_iterations)
+            return
         d, dr = self.data, self.droppers
         nd = len(dr.node)
         for _ in range(max_iterations):
@@ -330,6 +337,33 @@ class Line:
             change = float(np.max(np.abs(length0 - dr.length0)))
             dr.length0 = length0
             dr.stiffness = d.dropper_ea / dr.length0
+            if change < tolerance:
+                break
+        self.set_dropper_lengths(dr.length0)
+
+    def _chord_dropper_lengths(self, tolerance: float, max_iterations: int) -> None:
+        """:meth:`solve_dropper_lengths` by chord steps: each pass corrects p by the residual of
+        the present K (r = -presag - w_c, one solve) through W of the first pass. The fixed point
+        is the same (r = 0 there); a pass costs one solve instead of one per dropper."""
+        d, dr = self.data, self.droppers
+        nd = len(dr.node)
+        self._assemble()
+        if nd == 0:
+            self.set_dropper_lengths(dr.length0)
+            return
+        b = np.zeros((self.n_dof, nd))
+        b[dr.wc, np.arange(nd)] = 1.0
+        b[dr.wm, np.arange(nd)] = -1.0
+        chord = lu_factor(self.solve_static(b)[dr.wc, :])
+        for _ in range(max_iterations):
+            pre = dr.stiffness * (dr.height - dr.length0)
+            w = self.solve_static(self.f_static)  # f_static holds the present pre-tensions
+            p = pre + lu_solve(chord, -dr.target_sag - w[dr.wc])
+            length0 = d.dropper_ea * dr.height / (d.dropper_ea + p)
+            change = float(np.max(np.abs(length0 - dr.length0)))
+            dr.length0 = length0
+            dr.stiffness = d.dropper_ea / dr.length0
+            self._assemble()
             if change < tolerance:
                 break
         self.set_dropper_lengths(dr.length0)
