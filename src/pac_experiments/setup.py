@@ -31,6 +31,7 @@ setup(
             "campaign_bench = pac_experiments.campaign_bench:main",
             "catenary = pac_experiments.fe_line:main",
             "fe_experiment = pac_experiments.fe_experiment:main",
+            "campaign_summary = pac_experiments.campaign_summary:main",
             "fe_live = pac_experiments.fe_live:main",
             "two_pantographs = pac_experiments.two_pantographs:main",
             "line_response = pac_experiments.line_response:main",
