@@ -289,63 +289,74 @@ def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
     return 0
 
 
-@njit(cache=True, error_model="numpy")
-def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
-    """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
+def closed_loop_for(step):
+    """The compiled tick and tick loop around controller ``step`` (``kernels.controller_step`` for
+    pac's laws: :func:`loop_tick`, :func:`run_ticks`). Closures, so numba calls ``step``
+    statically and the cached functions that call them (:func:`run_block`, the batch's) stay
+    cached (``kernels.safety_chain``)."""
 
-    Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
-    tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
-    ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
-    ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
-    ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``).  n1, n2: this
-    tick's sensor noise.  The order of operations is that of ``closed_loop.run_cores`` and of
-    the nodes.
-    """
-    y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
-    if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
-        return DISPLACEMENT, y1
-    status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
-    if status:
-        return status, np.nan
-    # Controller: law and safety chain.
-    u, u_law, f_r, e1, e2, e3, mode = controller_step(
-        cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
-    )
-    if not abs(u_law) < DIVERGENCE_FORCE:
-        return FORCE, u_law
-    out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
-    out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
-    out.saturated, out.mode = u != u_law, mode
-    # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
-    if pp.delay == 0:
-        applied = u
-    else:
-        applied = ps.pending[ps.head]
-        ps.pending[ps.head] = u
-        ps.head = (ps.head + 1) % pp.delay
-    # The actuator's dynamics (Plant._actuate): its mean force over the tick.
-    applied = actuator_apply(pp.actuator, ps.actuator, applied)
-    if _plant_advance(k, pp, ps, fe_args, applied):
-        return OFF_LINE, out.contact_position
-    return 0, 0.0
+    @njit(error_model="numpy")
+    def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
+        """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
 
-
-@njit(cache=True, error_model="numpy")
-def run_ticks(
-    k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
-) -> tuple[int, int, float]:
-    """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
-
-    ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
-    """
-    for k in range(k0, k1):
-        i = min(k - k0, noise.shape[0] - 1)
-        code, value = loop_tick(
-            k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+        Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
+        tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
+        ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
+        ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
+        ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``), for ``step``.
+        n1, n2: this tick's sensor noise.  The order of operations is that of
+        ``closed_loop.run_cores`` and of the nodes.
+        """
+        y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
+        if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
+            return DISPLACEMENT, y1
+        status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
+        if status:
+            return status, np.nan
+        # Controller: law and safety chain.
+        u, u_law, f_r, e1, e2, e3, mode = step(
+            cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
         )
-        if code:
-            return k, code, value
-    return k1, 0, 0.0
+        if not abs(u_law) < DIVERGENCE_FORCE:
+            return FORCE, u_law
+        out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
+        out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
+        out.saturated, out.mode = u != u_law, mode
+        # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
+        if pp.delay == 0:
+            applied = u
+        else:
+            applied = ps.pending[ps.head]
+            ps.pending[ps.head] = u
+            ps.head = (ps.head + 1) % pp.delay
+        # The actuator's dynamics (Plant._actuate): its mean force over the tick.
+        applied = actuator_apply(pp.actuator, ps.actuator, applied)
+        if _plant_advance(k, pp, ps, fe_args, applied):
+            return OFF_LINE, out.contact_position
+        return 0, 0.0
+
+    @njit(error_model="numpy")
+    def run_ticks(
+        k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+    ) -> tuple[int, int, float]:
+        """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
+
+        ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
+        """
+        for k in range(k0, k1):
+            i = min(k - k0, noise.shape[0] - 1)
+            code, value = loop_tick(
+                k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+            )
+            if code:
+                return k, code, value
+        return k1, 0, 0.0
+
+    return loop_tick, run_ticks
+
+
+#: The closed loop of pac's laws (:func:`closed_loop_for` ``kernels.controller_step``).
+loop_tick, run_ticks = closed_loop_for(controller_step)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -420,7 +431,8 @@ def compile_loop(
         or type(controller) is not Controller
     ):
         return None
-    if not isinstance(controller.law, KernelLaw) or not 0 <= delay <= MAX_DELAY:
+    law = controller.law
+    if not isinstance(law, KernelLaw) or not 0 <= delay <= MAX_DELAY:
         return None
     if plant.sensors is not None:  # a train's sensor suite: not compiled yet (the core steps it)
         return None
@@ -454,7 +466,6 @@ def compile_loop(
         p["kind"], p["omega"], p["unilateral"] = LUMPED, plant._omega, plant._unilateral
         p["a"], p["theta"] = plant._a, plant._theta
         fe_args = NO_FE
-    law = controller.law
     cp = controller.record.copy()  # the law's design and the safety chain's fields
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
