@@ -361,7 +361,7 @@ def safety_chain(restart, output, mode_of, commit):
     A closure, not a function taking the law as an argument: numba calls the four statically, so
     the functions that call the chain (``step_one``, ``pac_rig.loop``) stay cached on disk (a
     compiled function passed as a value is a run-time pointer numba cannot cache).  pac's laws
-    are :data:`controller_step`; a law compiled elsewhere can get its own."""
+    are :data:`controller_step`; a user's compiled law file gets its own (``user_law``)."""
 
     @njit(error_model="numpy")
     def controller_step(

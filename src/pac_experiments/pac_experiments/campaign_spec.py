@@ -36,10 +36,11 @@ from typing import Any
 from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.files import FileInputError, excerpt, read_yaml
 from pac_common.parameters import ParameterError
+from pac_controller.laws import LAWS
+from pac_controller.user_law import file_digest
 from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig import composition
 from pac_rig.closed_loop import Scenario
-from pac_rig.composition import CompositionError
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
 
 STATISTICS = ("raw", "en50318")
@@ -277,6 +278,9 @@ def point_key(scenario: Scenario, window: tuple[float, float], statistics: str =
         if parameters.get(name) == default:
             del parameters[name]
     content: dict[str, Any] = {"parameters": parameters, "window": list(window)}
+    law = scenario.controller.effective_law
+    if law not in LAWS:  # a user's law file: its text, so the results of an edited file do not mix
+        content["law_file_sha256"] = file_digest(law)
     if statistics != "raw":
         content["statistics"] = statistics
     text = json.dumps(content, sort_keys=True, default=list)
@@ -305,7 +309,7 @@ def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
                 try:
                     if composed:
                         composition.check_pair(scenario.controller.effective_law, scenario.observer.observer)
-                except CompositionError as exc:
+                except ParameterError as exc:  # parts that do not fit; a law file that cannot be loaded
                     raise SpecError(str(exc)) from None
                 return scenario
             break

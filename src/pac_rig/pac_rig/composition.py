@@ -66,14 +66,15 @@ def derive(
 def check_pair(law: str, observer: str) -> None:
     """Refuse (CompositionError) law ``law`` on observer ``observer`` if it needs what that one
     does not give; one line naming both and what would fit."""
-    from pac_controller.laws import LAWS
+    from pac_controller.laws import LAWS, law_entry
     from pac_observer.parameters import OBSERVER_GIVES
 
-    missing = LAWS[law].needs - OBSERVER_GIVES[observer]
+    needs = law_entry(law).needs  # a user's law file: loaded here, refused in one line if it cannot be
+    missing = needs - OBSERVER_GIVES[observer]
     if not missing:
         return
     fitting_laws = [name for name, entry in LAWS.items() if entry.needs <= OBSERVER_GIVES[observer]]
-    fitting_observers = [name for name, gives in OBSERVER_GIVES.items() if LAWS[law].needs <= gives]
+    fitting_observers = [name for name, gives in OBSERVER_GIVES.items() if needs <= gives]
     raise CompositionError(
         "law",
         law,

@@ -31,6 +31,7 @@ command delay than :data:`MAX_DELAY`) returns None from :func:`compile_loop`;
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,7 @@ from numba import njit
 
 from pac_controller.controller import Controller
 from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLaw, controller_step, new_state
+from pac_controller.user_law import UserLaw
 from pac_model import model
 from pac_observer.contact_force import ContactForceObserver, contact_force_advance, contact_force_start
 from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
@@ -291,9 +293,9 @@ def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
 
 def closed_loop_for(step):
     """The compiled tick and tick loop around controller ``step`` (``kernels.controller_step`` for
-    pac's laws: :func:`loop_tick`, :func:`run_ticks`). Closures, so numba calls ``step``
-    statically and the cached functions that call them (:func:`run_block`, the batch's) stay
-    cached (``kernels.safety_chain``)."""
+    pac's laws: :func:`loop_tick`, :func:`run_ticks`; a user's compiled law file: its own, through
+    :func:`block_for`). Closures, so numba calls ``step`` statically and the cached functions that
+    call them (:func:`run_block`, the batch's) stay cached (``kernels.safety_chain``)."""
 
     @njit(error_model="numpy")
     def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
@@ -303,9 +305,9 @@ def closed_loop_for(step):
         tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
         ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
         ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
-        ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``), for ``step``.
-        n1, n2: this tick's sensor noise.  The order of operations is that of
-        ``closed_loop.run_cores`` and of the nodes.
+        ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``; a user's compiled
+        law: its constants and memory), for ``step``.  n1, n2: this tick's sensor noise.  The order
+        of operations is that of ``closed_loop.run_cores`` and of the nodes.
         """
         y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
         if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
@@ -369,6 +371,33 @@ def run_block(
     )
 
 
+def block_for(step):
+    """:func:`run_block` around controller ``step`` (a user's compiled law file: ``user_law``);
+    compiled once per law and process, not cached on disk (a closure of the user's functions)."""
+    run = closed_loop_for(step)[1]
+
+    @njit(nogil=True, error_model="numpy")
+    def block(
+        k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+    ) -> tuple[int, int, float]:
+        return run(k0, k1, pp[0], ps[0], fe_args, oc[0], os[0], bank, cp[0], cs[0], table, memory, noise, out)
+
+    return block
+
+
+#: The loop of each user's compiled law this process ran, by its chain (``LawFile.step``).
+_USER_BLOCKS: dict[Callable, Callable] = {}
+
+
+def _user_block(law: UserLaw) -> Callable[..., tuple[int, int, float]]:
+    """The loop around a user's compiled law (:func:`block_for`), made once per law file."""
+    step = law.file.step
+    assert step is not None, "a law file at Python speed has no compiled loop"
+    if step not in _USER_BLOCKS:
+        _USER_BLOCKS[step] = block_for(step)
+    return _USER_BLOCKS[step]
+
+
 #: FE_ARGS of the lumped line: empty arrays of the FE line's types (one compiled loop for both).
 NO_FE = (
     np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64),
@@ -396,8 +425,10 @@ class CompiledLoop:
     bank: tuple
     controller_params: np.ndarray
     controller_state: np.ndarray
-    table: np.ndarray
-    memory: np.ndarray
+    table: np.ndarray  # a user's compiled law: its constants (user_law.UserLaw.consts)
+    memory: np.ndarray  # a user's compiled law: its memory (UserLaw.state, a copy)
+    #: A user's compiled law: the loop around its chain (:func:`block_for`); None: :func:`run_block`.
+    block: Callable[..., tuple[int, int, float]] | None = None
 
     def args(self) -> tuple:
         """The records and arrays in the order :func:`loop_tick` takes them (after the tick)."""
@@ -414,7 +445,7 @@ class CompiledLoop:
 
     def run(self, k0: int, k1: int, noise: np.ndarray, out: np.ndarray) -> tuple[int, int, float]:
         """Ticks k0..k1-1 into ``out`` (a TICK array); (ticks reached, divergence code, value)."""
-        return run_block(k0, k1, *self.args(), noise, out)
+        return (self.block or run_block)(k0, k1, *self.args(), noise, out)
 
 
 def compile_loop(
@@ -423,8 +454,8 @@ def compile_loop(
     """The records of the cores as built (``closed_loop.build_cores``; copies: the cores are not
     changed by running them), or None if the loop has no compiled form for them: a plant other
     than :class:`Plant` / :class:`FEPlant`, an observer other than the two, a law without kernel
-    (not a :class:`KernelLaw`), more delay than :data:`MAX_DELAY`, a sensor suite other than
-    ``ground``."""
+    (not a :class:`KernelLaw`, nor a user's law file with njit functions), more delay than
+    :data:`MAX_DELAY`, a sensor suite other than ``ground``."""
     if (
         type(plant) not in (Plant, FEPlant)
         or type(observer) not in (AdaptiveObserver, ContactForceObserver)
@@ -432,7 +463,8 @@ def compile_loop(
     ):
         return None
     law = controller.law
-    if not isinstance(law, KernelLaw) or not 0 <= delay <= MAX_DELAY:
+    compiled_user = isinstance(law, UserLaw) and law.file.compiled
+    if not (isinstance(law, KernelLaw) or compiled_user) or not 0 <= delay <= MAX_DELAY:
         return None
     if plant.sensors is not None:  # a train's sensor suite: not compiled yet (the core steps it)
         return None
@@ -469,13 +501,19 @@ def compile_loop(
     cp = controller.record.copy()  # the law's design and the safety chain's fields
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
-    memory = law.memory.copy()
+    table: np.ndarray
+    memory: np.ndarray
+    if isinstance(law, KernelLaw):
+        table, memory, block = law.table, law.memory.copy(), None
+    else:  # a user's compiled law (checked above)
+        assert isinstance(law, UserLaw)
+        table, memory, block = law.consts, law.state.copy(), _user_block(law)
     if isinstance(observer, ContactForceObserver):
         bank = tuple(np.ascontiguousarray(a).copy() for a in observer.bank)
     else:
         bank = NO_BANK
     return CompiledLoop(
-        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), bank, cp, cs, law.table, memory
+        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), bank, cp, cs, table, memory, block
     )
 
 
