@@ -8,21 +8,24 @@ from __future__ import annotations
 import csv
 import math
 import subprocess
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT, assert_lockstep_equals_offline, first_per_tick
+from conftest import ROOT, ROS2, assert_lockstep_equals_offline, first_per_tick, stop
 
 from pac_analysis.metrics import compute_metrics
 from pac_bag.reader import read_bag
 from pac_common import messages
+from pac_common.parameters import ParameterError
+from pac_controller import user_law
 from pac_controller.controller import Controller
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.user_law import load_law_file
-from pac_experiments import campaign_spec
+from pac_experiments import campaign_run, campaign_spec
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_rig import simulate
 from pac_rig.closed_loop import build_cores, run, run_cores
@@ -110,6 +113,7 @@ def test_simulate_takes_the_path_as_typed(tmp_path, monkeypatch, capsys):
     assert read_bag(bag).topics["command"]["u"].size == 500
 
 
+@pytest.mark.slow  # the compiled copy compiles its chain and loop: 15-45 s
 def test_a_plain_python_law_runs_tick_by_tick_and_the_compiled_copy_in_the_compiled_loop(tmp_path):
     """The Python file has no compiled loop (the cores step it); its copy with njit functions has,
     and both give the same run as the core objects stepped tick by tick (the nodes' calls)."""
@@ -148,7 +152,9 @@ def commit(consts, state, u_applied):
 """
 
 
-@pytest.mark.parametrize("compiled", [False, True], ids=["python", "compiled"])
+@pytest.mark.parametrize(
+    "compiled", [False, pytest.param(True, marks=pytest.mark.slow)], ids=["python", "compiled"]
+)
 def test_a_non_finite_demand_is_answered_by_the_fallback_and_the_law_restarts(tmp_path, compiled):
     """NaN for 0.1 s: the fallback force (within the slew limit) instead, then the law restarts from
     the force the actuator holds (bumpless) and goes on."""
@@ -184,15 +190,26 @@ def test_the_estimate_a_law_reads_is_checked_for_it():
     assert controller.compute(1, np.zeros(4), np.zeros(3), math.nan).mode == "fallback"
 
 
-def test_a_campaign_point_key_holds_the_law_file_text(tmp_path):
-    """A point of a law file keys on its text: the same text keeps its results, an edit does not."""
+def test_a_campaign_point_key_holds_the_law_file_text(tmp_path, monkeypatch):
+    """A point of a law file keys on its text: the same text keeps its results, an edit does not
+    (in a new process: one process refuses a file edited after it imported it, and so does a run
+    of a point checked with the old text)."""
     law = tmp_path / "law.py"
     law.write_text(EXAMPLE.read_text())
-    spec = campaign_spec.Spec("t", ({"law": [str(law), "passive"]},), {"duration": 0.5}, (0.25, 0.5))
-    first = [p.key for p in campaign_spec.expand(spec)]
+    spec = campaign_spec.Spec("t", ({"law": [str(law), "passive"]},), {"duration": 0.05}, (0.0, 0.05))
+    points = campaign_spec.expand(spec)
+    first = [p.key for p in points]
     assert len(set(first)) == 2
     assert [p.key for p in campaign_spec.expand(spec)] == first
     law.write_text(EXAMPLE.read_text().replace("KP = 0.5", "KP = 0.4"))
+    row = campaign_run.run_point(points[0])
+    assert (
+        row["status"] == "error"
+        and f"the law file {law} changed since the campaign was checked" in row["reason"]
+    )
+    with pytest.raises(campaign_spec.SpecError, match="its text changed since this process imported it"):
+        campaign_spec.expand(spec)
+    monkeypatch.setattr(user_law, "_LOADED", {})  # a new process
     second = [p.key for p in campaign_spec.expand(spec)]
     assert second[0] != first[0] and second[1] == first[1]
 
@@ -320,10 +337,46 @@ def test_controller_node_refuses_a_bad_law_file_in_one_line(domain_id, tmp_path)
     )
 
 
-def test_a_file_is_imported_once_per_text(tmp_path):
+def test_a_file_is_imported_once_and_an_edit_after_is_refused(tmp_path, monkeypatch):
+    """A law is fixed for a run: a process that imported a file does not take up an edit of it
+    (a node's retune builds the law again from the file)."""
+    monkeypatch.setattr(user_law, "_LOADED", {})
     law = tmp_path / "law.py"
     law.write_text(EXAMPLE.read_text())
     first = load_law_file(str(law))
     assert load_law_file(str(law)) is first
     law.write_text(EXAMPLE.read_text() + "\n# edited\n")
-    assert load_law_file(str(law)) is not first
+    with pytest.raises(ParameterError, match="its text changed since this process imported it"):
+        load_law_file(str(law))
+
+
+@pytest.mark.live
+def test_a_retune_after_the_law_file_was_edited_is_refused_and_the_node_runs_on(domain_id, tmp_path):
+    """A node builds its law again on a retune: from a file edited since its start it refuses the
+    change in one line (the law is fixed for a run) instead of running the new text or dying."""
+    law = tmp_path / "law.py"
+    law.write_text(EXAMPLE.read_text())
+    env = node_env(domain_id)
+
+    def ros2(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([ROS2, *args], capture_output=True, text=True, env=env, timeout=60)
+
+    node = subprocess.Popen(
+        [ROS2, "run", "pac_controller", "controller_node", "--ros-args", "-p", f"law:={law}"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        while "/controller_node" not in ros2("node", "list").stdout.splitlines():
+            assert time.monotonic() < deadline and node.poll() is None
+        assert ros2("param", "set", "controller_node", "u_max", "300.0").returncode == 0
+        law.write_text(EXAMPLE.read_text().replace("KP = 0.5", "KP = 0.4"))
+        refused = ros2("param", "set", "controller_node", "u_max", "200.0")
+        assert refused.returncode == 1 and "its text changed since this process imported it" in refused.stderr
+        assert ros2("param", "get", "controller_node", "u_max").stdout.strip() == "300.0"
+        assert node.poll() is None
+    finally:
+        stop(node)
+    assert node.returncode == 0

@@ -128,19 +128,26 @@ def file_digest(path: str) -> str:
         raise refuse(path, f"cannot read it ({exc.strerror or exc})") from None
 
 
-#: Loaded files by (absolute path, digest): a file is imported once per process and text (a
-#: campaign builds many points of one law; an edited file is imported again).
-_LOADED: dict[tuple[str, str], LawFile] = {}
+#: Loaded files by absolute path: a file is imported once per process (a campaign builds many
+#: points of one law; the node builds its law again on a retune).
+_LOADED: dict[str, LawFile] = {}
 
 
 def load_law_file(path: str) -> LawFile:
     """The law of file ``path``, imported from the file (not from ``sys.path``) and checked;
-    ParameterError, one line, for a missing file, one that fails to import, one without the protocol."""
+    ParameterError, one line, for a missing file, one that fails to import, one without the
+    protocol, and one whose text changed since this process imported it: a law is fixed for a run,
+    so an edit is not taken up silently (by a node's retune, or a campaign worker's next point)."""
     digest = file_digest(path)
-    key = (str(Path(path).absolute()), digest)
-    if key not in _LOADED:
-        _LOADED[key] = _check(path, digest, _import(path, digest))
-    return _LOADED[key]
+    key = str(Path(path).resolve())
+    loaded = _LOADED.get(key)
+    if loaded is None:
+        loaded = _LOADED[key] = _check(path, digest, _import(path, digest))
+    elif loaded.digest != digest:
+        raise refuse(
+            path, "its text changed since this process imported it (start again to run the new text)"
+        )
+    return loaded
 
 
 def _import(path: str, digest: str) -> ModuleType:
