@@ -272,6 +272,10 @@ BAD_FILES = [
         "design raised AttributeError",
     ),
     (
+        "NEEDS = ()\ndef design(setup):\n    return 'gains'\ndef output(*a):\n    return 0.0\n",
+        "design raised ValueError: could not convert string to float",
+    ),
+    (
         "from numba import njit\nNEEDS = ()\n@njit\ndef output(c, s, t, f_r, z, th, f):\n    return z.no\n",
         "its njit functions do not compile",
     ),

@@ -215,11 +215,10 @@ class UserLaw:
 
     def __init__(self, law: LawFile, setup: LawSetup) -> None:
         self.file = law
-        try:
-            consts = law.design(setup)
+        try:  # its own copy, as flat floats (what the compiled chain takes)
+            self.consts = np.array(law.design(setup), dtype=np.float64).reshape(-1)
         except Exception as exc:  # noqa: BLE001 - the user's design failing is a refusal of the file
             raise refuse(law.path, f"design raised {_where(exc, law.path)}") from None
-        self.consts = np.array(consts, dtype=np.float64).reshape(-1)  # its own copy
         self.state = np.zeros(law.state_size)
         self.uses_estimate = bool(law.needs & {"z_hat", "theta_hat"})
         self.uses_contact_force = "contact_force_hat" in law.needs
@@ -245,12 +244,9 @@ class UserLaw:
         """Compile the chain with the law's functions now, on a copy of its memory and the types the
         controller passes: a law that does not compile is refused in one line, before any run."""
         params, states = np.zeros(1, CONTROLLER_PARAMS), np.zeros(1, CONTROLLER_STATE)
-        params[0]["dt"], params[0]["u_min"], params[0]["u_max"], params[0]["slew_rate_max"] = (
-            1.0,
-            -1.0,
-            1.0,
-            1.0,
-        )
+        for name in ("dt", "u_max", "slew_rate_max"):  # a period and limits that are numbers
+            params[0][name] = 1.0
+        params[0]["u_min"] = -1.0
         new_state(states)
         step_one = self.file.step_one
         assert step_one is not None
