@@ -23,8 +23,8 @@ setup:
 
 # Style first (ruff, the project's packages first-party), types (mypy), then the tests: CI runs exactly this.
 test: setup
-	scripts/with_env.sh ruff check src tests scripts
-	scripts/with_env.sh ruff format --check src tests scripts
+	scripts/with_env.sh ruff check src tests scripts examples
+	scripts/with_env.sh ruff format --check src tests scripts examples
 	scripts/with_env.sh mypy
 	bash scripts/run_tests.sh
 
@@ -49,7 +49,7 @@ mutation: setup
 	scripts/with_env.sh python scripts/mutation.py $(ARGS)
 
 lint: setup
-	scripts/with_env.sh ruff check src tests scripts
+	scripts/with_env.sh ruff check src tests scripts examples
 
 # mypy on src/ as configured in mypy.ini (the code as annotated; not strict).
 typecheck: setup

@@ -53,7 +53,7 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
         "pac_controller.kernels",
         (
             "limit_command", "estimate_refused", "law_must_restart", "_limited", "law_command",
-            "controller_fallback", "controller_step", "law_mode", "fill_safety_chain", "new_state",
+            "controller_fallback", "safety_chain", "law_mode", "fill_safety_chain", "new_state",
         ),
         ("tests/test_safety_chain.py", "tests/test_controller.py"),
     ),

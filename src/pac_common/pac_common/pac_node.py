@@ -26,6 +26,7 @@ from .health import NodeHealth
 from .lifecycle import LifecycleOptions, ManagedNode
 from .parameters import (
     NodeOptions,
+    ParameterError,
     ParameterSet,
     RunEndOptions,
     SchedulingOptions,
@@ -277,7 +278,10 @@ class PacNode(ManagedNode, Node):
         changed = {cls: new for cls, old, new in zip(live, current, updated, strict=True) if new != old}
         if changed:
             if self.configured:
-                self.apply_parameters(changed)
+                try:
+                    self.apply_parameters(changed)
+                except ParameterError as exc:  # valid values the node cannot apply (a law file edited since)
+                    return SetParametersResult(successful=False, reason=str(exc))
             self._sets.update(changed)
         return SetParametersResult(successful=True)
 

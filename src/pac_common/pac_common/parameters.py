@@ -63,6 +63,8 @@ class ParameterSpec:
     length: int | None = None  # fixed-length float array when set
     runtime: bool = False  # may be changed while the node runs (validated like at start)
     max_length: int | None = None  # float array of 1 .. max_length values when set
+    #: With ``choices``: a path ending in this suffix is allowed too (a user's file: ``law``'s ".py")
+    or_file: str | None = None
 
     @property
     def kind(self) -> type:
@@ -73,7 +75,8 @@ class ParameterSpec:
     def allowed(self) -> str:
         """Human-readable allowed range, e.g. ``(0, inf) kg`` or ``one of linear, unilateral``."""
         if self.choices is not None:
-            return "one of " + ", ".join(self.choices)
+            files = f", or the path of a {self.or_file} file" if self.or_file else ""
+            return "one of " + ", ".join(self.choices) + files
         if self.kind is bool:
             return "true or false"
         if self.kind is str:
@@ -96,7 +99,7 @@ class ParameterSpec:
     def check(self, value: Any) -> Any:
         """Return ``value`` normalised to the spec's type, or raise :class:`ParameterError`."""
         if self.choices is not None:
-            if not isinstance(value, str) or value not in self.choices:
+            if not isinstance(value, str) or not (value in self.choices or self.is_file(value)):
                 raise ParameterError(self.name, value, self.allowed())
             return value
         if self.kind is bool:
@@ -136,6 +139,11 @@ class ParameterSpec:
         if not isinstance(value, self.kind):
             raise ParameterError(self.name, value, f"a {self.kind.__name__}")
         return value
+
+    def is_file(self, value: str) -> bool:
+        """``value`` names a file of the kind ``or_file`` allows (by its suffix: whether it exists and
+        holds what it should is checked where it is loaded, e.g. ``pac_controller.user_law``)."""
+        return self.or_file is not None and value.endswith(self.or_file) and len(value) > len(self.or_file)
 
     def _in_range(self, v: float) -> bool:
         if not math.isfinite(v):
@@ -218,11 +226,13 @@ def parameter(
     length: int | None = None,
     runtime: bool = False,
     max_length: int | None = None,
+    or_file: str | None = None,
 ) -> Any:
     """Declare a dataclass field as a validated parameter (see :class:`ParameterSpec`).
 
     ``runtime=True``: a node may change it while it runs (``ros2 param set``), validated by the
-    same rule; every other parameter is fixed for a run.
+    same rule; every other parameter is fixed for a run. ``or_file`` (with ``choices``): the path of
+    a file with this suffix is a value too.
     """
     meta = {
         "description": description,
@@ -235,6 +245,7 @@ def parameter(
         "length": length,
         "runtime": runtime,
         "max_length": max_length,
+        "or_file": or_file,
     }
     return field(default=default, metadata={"pac_parameter": meta})
 

@@ -186,6 +186,11 @@ class Controller:
                 tick,
                 step_one(self.record, self.state, law.table, law.memory, int(tick), z_hat, theta_hat, f_hat),
             )
+        # A user's law compiled into the chain (user_law.UserLaw.chain_step): one compiled step too.
+        compiled = getattr(law, "chain_step", None)
+        out = compiled(self.record, self.state, int(tick), z_hat, theta_hat, f_hat) if compiled else None
+        if out is not None:
+            return self._command(tick, out)
         if refused_one(self.record, z_hat, theta_hat, f_hat):
             return self.fallback(tick)
         if must_restart_one(self.state, int(tick)):

@@ -1,8 +1,9 @@
 """``ros2 run pac_controller controller_node``: the force controller on the ROS graph.
 
 ``-p law:=<name>`` selects the control law (adaptive_backstepping, the default, eq. (43);
-backstepping_known; pid; lqr; passive; line_adaptive: pac_controller.laws, docs/laws.md); the law is
-fixed for a run.  ``mode:=passive`` is deprecated (law:=passive), still honoured with a warning.
+backstepping_known; pid; lqr; passive; line_adaptive: pac_controller.laws, docs/laws.md), or
+``-p law:=path/to/my_law.py`` a user's law file (pac_controller.user_law); the law is fixed for a
+run.  ``mode:=passive`` is deprecated (law:=passive), still honoured with a warning.
 
 Subscribes ``estimate`` (ObserverEstimate), publishes ``command`` (ActuatorCommand)
 for the same tick.  Safety: a non-finite estimate never reaches the actuator (the
@@ -142,11 +143,13 @@ class ControllerNode(PacNode):
     def apply_parameters(self, changed: Mapping[type[ParameterSet], ParameterSet]) -> None:
         params = self.changed_or(changed, ControllerParameters, self.core.params)
         reference = self.changed_or(changed, ReferenceParameters, self.core.reference.params)
-        self.limits = self.changed_or(changed, EstimateLimits, self.limits)
         state = (self.core.last_u, self.core.last_tick)
-        self.core = self.CORE(
+        # Built first: a law that cannot be built again (a user's law file edited since the start,
+        # user_law.load_law_file) refuses the whole change and the running core stays.
+        core = self.CORE(
             self.pantograph, self.track, params, reference, self.loop.sample_period, self.laws, self.catenary
         )
+        self.core, self.limits = core, self.changed_or(changed, EstimateLimits, self.limits)
         # The actuator does not jump on a retune; a law with state restarts bumplessly from it.
         self.core.last_u, self.core.last_tick = state
         self.get_logger().info(

@@ -362,26 +362,44 @@ def controller_fallback(p, s, tick: int) -> tuple[float, float, float, float, fl
     return u, p.fallback_force, f_r[0], 0.0, 0.0, 0.0, _FALLBACK
 
 
+def safety_chain(restart, output, mode_of, commit):
+    """The chain around a law, written once: ``controller_step(p, s, table, memory, tick, z_hat,
+    theta_hat, f_hat) -> (u, u_unsaturated, F_r, e1, e2, e3, mode code)`` for the law of the four
+    compiled functions (signatures of :func:`_restart_law`, :func:`law_output`, :func:`law_mode`,
+    :func:`law_commit`; ``table`` and ``memory`` are the law's, passed through to them).
+
+    A closure, not a function taking the law as an argument: numba calls the four statically, so
+    the functions that call the chain (``step_one``, ``pac_rig.loop``) stay cached on disk (a
+    compiled function passed as a value is a run-time pointer numba cannot cache).  pac's laws
+    are :data:`controller_step`; a user's compiled law file gets its own (``user_law``)."""
+
+    @njit(error_model="numpy")
+    def controller_step(
+        p, s, table, memory, tick: int, z_hat, theta_hat, f_hat: float
+    ) -> tuple[float, float, float, float, float, float, int]:
+        t = tick * p.dt
+        f_r = reference_at4(
+            t, p.shape, p.force_amplitude, p.force_initial, p.step_time, p.period, p.filter_bandwidth
+        )
+        if estimate_refused(p, z_hat, theta_hat, f_hat):
+            return controller_fallback(p, s, tick)
+        if law_must_restart(s, tick):
+            restart(p, s, table, memory, s.has_last, s.last_u)
+        u_law, e1, e2, e3 = output(p, s, table, memory, tick, t, f_r, z_hat, theta_hat, f_hat)
+        if not math.isfinite(u_law):
+            return controller_fallback(p, s, tick)
+        mode = mode_of(p, s)  # before commit: line_adaptive's guard trips there, from the next command on
+        u = law_command(p, s, tick, u_law)
+        commit(p, s, table, memory, tick, u)
+        return u, u_law, f_r[0], e1, e2, e3, mode
+
+    return controller_step
+
+
 @njit(cache=True, error_model="numpy")
-def controller_step(
-    p, s, table, memory, tick: int, z_hat, theta_hat, f_hat: float
-) -> tuple[float, float, float, float, float, float, int]:
-    """``Controller.compute`` compiled: (u, u_unsaturated, F_r, e1, e2, e3, mode code)."""
-    t = tick * p.dt
-    f_r = reference_at4(
-        t, p.shape, p.force_amplitude, p.force_initial, p.step_time, p.period, p.filter_bandwidth
-    )
-    if estimate_refused(p, z_hat, theta_hat, f_hat):
-        return controller_fallback(p, s, tick)
-    if law_must_restart(s, tick):
-        law_restart(p, s, memory, s.has_last, s.last_u)
-    u_law, e1, e2, e3 = law_output(p, s, table, memory, tick, t, f_r, z_hat, theta_hat, f_hat)
-    if not math.isfinite(u_law):
-        return controller_fallback(p, s, tick)
-    mode = law_mode(p, s)  # before commit: line_adaptive's guard trips there, from the next command on
-    u = law_command(p, s, tick, u_law)
-    law_commit(p, s, table, memory, tick, u)
-    return u, u_law, f_r[0], e1, e2, e3, mode
+def _restart_law(p, s, table, memory, has_u: bool, u_applied: float) -> None:
+    """:func:`law_restart` in the chain's signature (the law's table unused)."""
+    law_restart(p, s, memory, has_u, u_applied)
 
 
 @njit(cache=True, error_model="numpy")
@@ -390,6 +408,10 @@ def law_command(p, s, tick: int, u_law: float) -> float:
     u = _limited(p, s, tick, u_law)
     s.has_law_tick, s.law_tick = True, tick
     return u
+
+
+#: ``Controller.compute`` compiled, for pac's laws: (u, u_unsaturated, F_r, e1, e2, e3, mode code).
+controller_step = safety_chain(_restart_law, law_output, law_mode, law_commit)
 
 
 # Entry points for Python callers (the law classes): records travel as 1-element arrays.

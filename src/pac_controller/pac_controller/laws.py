@@ -11,11 +11,13 @@
 
 Every law runs inside the same :class:`pac_controller.controller.Controller`
 (reference, fallback, slew limit, saturation).  Equations: each module's docstring
-and docs/laws.md.
+and docs/laws.md.  ``law`` may also name a user's Python file (``my_law.py``): its law
+(:mod:`pac_controller.user_law`) runs in the same controller (:func:`law_entry`).
 """
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -28,6 +30,7 @@ from .lqr import LqrLaw, design_lqr
 from .parameters import FORCE_ESTIMATES, LAW_NAMES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
 from .pid import PidLaw, design_pid, least_derivative_filter
+from .user_law import LawFile, LawSetup, UserLaw, load_law_file
 
 #: Laws that need the catenary parameters (k0, alpha, beta): the controller is told them.
 NEEDS_CATENARY = frozenset({"backstepping_known"})
@@ -120,6 +123,19 @@ LAWS: dict[str, LawEntry] = {
 assert tuple(LAWS) == LAW_NAMES, "the registry and the parameter's choices must agree"
 
 
+def law_entry(name: str) -> LawEntry:
+    """The entry of law ``name``: the registry's, or that of a user's law file (a path ending in
+    .py, loaded from the file: ParameterError in one line when it cannot be)."""
+    if name in LAWS:
+        return LAWS[name]
+    law = load_law_file(name)
+    return LawEntry(functools.partial(_user, law), law.needs - {"z_hat"})
+
+
+def _user(law: LawFile, pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return UserLaw(law, LawSetup(dt, pantograph, track, params, reference, laws))
+
+
 def make_law(
     name: str,
     pantograph: PantographParameters,
@@ -133,7 +149,7 @@ def make_law(
     """The core of law ``name``; raises ParameterError when its design fails (pid, lqr)."""
     if name in NEEDS_CATENARY and catenary is None:
         raise ValueError(f"law {name} needs the catenary parameters (k0, alpha, beta)")
-    build = LAWS[name].build
+    build = law_entry(name).build
     return build(pantograph, track, params, reference, laws or LawParameters(), catenary, sample_period)
 
 

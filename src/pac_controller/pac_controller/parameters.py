@@ -60,8 +60,10 @@ class ControllerParameters(ParameterSet):
         "control law: 'adaptive_backstepping' (eq. (43) on z_hat, theta_hat), 'backstepping_known' "
         "(eq. (43) given the true theta: an oracle, needs k0, alpha, beta), 'pid' (PID on F_hat), "
         "'lqr' (LQ servo at design_stiffness), 'passive' (u = F_r), 'line_adaptive' (span-periodic "
-        "learning on F_hat for a distributed line, with a do-no-harm guard). Fixed for a run (docs/laws.md)",
+        "learning on F_hat for a distributed line, with a do-no-harm guard), or the path of your own law's "
+        "Python file (docs/laws.md, 'Your own law'). Fixed for a run (docs/laws.md)",
         choices=LAW_NAMES,
+        or_file=".py",
     )
     mode: str = parameter(
         "active",

@@ -26,7 +26,7 @@ from pac_rig.batch import batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, run
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat, simulate_to_bag
 
-from .campaign_spec import Point
+from .campaign_spec import Point, law_file_sha256
 
 #: The measures of a run, named as in ``pac_analysis.metrics.Metrics`` (and its reports).
 METRIC_COLUMNS = tuple(
@@ -120,6 +120,8 @@ def run_point(point: Point, bag_dir: str | None = None) -> dict[str, Any]:
         scenario = scenario_from_flat(point.values)
         rate = scenario.loop.rate_hz
         row.update(scenario_to_flat(scenario))
+        if law_file_sha256(scenario) != point.law_file_sha256:  # the key says which text ran
+            raise ValueError(f"the law file {point.values['law']} changed since the campaign was checked")
         diverged = None
         if bag_dir is None:
             try:

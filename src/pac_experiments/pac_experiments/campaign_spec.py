@@ -36,10 +36,11 @@ from typing import Any
 from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.files import FileInputError, excerpt, read_yaml
 from pac_common.parameters import ParameterError
+from pac_controller.laws import LAWS
+from pac_controller.user_law import file_digest
 from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig import composition
 from pac_rig.closed_loop import Scenario
-from pac_rig.composition import CompositionError
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
 
 STATISTICS = ("raw", "en50318")
@@ -124,6 +125,8 @@ class Point:
     grid: int  # index of the grid it comes from
     window: tuple[float, float] = (0.0, 0.0)
     statistics: str = "raw"
+    #: A user's law file (``law``): the SHA-256 of its text, which the key holds and the run checks
+    law_file_sha256: str = ""
 
 
 def same_value(a: Any, b: Any) -> bool:
@@ -271,14 +274,23 @@ def grid_size(grids: tuple[dict[str, list[Any]], ...] | list[dict[str, list[Any]
     return sum(math.prod(len(values) for values in grid.values()) for grid in grids)
 
 
+def law_file_sha256(scenario: Scenario) -> str:
+    """The SHA-256 of the text of the scenario's law file; "" for one of pac's laws."""
+    law = scenario.controller.effective_law
+    return "" if law in LAWS else file_digest(law)
+
+
 def point_key(scenario: Scenario, window: tuple[float, float], statistics: str = "raw") -> str:
-    """A stable hash of every parameter of the scenario (validated, normalised), the window
-    and (when not the default) the statistics."""
+    """A stable hash of every parameter of the scenario (validated, normalised), the window,
+    (when not the default) the statistics and (for a user's law file) the text of the file."""
     parameters = scenario_to_flat(scenario)
     for name, default in KEY_NEUTRAL_DEFAULTS.items():
         if parameters.get(name) == default:
             del parameters[name]
     content: dict[str, Any] = {"parameters": parameters, "window": list(window)}
+    law_text = law_file_sha256(scenario)
+    if law_text:  # a user's law file: its text, so the results of an edited file do not mix
+        content["law_file_sha256"] = law_text
     if statistics != "raw":
         content["statistics"] = statistics
     text = json.dumps(content, sort_keys=True, default=list)
@@ -311,7 +323,7 @@ def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
                             scenario.observer.observer,
                             scenario.laws.force_estimate,
                         )
-                except CompositionError as exc:
+                except ParameterError as exc:  # parts that do not fit; a law file that cannot be loaded
                     raise SpecError(str(exc)) from None
                 return scenario
             break
@@ -380,7 +392,8 @@ def _grid_points(spec: Spec, errors: list[str] | None = None) -> Iterator[Point]
                     raise
                 errors += exc.errors
                 continue
-            yield Point(point_key(scenario, window, spec.statistics), values, gi, window, spec.statistics)
+            key = point_key(scenario, window, spec.statistics)
+            yield Point(key, values, gi, window, spec.statistics, law_file_sha256(scenario))
 
 
 def expand(spec: Spec) -> list[Point]:

@@ -117,9 +117,7 @@ def main(argv: list[str] | None = None) -> int:
         + "\n"
     )
     (args.out / "summary.md").write_text(text)
-    data = [
-        {"group": group, "measures": {k: vars(v) for k, v in m.items()}} for group, m in groups
-    ]
+    data = [{"group": group, "measures": {k: vars(v) for k, v in m.items()}} for group, m in groups]
     (args.out / "summary.json").write_text(json.dumps(data, indent=1, allow_nan=True) + "\n")
     print(text)
     return 0

@@ -83,7 +83,7 @@ def prepare(i: int, s: Scenario) -> tuple[CompiledLoop, np.ndarray]:
     """The compiled loop of scenario ``i`` and its sensor noise (one row per tick, or one zero row)."""
     cores = build_cores(s)
     loop = compile_loop(*cores, s.loop.command_delay_ticks)
-    if loop is None:
+    if loop is None or loop.block is not None:  # a user's compiled law runs per point (closed_loop.run)
         raise ValueError(
             f"scenario {i}: the compiled loop has no form for catenary_model {s.plant.catenary_model}, "
             f"observer {s.observer.observer}, law {s.controller.effective_law}, "

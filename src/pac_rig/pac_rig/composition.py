@@ -150,20 +150,22 @@ def _fe_line_design(
 def check_pair(law: str, observer: str, force_estimate: str | None = None) -> None:
     """Refuse (CompositionError) law ``law`` on observer ``observer`` if it needs what that one
     does not give (a fixed-gain law: with F_hat in the form ``force_estimate``, None: the
-    parameter's default); one line naming both and what would fit."""
-    from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS
+    parameter's default); one line naming both and what would fit. A user's law file is loaded
+    here (refused in one line if it cannot be)."""
+    from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS, law_entry
     from pac_controller.parameters import LawParameters
     from pac_observer.parameters import OBSERVER_GIVES
 
     form = force_estimate or LawParameters().force_estimate
-    needs, gives = LAWS[law].needs_of(form), OBSERVER_GIVES[observer]
+    entry = law_entry(law)
+    needs, gives = entry.needs_of(form), OBSERVER_GIVES[observer]
     missing = needs - gives
     if not missing:
         return
-    fitting_laws = [name for name, entry in LAWS.items() if entry.needs_of(form) <= gives]
+    fitting_laws = [name for name, other in LAWS.items() if other.needs_of(form) <= gives]
     fitting_observers = [name for name, offers in OBSERVER_GIVES.items() if needs <= offers]
     fitting_forms = (
-        [f for f in FORCE_ESTIMATE_NEEDS if LAWS[law].needs_of(f) <= gives] if LAWS[law].fixed_gain else []
+        [f for f in FORCE_ESTIMATE_NEEDS if entry.needs_of(f) <= gives] if entry.fixed_gain else []
     )
     with_form = f", or force_estimate:={' or '.join(fitting_forms)}" if fitting_forms else ""
     raise CompositionError(

@@ -31,6 +31,7 @@ command delay than :data:`MAX_DELAY`) returns None from :func:`compile_loop`;
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,6 +39,7 @@ from numba import njit
 
 from pac_controller.controller import Controller
 from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLaw, controller_step, new_state
+from pac_controller.user_law import UserLaw
 from pac_model import model
 from pac_observer.contact_force import ContactForceObserver, contact_force_advance, contact_force_start
 from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
@@ -289,63 +291,74 @@ def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
     return 0
 
 
-@njit(cache=True, error_model="numpy")
-def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
-    """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
+def closed_loop_for(step):
+    """The compiled tick and tick loop around controller ``step`` (``kernels.controller_step`` for
+    pac's laws: :func:`loop_tick`, :func:`run_ticks`; a user's compiled law file: its own, through
+    :func:`block_for`). Closures, so numba calls ``step`` statically and the cached functions that
+    call them (:func:`run_block`, the batch's) stay cached (``kernels.safety_chain``)."""
 
-    Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
-    tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
-    ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
-    ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
-    ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``).  n1, n2: this
-    tick's sensor noise.  The order of operations is that of ``closed_loop.run_cores`` and of
-    the nodes.
-    """
-    y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
-    if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
-        return DISPLACEMENT, y1
-    status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
-    if status:
-        return status, np.nan
-    # Controller: law and safety chain.
-    u, u_law, f_r, e1, e2, e3, mode = controller_step(
-        cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
-    )
-    if not abs(u_law) < DIVERGENCE_FORCE:
-        return FORCE, u_law
-    out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
-    out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
-    out.saturated, out.mode = u != u_law, mode
-    # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
-    if pp.delay == 0:
-        applied = u
-    else:
-        applied = ps.pending[ps.head]
-        ps.pending[ps.head] = u
-        ps.head = (ps.head + 1) % pp.delay
-    # The actuator's dynamics (Plant._actuate): its mean force over the tick.
-    applied = actuator_apply(pp.actuator, ps.actuator, applied)
-    if _plant_advance(k, pp, ps, fe_args, applied):
-        return OFF_LINE, out.contact_position
-    return 0, 0.0
+    @njit(error_model="numpy")
+    def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
+        """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
 
-
-@njit(cache=True, error_model="numpy")
-def run_ticks(
-    k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
-) -> tuple[int, int, float]:
-    """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
-
-    ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
-    """
-    for k in range(k0, k1):
-        i = min(k - k0, noise.shape[0] - 1)
-        code, value = loop_tick(
-            k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+        Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
+        tick k - 1), DISPLACEMENT (value y1), FORCE (value: u demanded by the law), OFF_LINE.
+        ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
+        ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
+        ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``; a user's compiled
+        law: its constants and memory), for ``step``.  n1, n2: this tick's sensor noise.  The order
+        of operations is that of ``closed_loop.run_cores`` and of the nodes.
+        """
+        y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
+        if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
+            return DISPLACEMENT, y1
+        status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
+        if status:
+            return status, np.nan
+        # Controller: law and safety chain.
+        u, u_law, f_r, e1, e2, e3, mode = step(
+            cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
         )
-        if code:
-            return k, code, value
-    return k1, 0, 0.0
+        if not abs(u_law) < DIVERGENCE_FORCE:
+            return FORCE, u_law
+        out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
+        out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
+        out.saturated, out.mode = u != u_law, mode
+        # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
+        if pp.delay == 0:
+            applied = u
+        else:
+            applied = ps.pending[ps.head]
+            ps.pending[ps.head] = u
+            ps.head = (ps.head + 1) % pp.delay
+        # The actuator's dynamics (Plant._actuate): its mean force over the tick.
+        applied = actuator_apply(pp.actuator, ps.actuator, applied)
+        if _plant_advance(k, pp, ps, fe_args, applied):
+            return OFF_LINE, out.contact_position
+        return 0, 0.0
+
+    @njit(error_model="numpy")
+    def run_ticks(
+        k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+    ) -> tuple[int, int, float]:
+        """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
+
+        ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
+        """
+        for k in range(k0, k1):
+            i = min(k - k0, noise.shape[0] - 1)
+            code, value = loop_tick(
+                k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+            )
+            if code:
+                return k, code, value
+        return k1, 0, 0.0
+
+    return loop_tick, run_ticks
+
+
+#: The closed loop of pac's laws (:func:`closed_loop_for` ``kernels.controller_step``).
+loop_tick, run_ticks = closed_loop_for(controller_step)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -356,6 +369,33 @@ def run_block(
     return run_ticks(
         k0, k1, pp[0], ps[0], fe_args, oc[0], os[0], bank, cp[0], cs[0], table, memory, noise, out
     )
+
+
+def block_for(step):
+    """:func:`run_block` around controller ``step`` (a user's compiled law file: ``user_law``);
+    compiled once per law and process, not cached on disk (a closure of the user's functions)."""
+    run = closed_loop_for(step)[1]
+
+    @njit(nogil=True, error_model="numpy")
+    def block(
+        k0, k1, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out
+    ) -> tuple[int, int, float]:
+        return run(k0, k1, pp[0], ps[0], fe_args, oc[0], os[0], bank, cp[0], cs[0], table, memory, noise, out)
+
+    return block
+
+
+#: The loop of each user's compiled law this process ran, by its chain (``LawFile.step``).
+_USER_BLOCKS: dict[Callable, Callable] = {}
+
+
+def _user_block(law: UserLaw) -> Callable[..., tuple[int, int, float]]:
+    """The loop around a user's compiled law (:func:`block_for`), made once per law file."""
+    step = law.file.step
+    assert step is not None, "a law file at Python speed has no compiled loop"
+    if step not in _USER_BLOCKS:
+        _USER_BLOCKS[step] = block_for(step)
+    return _USER_BLOCKS[step]
 
 
 #: FE_ARGS of the lumped line: empty arrays of the FE line's types (one compiled loop for both).
@@ -385,8 +425,10 @@ class CompiledLoop:
     bank: tuple
     controller_params: np.ndarray
     controller_state: np.ndarray
-    table: np.ndarray
-    memory: np.ndarray
+    table: np.ndarray  # a user's compiled law: its constants (user_law.UserLaw.consts)
+    memory: np.ndarray  # a user's compiled law: its memory (UserLaw.state, a copy)
+    #: A user's compiled law: the loop around its chain (:func:`block_for`); None: :func:`run_block`.
+    block: Callable[..., tuple[int, int, float]] | None = None
 
     def args(self) -> tuple:
         """The records and arrays in the order :func:`loop_tick` takes them (after the tick)."""
@@ -403,7 +445,7 @@ class CompiledLoop:
 
     def run(self, k0: int, k1: int, noise: np.ndarray, out: np.ndarray) -> tuple[int, int, float]:
         """Ticks k0..k1-1 into ``out`` (a TICK array); (ticks reached, divergence code, value)."""
-        return run_block(k0, k1, *self.args(), noise, out)
+        return (self.block or run_block)(k0, k1, *self.args(), noise, out)
 
 
 def compile_loop(
@@ -412,15 +454,17 @@ def compile_loop(
     """The records of the cores as built (``closed_loop.build_cores``; copies: the cores are not
     changed by running them), or None if the loop has no compiled form for them: a plant other
     than :class:`Plant` / :class:`FEPlant`, an observer other than the two, a law without kernel
-    (not a :class:`KernelLaw`), more delay than :data:`MAX_DELAY`, a sensor suite other than
-    ``ground``."""
+    (not a :class:`KernelLaw`, nor a user's law file with njit functions), more delay than
+    :data:`MAX_DELAY`, a sensor suite other than ``ground``."""
     if (
         type(plant) not in (Plant, FEPlant)
         or type(observer) not in (AdaptiveObserver, ContactForceObserver)
         or type(controller) is not Controller
     ):
         return None
-    if not isinstance(controller.law, KernelLaw) or not 0 <= delay <= MAX_DELAY:
+    law = controller.law
+    compiled_user = isinstance(law, UserLaw) and law.file.compiled
+    if not (isinstance(law, KernelLaw) or compiled_user) or not 0 <= delay <= MAX_DELAY:
         return None
     if plant.sensors is not None:  # a train's sensor suite: not compiled yet (the core steps it)
         return None
@@ -454,17 +498,22 @@ def compile_loop(
         p["kind"], p["omega"], p["unilateral"] = LUMPED, plant._omega, plant._unilateral
         p["a"], p["theta"] = plant._a, plant._theta
         fe_args = NO_FE
-    law = controller.law
     cp = controller.record.copy()  # the law's design and the safety chain's fields
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
-    memory = law.memory.copy()
+    table: np.ndarray
+    memory: np.ndarray
+    if isinstance(law, KernelLaw):
+        table, memory, block = law.table, law.memory.copy(), None
+    else:  # a user's compiled law (checked above)
+        assert isinstance(law, UserLaw)
+        table, memory, block = law.consts, law.state.copy(), _user_block(law)
     if isinstance(observer, ContactForceObserver):
         bank = tuple(np.ascontiguousarray(a).copy() for a in observer.bank)
     else:
         bank = NO_BANK
     return CompiledLoop(
-        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), bank, cp, cs, law.table, memory
+        pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), bank, cp, cs, table, memory, block
     )
 
 
