@@ -294,3 +294,19 @@ def test_the_whole_lines_dropper_lengths_put_the_taut_wire_at_its_design_presag(
     taut = line.solve_static(line.f_static)
     assert len(dr.node) > 400  # a whole line's droppers, not a period's
     assert np.max(np.abs(taut[dr.wc] + dr.target_sag)) < 1e-6
+
+
+def test_the_element_flexibility_is_the_inverse_stiffness_by_solves() -> None:
+    """The 4x4 blocks of K^-1 on each element's contact DOFs, read off the band of K^-1 (the
+    Takahashi recurrence on the Cholesky factor), equal K^-1 by banded solves of unit loads (the
+    reference: scipy's cho_solve_banded through solve_static, which zeroes fixed DOFs) within
+    1e-12 of the largest entry (rounding of two O(n kd) recurrences; measured 1.4e-15)."""
+    line = Line(CatenaryData(n_spans=6), n_spans=6)
+    got = line.element_flexibility()
+    for e in range(line.n_nodes - 1):
+        dofs = line.contact_dofs(e)
+        unit = np.zeros((line.n_dof, 4))
+        unit[dofs, np.arange(4)] = 1.0
+        want = line.solve_static(unit)[dofs, :]
+        np.testing.assert_allclose(got[e], want, rtol=0.0, atol=1e-12 * np.max(np.abs(want)) + 1e-300)
+    assert not np.any(got[0][:, 0]) and not np.any(got[0][0, :])  # the first node's wire is fixed

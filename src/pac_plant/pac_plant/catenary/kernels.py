@@ -44,6 +44,30 @@ def chol_factor(ab: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
+def band_inverse_band(cb: np.ndarray) -> np.ndarray:
+    """The band of A^-1 (lower storage: z[k, j] = (A^-1)[j+k, j], k = 0..kd) from A's Cholesky
+    factor ``cb`` (``chol_factor``): the Takahashi recurrence on A^-1 = L^-T L^-1, i.e.
+    L^T Z = L^-1, whose upper-triangle rows read, for j >= i,
+    Z[i, j] = (delta_ij / L[i, i] - sum_{k=i+1}^{i+kd} L[k, i] Z[k, j]) / L[i, i];
+    every Z[k, j] it needs lies in the band (k, j in (i, i+kd]), computed at a later row. O(n kd^2)
+    against O(n^2 kd) for the band by solves (a whole line: 10 ms against 14 s)."""
+    n, kd = cb.shape[0], cb.shape[1] - 1
+    z = np.zeros((kd + 1, n))
+    for i in range(n - 1, -1, -1):
+        top = min(kd, n - 1 - i)
+        inv = cb[i, 0]  # 1 / L[i, i]
+        for d in range(top, -1, -1):  # Z[i, i+d]: off the diagonal first, the diagonal last
+            j = i + d
+            acc = inv if d == 0 else 0.0
+            for m in range(1, top + 1):
+                k = i + m  # Z[k, j], k and j both in (i, i + kd]: in the band, either way round
+                zkj = z[k - j, j] if k >= j else z[j - k, k]
+                acc -= cb[i, m] * zkj
+            z[d, i] = acc * inv
+    return z
+
+
+@numba.njit(cache=True)
 def band_chol_solve(cb: np.ndarray, b: np.ndarray) -> None:
     """Solve L L^T x = b in place (b of shape (n,)); cb from ``chol_factor``."""
     n, kd = cb.shape[0], cb.shape[1] - 1

@@ -438,19 +438,21 @@ class Line:
         return out
 
     def element_flexibility(self) -> np.ndarray:
-        """Per element, the 4x4 block of K^-1 on its contact DOFs (static stiffness at any x)."""
+        """Per element, the 4x4 block of K^-1 on its contact DOFs (static stiffness at any x): read
+        off the band of K^-1 (``kernels.band_inverse_band``; an element's DOFs are 5 apart at most,
+        inside the band of 7), a fixed DOF's rows and columns 0 (as ``solve_static`` gives)."""
+        from .kernels import band_inverse_band, chol_factor
+
+        z = band_inverse_band(chol_factor(self.K.ab))
+        z[:, self.fixed] = 0.0
+        for i in self.fixed:  # the entries of a fixed DOF's row, stored in earlier columns
+            for k in range(1, min(BANDWIDTH, i) + 1):
+                z[k, i - k] = 0.0
         ne = self.n_nodes - 1
         out = np.empty((ne, 4, 4))
-        cols = [(i, off) for i in range(self.n_nodes) for off in (WC, RC)]
-        batch = 256
-        for start in range(0, len(cols), batch):
-            cb = cols[start : start + batch]
-            rhs = np.zeros((self.n_dof, len(cb)))
-            rhs[[4 * i + off for i, off in cb], np.arange(len(cb))] = 1.0
-            sol = self.solve_static(rhs)
-            for c, (i, off) in enumerate(cb):
-                # Column (i, off) enters the blocks of the elements on both sides of node i.
-                for e, a in ((i - 1, 2 + off), (i, off)):
-                    if 0 <= e < ne:
-                        out[e, :, a] = sol[self.contact_dofs(e), c]
+        for e in range(ne):
+            dofs = self.contact_dofs(e)
+            for a, p in enumerate(dofs):
+                for c, q in enumerate(dofs):
+                    out[e, a, c] = z[p - q, q] if p >= q else z[q - p, p]
         return out
