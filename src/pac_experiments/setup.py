@@ -32,6 +32,7 @@ setup(
             "catenary = pac_experiments.fe_line:main",
             "fe_experiment = pac_experiments.fe_experiment:main",
             "campaign_summary = pac_experiments.campaign_summary:main",
+            "realistic_figure = pac_experiments.realistic_figure:main",
             "fe_live = pac_experiments.fe_live:main",
             "two_pantographs = pac_experiments.two_pantographs:main",
             "line_response = pac_experiments.line_response:main",

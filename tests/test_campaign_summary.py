@@ -1,0 +1,60 @@
+"""campaign_summary: groups by every axis but the one summarised over, the mean with its 95 %
+confidence interval (against scipy's t interval), extremes, and runs that failed left out."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from pac_experiments.campaign_summary import Interval, main, summarise
+
+pytestmark = pytest.mark.unit
+
+
+def rows() -> list[dict[str, str]]:
+    out = []
+    for law, base in (("passive", 50.0), ("pid", 40.0)):
+        for seed in range(5):
+            out.append(
+                {
+                    "law": law,
+                    "line_seed": str(seed),
+                    "force_amplitude": "157.3",
+                    "status": "ok",
+                    "en50318_contact_force_std": str(base + seed),
+                    "en50318_contact_force_mean": "157.0",
+                }
+            )
+    out.append({**out[0], "status": "diverged", "en50318_contact_force_std": "1e9"})
+    return out
+
+
+def test_the_interval_is_students_t_on_the_runs():
+    values = [50.0, 51.0, 52.0, 53.0, 54.0]
+    got = Interval.of(values)
+    low, high = stats.t.interval(0.95, len(values) - 1, loc=np.mean(values), scale=stats.sem(values))
+    assert (
+        got.mean == pytest.approx(52.0) and got.low == pytest.approx(low) and got.high == pytest.approx(high)
+    )
+    assert (got.smallest, got.largest, got.n) == (50.0, 54.0, 5)
+    one = Interval.of([3.0])
+    assert one.n == 1 and one.mean == 3.0 and np.isnan(one.low)
+
+
+def test_groups_are_every_other_axis_and_failed_runs_are_left_out(tmp_path):
+    groups = summarise(rows(), "line_seed")
+    assert [g for g, _ in groups] == [{"law": "passive"}, {"law": "pid"}]
+    passive = groups[0][1]["en50318_contact_force_std"]
+    assert passive.n == 5 and passive.largest == 54.0  # the diverged run's 1e9 is not in it
+    data = rows()
+    with (tmp_path / "results.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(data[0]))
+        writer.writeheader()
+        writer.writerows(data)
+    assert main([str(tmp_path)]) == 0
+    text = (tmp_path / "summary.md").read_text()
+    assert "| passive | 5 |" in text and "52 [" in text
+    assert main([str(tmp_path / "none")]) == 2
