@@ -2,6 +2,7 @@
 stepped tick by tick (as the nodes step them) give the same numbers bit for bit, divergence included."""
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -248,3 +249,65 @@ def test_each_tick_is_written_into_the_record_the_caller_holds():
 def test_empty_batch_is_refused():
     with pytest.raises(ValueError, match="at least one scenario"):
         run_batch([])
+
+
+#: A train's sensor suites (positions from the moving roof, accelerometers, a load cell) on both
+#: lines: the suite's low-pass, latency ring and noise run inside the compiled loop.
+SENSOR_SCENARIOS = {
+    "lumped_train_roof": {
+        **COMMON, "sensors": "train", "roof_motion": "german_high", "shape": "square", "period": 0.4,
+        "duration": 1.0,
+    },
+    "lumped_load_cell_turbulence_lqr": {
+        **COMMON, "sensors": "train_load_cell", "nominal_pantograph": "three_mass_identified_2dof",
+        "aero_turbulence": 0.1, "law": "lqr", "command_delay_ticks": 3, "noise_seed": 7, "duration": 1.0,
+    },
+    # the backstepping law with the paper's gains diverges: the compiled loop stops where the cores do
+    "lumped_train_diverges": {**COMMON, **PAPER_GAINS, "sensors": "train", "duration": 0.5},
+    "fe_load_cell_roof": {
+        "catenary_model": "fe", "pantograph": "three_mass", "roof_motion": "german_low",
+        "sensors": "train_load_cell", "law": "line_adaptive", "observer": "contact_force",
+        "speed_kmh": 300.0, "duration": 0.3,
+    },
+    "fe_train_static_wire": {
+        "catenary_model": "fe", "sensors": "train", "fe_datum": "static_wire", "law": "pid",
+        "command_delay_ticks": 2, "duration": 0.3,
+    },
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def sensor_batch():
+    scenarios = [scenario_from_flat(flat) for flat in SENSOR_SCENARIOS.values()]
+    return scenarios, run_batch(scenarios, threads=2)
+
+
+@pytest.mark.parametrize("index", range(len(SENSOR_SCENARIOS)), ids=list(SENSOR_SCENARIOS))
+def test_a_trains_sensors_compiled_equal_tick_by_tick_cores(sensor_batch, index):
+    """With a train's sensor suite: closed_loop.run (compiled) == the core objects stepped tick by
+    tick, every field of every record (the measurement's accelerations, load cell and from_roof
+    included), divergence included; the batch's traces == the same."""
+    scenarios, result = sensor_batch
+    s = scenarios[index]
+    assert batchable(s) and compile_loop(*build_cores(s), s.loop.command_delay_ticks) is not None
+    compiled, per_tick, reasons = [], [], []
+    for records, into in ((run(s), compiled), (run_cores(s, *build_cores(s)), per_tick)):
+        try:
+            for rec in records:
+                into.append((rec.measurement, fields(rec)))
+            reasons.append(None)
+        except DivergenceError as exc:
+            reasons.append((exc.tick, exc.reason))
+    assert reasons[0] == reasons[1]
+    assert len(compiled) == len(per_tick) > 0
+    assert [f for _, f in compiled] == [f for _, f in per_tick]
+    # The suite measured (not the ground's): from the roof, its accelerometers, its load cell or none.
+    load_cell = s.plant.sensors == "train_load_cell"
+    for m, _ in compiled:
+        assert m.from_roof and math.isfinite(m.head_acceleration) and math.isfinite(m.frame_acceleration)
+        assert math.isfinite(m.head_force) == load_cell
+    want, reason = traces_of(run_cores(s, *build_cores(s)))
+    n = want.shape[1]
+    assert result.ticks[index] == n and result.diverged[index] == reason
+    for j, name in enumerate(TRACES):
+        np.testing.assert_array_equal(result.traces[name][index][:n], want[j], err_msg=name)

@@ -37,8 +37,18 @@ def messages_of(bag: Path) -> list[tuple[str, int, bytes]]:
             "shape": "square",
             "period": 0.4,
         },
+        {"duration": 1.0, "sensors": "train_load_cell", "roof_motion": "german_high", "law": "pid"},
+        {
+            "duration": 0.3,
+            "catenary_model": "fe",
+            "pantograph": "three_mass",
+            "roof_motion": "german_low",
+            "sensors": "train",
+            "law": "line_adaptive",
+            "observer": "contact_force",
+        },
     ],
-    ids=["noisy-pid", "blocks", "diverges", "actuator"],
+    ids=["noisy-pid", "blocks", "diverges", "actuator", "train-load-cell", "fe-train"],
 )
 @pytest.mark.slow
 def test_compiled_bag_equals_the_per_record_bag(tmp_path, values):

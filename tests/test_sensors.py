@@ -110,6 +110,27 @@ def test_noise_has_the_stated_deviation():
     assert np.array_equal(sensor_noise(4, 10), sensor_noise(4, 10))
 
 
+def test_the_plants_suite_noise_is_a_pure_function_of_seed_and_tick():
+    """The rows the plant adds (``Plant.noise_rows``, the compiled loop's) are the same numbers
+    whatever the order they are asked in, across a block's end, and what ``sensor_noise`` draws for
+    that block: tick k's row depends on (noise_seed, k) only."""
+    from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+    from pac_plant.parameters import PlantOptions
+    from pac_plant.plant import Plant
+
+    def plant():
+        options = PlantOptions(sensors="train", noise_seed=9)
+        return Plant(PantographParameters(), TrackParameters(), CatenaryParameters(), options, DT)
+
+    block = Plant._NOISE_BLOCK
+    late = plant().noise_rows(2 * block - 3, 2 * block + 3)  # across the second block's end first
+    early = plant().noise_rows(0, 2 * block + 3)
+    np.testing.assert_array_equal(late, early[2 * block - 3 :])
+    want = np.concatenate([sensor_noise(9, block, 1), sensor_noise(9, block, 2)[:3]])
+    np.testing.assert_array_equal(early[block:], want)
+    assert late.shape == (6, len(CHANNELS))
+
+
 def test_suites_and_one_line_errors():
     assert SENSORS["ground"].datum == "ground" and all(c is None for c in SENSORS["ground"].channels())
     assert isinstance(SENSORS["train"].head_position, Channel)

@@ -277,11 +277,10 @@ def tick_columns(block: Any, rate_hz: float, command_delay_ticks: int) -> dict[s
             "z1": block["y"][:, 0],
             "z2": block["y"][:, 1],
             "actuator_force": block["actuator_force"],
-            # The compiled loop runs the ground suite only: no accelerometers, no load cell.
-            "head_acceleration": nan,
-            "frame_acceleration": nan,
-            "head_force": nan,
-            "from_roof": np.zeros(ticks.size, dtype=bool),
+            "head_acceleration": block["head_acceleration"],  # NaN where the suite has none
+            "frame_acceleration": block["frame_acceleration"],
+            "head_force": block["head_force"],
+            "from_roof": block["from_roof"],
         },
         "plant_truth": {
             **head,

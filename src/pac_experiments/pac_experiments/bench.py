@@ -388,7 +388,8 @@ ALLOCATION_SCRIPT = "from pac_experiments.bench import count_allocations; count_
 
 
 def count_allocations() -> None:
-    """Print (JSON) numba's allocation counts of a 10-tick and a 9980-tick call of each law's loop.
+    """Print (JSON) numba's allocation counts of a 10-tick and a 9980-tick call of each law's loop,
+    and of the default law's with a train's sensor suite on a moving roof (key ``law+sensors``).
 
     Run in a process started with NUMBA_NRT_STATS=1 (:func:`loop_allocations`).
     """
@@ -400,8 +401,11 @@ def count_allocations() -> None:
     from pac_rig.simulate import scenario_from_flat
 
     counts = {}
-    for law in COMPILED_LAW_NAMES:
-        values = {"law": law, "duration": 10.0, "noise_std": (1e-6, 1e-6), "command_delay_ticks": 2}
+    train = {"sensors": "train_load_cell", "roof_motion": "german_low"}
+    cases = [(law, {"law": law}) for law in COMPILED_LAW_NAMES]
+    cases.append((f"{COMPILED_LAW_NAMES[0]}+{train['sensors']}", {"law": COMPILED_LAW_NAMES[0], **train}))
+    for law, case in cases:
+        values = {**case, "duration": 10.0, "noise_std": (1e-6, 1e-6), "command_delay_ticks": 2}
         s = scenario_from_flat(values)
         plant, observer, controller = build_cores(s)
         loop = compile_loop(plant, observer, controller, 2)

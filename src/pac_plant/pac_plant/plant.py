@@ -17,7 +17,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 from .catenary.pantographs import plant_chain
 from .hardware.actuators import Actuator, actuator_model
 from .hardware.car_body import CAR_BODIES, TRACKS, RoofMotion, roof_attachment, roof_force, roof_motion
-from .hardware.sensors import Sensors, sensor_step, sensor_suite
+from .hardware.sensors import Sensors, sensor_noise, sensor_step, sensor_suite
 from .hardware.turbulence import gusts
 from .parameters import PlantOptions
 
@@ -91,7 +91,7 @@ def plant_advance(z: np.ndarray, *args) -> np.ndarray:
 
 
 @njit(cache=True)
-def _rhs4(t, z0, z1, z2, z3, u, a, theta, omega, m1, m2, unilateral):
+def plant_rhs4(t, z0, z1, z2, z3, u, a, theta, omega, m1, m2, unilateral):
     """:func:`plant_rhs` on four numbers (eq. (5), k(t) of eq. (7)/(8), F of eq. (6))."""
     k = model.stiffness(t, omega, theta)
     force = model.contact_force(k, z0, unilateral)
@@ -123,11 +123,11 @@ def plant_advance_inplace(
     args = (u, a, theta, omega, m1, m2, unilateral)
     for i in range(substeps):
         t = t0 + i * h
-        a1 = _rhs4(t, x0, x1, x2, x3, *args)
+        a1 = plant_rhs4(t, x0, x1, x2, x3, *args)
         c = 0.5 * h
-        a2 = _rhs4(t + 0.5 * h, x0 + c * a1[0], x1 + c * a1[1], x2 + c * a1[2], x3 + c * a1[3], *args)
-        a3 = _rhs4(t + 0.5 * h, x0 + c * a2[0], x1 + c * a2[1], x2 + c * a2[2], x3 + c * a2[3], *args)
-        a4 = _rhs4(t + h, x0 + h * a3[0], x1 + h * a3[1], x2 + h * a3[2], x3 + h * a3[3], *args)
+        a2 = plant_rhs4(t + 0.5 * h, x0 + c * a1[0], x1 + c * a1[1], x2 + c * a1[2], x3 + c * a1[3], *args)
+        a3 = plant_rhs4(t + 0.5 * h, x0 + c * a2[0], x1 + c * a2[1], x2 + c * a2[2], x3 + c * a2[3], *args)
+        a4 = plant_rhs4(t + h, x0 + h * a3[0], x1 + h * a3[1], x2 + h * a3[2], x3 + h * a3[3], *args)
         w = h / 6.0
         x0 = x0 + w * (a1[0] + 2.0 * (a2[0] + a3[0]) + a4[0])
         x1 = x1 + w * (a1[1] + 2.0 * (a2[1] + a3[1]) + a4[1])
@@ -272,7 +272,7 @@ class Plant:
         z = self.z  # once: FEPlant computes it from its state
         z1, z2 = float(z[0]), float(z[1])
         if self._noisy:
-            n1, n2 = self._noise(self.tick)
+            n1, n2 = self._noise(self.tick).tolist()
             z1, z2 = z1 + n1, z2 + n2
         q = self.options.quantisation
         z1, z2 = quantise(z1, q), quantise(z2, q)
@@ -286,7 +286,7 @@ class Plant:
         if self._sensed_tick != self.tick:
             truth = self.truth()
             a1, a2 = self._accelerations()
-            noise = np.random.default_rng([self.options.noise_seed, 0x5E5, self.tick]).standard_normal(5)
+            noise = self._noise(self.tick)
             z1, z2 = truth.z[0], truth.z[1]
             sensor_step(
                 sensors.params[0], sensors.state[0], z1, z2, a1, a2, truth.roof_height,
@@ -309,15 +309,20 @@ class Plant:
 
     _NOISE_BLOCK = 4096
 
-    def _noise(self, tick: int) -> tuple[float, float]:
-        """Noise of ``tick``: a pure function of (seed, tick), so a re-sent sample is the same sample."""
+    def _noise(self, tick: int) -> np.ndarray:
+        """Noise of ``tick``: a pure function of (seed, tick), so a re-sent sample is the same sample.
+        The ground's two (z1, z2: ``noise_std`` x standard normal), or a train suite's five
+        standard normals (sensors.CHANNELS; each channel's deviation is the suite's)."""
         block = tick // self._NOISE_BLOCK
         if block != self._noise_block_index:
-            rng = np.random.default_rng([self.options.noise_seed, block])
-            self._noise_block = rng.standard_normal((self._NOISE_BLOCK, 2)) * np.array(self.options.noise_std)
+            seed = self.options.noise_seed
+            if self.sensors is not None:
+                self._noise_block = sensor_noise(seed, self._NOISE_BLOCK, block)
+            else:
+                rng, std = np.random.default_rng([seed, block]), np.array(self.options.noise_std)
+                self._noise_block = rng.standard_normal((self._NOISE_BLOCK, 2)) * std
             self._noise_block_index = block
-        n1, n2 = self._noise_block[tick % self._NOISE_BLOCK]
-        return float(n1), float(n2)
+        return self._noise_block[tick % self._NOISE_BLOCK]
 
     def warm_up(self) -> None:
         """Run a tick on a copy: numba loads the compiled code now, not at the loop's first tick."""
@@ -327,8 +332,12 @@ class Plant:
         twin.advance(0.0)
 
     def noise_rows(self, k0: int, k1: int) -> np.ndarray:
-        """The noise of ticks k0..k1-1 (one row each): the numbers :meth:`measurement` adds."""
-        out = np.empty((k1 - k0, 2))
+        """The noise of ticks k0..k1-1 (one row each): the numbers :meth:`measurement` adds (the
+        ground's two, or a train suite's five); one row of zeros when it adds none (the compiled
+        loop's ``noise``)."""
+        if not (self._noisy or self.sensors is not None):
+            return np.zeros((1, 2))
+        out = np.empty((k1 - k0, self._noise(k0).size))
         k = k0
         while k < k1:
             self._noise(k)  # makes the block of tick k the current one

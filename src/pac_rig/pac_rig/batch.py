@@ -53,9 +53,7 @@ def _run_one(
     p, s, o, q, c, d = pp[0], ps[0], oc[0], os[0], cp[0], cs[0]
     for k in range(ticks):
         j = 0 if quiet else k
-        code, value = loop_tick(
-            k, p, s, fe_args, o, q, bank, c, d, table, memory, noise[j, 0], noise[j, 1], rec
-        )
+        code, value = loop_tick(k, p, s, fe_args, o, q, bank, c, d, table, memory, noise[j], rec)
         if code:
             return k, code, value
         out[0, k], out[1, k], out[2, k] = rec.contact_force, rec.force_reference, rec.u
@@ -87,10 +85,9 @@ def prepare(i: int, s: Scenario) -> tuple[CompiledLoop, np.ndarray]:
         raise ValueError(
             f"scenario {i}: the compiled loop has no form for catenary_model {s.plant.catenary_model}, "
             f"observer {s.observer.observer}, law {s.controller.effective_law}, "
-            f"command_delay_ticks {s.loop.command_delay_ticks}, sensors {s.plant.sensors}"
+            f"command_delay_ticks {s.loop.command_delay_ticks}"
         )
-    noisy = any(v > 0.0 for v in s.plant.noise_std)
-    return loop, cores[0].noise_rows(0, s.loop.ticks) if noisy else np.zeros((1, 2))
+    return loop, cores[0].noise_rows(0, s.loop.ticks)
 
 
 class BatchFault(RuntimeError):
@@ -126,9 +123,9 @@ def actuator_violation(u: np.ndarray, s: Scenario) -> tuple[int, str] | None:
 
 def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
-    parameters without building the cores: every line, observer and law; the delay it holds."""
-    laws_and_delay = s.controller.effective_law in LAW_CODES and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
-    return laws_and_delay and s.plant.sensors == "ground"  # a train's sensors: the core steps them
+    parameters without building the cores: every line, observer, law and sensor suite; the delay
+    it holds."""
+    return s.controller.effective_law in LAW_CODES and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
 
 
 def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:

@@ -143,7 +143,7 @@ def run_blocks(s: Scenario, plant: Plant, loop: CompiledLoop) -> Iterator[np.nda
     for k0 in range(0, ticks, BLOCK):
         k1 = min(ticks, k0 + BLOCK)
         out = np.empty(k1 - k0, TICK)
-        noise = plant.noise_rows(k0, k1) if plant._noisy else _NO_NOISE
+        noise = plant.noise_rows(k0, k1)
         reached, code, value = loop.run(k0, k1, noise, out)
         yield out[: reached - k0]
         if code == OFF_LINE:  # as FEPlant.advance says it
@@ -154,7 +154,6 @@ def run_blocks(s: Scenario, plant: Plant, loop: CompiledLoop) -> Iterator[np.nda
 
 #: Ticks per compiled call of :func:`run` (one noise block of the plant).
 BLOCK = 4096
-_NO_NOISE = np.zeros((1, 2))
 
 
 def divergence_reason(code: int, value: float) -> str:
@@ -167,7 +166,8 @@ def divergence_reason(code: int, value: float) -> str:
 
 
 _RECORD_COLUMNS = (
-    "tick", "time", "y", "actuator_force", "z", "stiffness", "contact_force", "in_contact", "u_applied",
+    "tick", "time", "y", "actuator_force", "head_acceleration", "frame_acceleration", "head_force",
+    "from_roof", "z", "stiffness", "contact_force", "in_contact", "u_applied",
     "contact_uplift", "support_uplift", "contact_position", "roof_height", "stiffness_hat",
     "contact_force_hat", "u", "u_unsaturated", "force_reference", "tracking_error", "saturated", "mode",
 )  # fmt: skip
@@ -206,7 +206,10 @@ def tick_records(block: np.ndarray, controlled: Sequence[bool] = ()) -> Iterator
         z0, z1, z2, z3 = col["z"][i]
         e1, e2, e3 = col["tracking_error"][i]
         yield TickRecord(
-            Measurement(tick, t, y1, y2, col["actuator_force"][i]),
+            Measurement(
+                tick, t, y1, y2, col["actuator_force"][i], col["head_acceleration"][i],
+                col["frame_acceleration"][i], col["head_force"][i], col["from_roof"][i],
+            ),
             Truth(
                 tick, t, (z0, z1, z2, z3), col["stiffness"][i], col["contact_force"][i],
                 col["in_contact"][i], col["u_applied"][i], col["contact_uplift"][i],

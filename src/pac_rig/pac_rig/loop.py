@@ -47,8 +47,9 @@ from pac_plant.catenary import kernels as fe
 from pac_plant.fe_plant import FEPlant, several_pantographs
 from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
 from pac_plant.hardware.car_body import TERMS, roof_at, roof_force
+from pac_plant.hardware.sensors import SENSOR_PARAMS, SENSOR_STATE, sensor_step
 from pac_plant.parameters import MAX_PANTOGRAPHS
-from pac_plant.plant import Plant, plant_advance_inplace, quantise
+from pac_plant.plant import Plant, plant_advance_inplace, plant_rhs4, quantise
 
 #: |z1|, |z2| beyond this [m] is not a pantograph any more: the run is stopped as diverged.
 DIVERGENCE_DISPLACEMENT = 1.0
@@ -102,6 +103,10 @@ PLANT_PARAMS = np.dtype(
         ("gust_amplitude", "f8", TERMS),
         ("gust_frequency", "f8", TERMS),
         ("gust_phase", "f8", TERMS),
+        # A train's sensor suite (Plant.sensors; suite False: the ground's, noise_std and
+        # quantisation): its channels (sensors.sensor_records)
+        ("suite", "b1"),
+        ("sensors", SENSOR_PARAMS),
     ]
 )
 
@@ -114,6 +119,9 @@ PLANT_STATE = np.dtype(
         ("readings", "f8", 5),  # scratch: kernels.readings_at one pantograph's contact point
         ("actuator", ACTUATOR_STATE),
         ("roof", "f8", 3),  # scratch: the roof's height, velocity, acceleration (car_body.roof_at)
+        ("gust", "f8", 3),  # scratch: the turbulent uplift and its rates (car_body.roof_at)
+        ("sensors", SENSOR_STATE),  # a train's suite: its low-passes and latency rings
+        ("sensed", "f8", 5),  # scratch: the suite's readings of the tick (sensors.CHANNELS)
     ]
 )
 
@@ -125,6 +133,10 @@ TICK = np.dtype(
         # measurement
         ("y", "f8", 2),
         ("actuator_force", "f8"),
+        ("head_acceleration", "f8"),  # a train's suite (NaN: not fitted, and on the ground's)
+        ("frame_acceleration", "f8"),
+        ("head_force", "f8"),
+        ("from_roof", "b1"),
         # truth
         ("z", "f8", 4),
         ("stiffness", "f8"),
@@ -164,9 +176,9 @@ FE_ARGS = ("cf", "ci", "cl", "sf", "si", "sl", "flexibility", "readings")
 
 
 @njit(cache=True, error_model="numpy")
-def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
+def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
     """The plant at tick k: truth into ``out`` and ``ps.z``, and the measurement y_k (eq. (10),
-    plus noise and quantisation)."""
+    plus noise and quantisation; or a train suite's readings, ``Plant.measurement``)."""
     t = k * pp.dt
     z = ps.z
     if pp.kind == FE:
@@ -182,25 +194,55 @@ def _plant_output(k, pp, ps, fe_args, n1, n2, out) -> tuple[float, float]:
         out.contact_uplift, out.support_uplift = readings[fe.CONTACT_UPLIFT], readings[fe.SUPPORT_UPLIFT]
         out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[c.indices[5]]
         _pantographs_output(pp, ps, c, st, flexibility, out)
+        a1, a2 = st.ap[0], st.ap[1]  # FEPlant._accelerations: the Newmark state's
     else:
         stiff = model.stiffness(t, pp.omega, pp.theta)
         force = model.contact_force(stiff, z[0], pp.unilateral)
         out.contact_uplift, out.support_uplift, out.contact_position = np.nan, np.nan, np.nan
         _no_pantographs(out, 0)
-    y1, y2 = z[0], z[1]
-    if pp.noisy:
-        y1, y2 = y1 + n1, y2 + n2
-    y1, y2 = quantise(y1, pp.quantisation), quantise(y2, pp.quantisation)
+        a1 = a2 = 0.0  # only a train's suite reads them (_lumped_accelerations, below)
+    out.roof_height = 0.0
+    if pp.roof:
+        roof_at(pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, t, ps.roof)
+        out.roof_height = ps.roof[0]
+    if pp.suite:  # Plant._sense: the suite's readings of the truth, once a tick
+        if pp.kind != FE:
+            a1, a2 = _lumped_accelerations(t, pp, ps)
+        r = ps.sensed
+        sensor_step(pp.sensors, ps.sensors, z[0], z[1], a1, a2, out.roof_height, force, noise, r)
+        y1, y2 = r[0], r[1]
+        out.head_acceleration, out.frame_acceleration, out.head_force = r[2], r[3], r[4]
+        out.from_roof = pp.sensors.roof_datum
+    else:
+        y1, y2 = z[0], z[1]
+        if pp.noisy:
+            y1, y2 = y1 + noise[0], y2 + noise[1]
+        y1, y2 = quantise(y1, pp.quantisation), quantise(y2, pp.quantisation)
+        out.head_acceleration, out.frame_acceleration, out.head_force = np.nan, np.nan, np.nan
+        out.from_roof = False
     out.tick, out.time = k, t
     out.y[0], out.y[1] = y1, y2
     out.actuator_force = ps.u_applied
     out.z[:] = z
     out.stiffness, out.contact_force, out.in_contact, out.u_applied = stiff, force, force > 0.0, ps.u_applied
-    out.roof_height = 0.0
-    if pp.roof:
-        roof_at(pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, t, ps.roof)
-        out.roof_height = ps.roof[0]
     return y1, y2
+
+
+@njit(cache=True, error_model="numpy")
+def _lumped_accelerations(t, pp, ps) -> tuple[float, float]:
+    """(z1'', z2'') of the lumped plant at tick time t (``Plant._accelerations``): eq. (5) with the
+    forces of the period that ends here, the roof's spring and damper force (``ps.roof``: the roof at
+    t) and the turbulent uplift at that instant."""
+    force = ps.u_applied
+    if pp.roof:
+        force += pp.roof_k * ps.roof[0] + pp.roof_c * ps.roof[1]
+    if pp.gusts:
+        roof_at(pp.gust_amplitude, pp.gust_frequency, pp.gust_phase, t, ps.gust)
+        force += ps.gust[0]
+    z = ps.z
+    args = (pp.a, pp.theta, pp.omega, pp.m1, pp.m2, pp.unilateral)
+    _, _, a1, a2 = plant_rhs4(t, z[0], z[1], z[2], z[3], force + pp.uplift, *args)  # the wind with u
+    return a1, a2
 
 
 @njit(cache=True, error_model="numpy")
@@ -298,7 +340,7 @@ def closed_loop_for(step):
     call them (:func:`run_block`, the batch's) stay cached (``kernels.safety_chain``)."""
 
     @njit(error_model="numpy")
-    def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, out) -> tuple[int, float]:
+    def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out) -> tuple[int, float]:
         """Tick k of the closed loop, in place; ``out`` (a TICK record) gets what the topics carry.
 
         Returns (0, 0) or a divergence (code, value): 1-3, 6 the observer's (the state is that of
@@ -306,10 +348,11 @@ def closed_loop_for(step):
         ``fe_args``: the FE line's buffers (:data:`FE_ARGS`; empty arrays for the lumped line);
         ``bank``: the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the paper's);
         ``table``, ``memory``: the law's arrays (``KernelLaw.table`` / ``memory``; a user's compiled
-        law: its constants and memory), for ``step``.  n1, n2: this tick's sensor noise.  The order
-        of operations is that of ``closed_loop.run_cores`` and of the nodes.
+        law: its constants and memory), for ``step``.  ``noise``: this tick's sensor noise
+        (``Plant.noise_rows``' row: the ground's two, a train suite's five).  The order of
+        operations is that of ``closed_loop.run_cores`` and of the nodes.
         """
-        y1, y2 = _plant_output(k, pp, ps, fe_args, n1, n2, out)
+        y1, y2 = _plant_output(k, pp, ps, fe_args, noise, out)
         if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
             return DISPLACEMENT, y1
         status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
@@ -343,12 +386,13 @@ def closed_loop_for(step):
     ) -> tuple[int, int, float]:
         """Ticks k0..k1-1 into ``out[k - k0]``; (ticks reached, divergence code, value).
 
-        ``noise[k - k0]`` is tick k's sensor noise (a single row when the plant is noiseless).
+        ``noise[k - k0]`` is tick k's sensor noise (``Plant.noise_rows``; a single row when the
+        plant is noiseless).
         """
         for k in range(k0, k1):
             i = min(k - k0, noise.shape[0] - 1)
             code, value = loop_tick(
-                k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i, 0], noise[i, 1], out[k - k0]
+                k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise[i], out[k - k0]
             )
             if code:
                 return k, code, value
@@ -455,7 +499,7 @@ def compile_loop(
     changed by running them), or None if the loop has no compiled form for them: a plant other
     than :class:`Plant` / :class:`FEPlant`, an observer other than the two, a law without kernel
     (not a :class:`KernelLaw`, nor a user's law file with njit functions), more delay than
-    :data:`MAX_DELAY`, a sensor suite other than ``ground``."""
+    :data:`MAX_DELAY`."""
     if (
         type(plant) not in (Plant, FEPlant)
         or type(observer) not in (AdaptiveObserver, ContactForceObserver)
@@ -465,8 +509,6 @@ def compile_loop(
     law = controller.law
     compiled_user = isinstance(law, UserLaw) and law.file.compiled
     if not (isinstance(law, KernelLaw) or compiled_user) or not 0 <= delay <= MAX_DELAY:
-        return None
-    if plant.sensors is not None:  # a train's sensor suite: not compiled yet (the core steps it)
         return None
     pp = np.zeros(1, PLANT_PARAMS)
     p = pp[0]
@@ -484,6 +526,8 @@ def compile_loop(
     if plant.gusts is not None:
         p["gusts"], p["gust_amplitude"] = True, plant.gusts.amplitude
         p["gust_frequency"], p["gust_phase"] = plant.gusts.frequency, plant.gusts.phase
+    if plant.sensors is not None:  # a train's suite: its records as they stand (copies)
+        p["suite"], p["sensors"], ps[0]["sensors"] = True, plant.sensors.params[0], plant.sensors.state[0]
     if isinstance(plant, FEPlant):
         sim = plant.sim
         p["kind"], p["substeps"] = FE, plant.options.fe_substeps

@@ -25,6 +25,7 @@ MODULES = (
     "pac_common.smallmat",
     "pac_model.model",
     "pac_plant.plant",
+    "pac_plant.hardware.sensors",
     "pac_observer.observer",
     "pac_observer.contact_force",
     "pac_controller.reference",
@@ -65,6 +66,8 @@ def exercise() -> None:
         {"law": "backstepping_known"},
         {"catenary_model": "fe"},
         {"law": "line_adaptive", "observer": "contact_force"},
+        # a train's suite: the plant's sensor step on its records (the compiled loop's is inside it)
+        {"sensors": "train_load_cell", "roof_motion": "german_low"},
     ]
     scenarios = [scenario_from_flat({**short, **v}) for v in variants]
     for s in scenarios:
