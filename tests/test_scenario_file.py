@@ -122,3 +122,24 @@ def test_simulate_refuses_a_bad_scenario_in_one_line(tmp_path):
     path.write_text("name: x\nsource: y\nparameters:\n  actuator: hydraulic\n")
     line = simulate_refusal(tmp_path / "bag", f"scenario:={path}")
     assert "invalid scenario file" in line and "'parameters.actuator' = 'hydraulic'" in line
+
+
+@pytest.mark.unit
+def test_a_campaigns_results_name_the_scenario_of_each_row(tmp_path):
+    """A run's record holds its scenario expanded (no ``scenario``); results.csv takes the axes a
+    SPEC names from the point, so rows of two scenarios stay apart in the table and the summary."""
+    import csv
+
+    from pac_experiments.campaign_results import write_results
+    from pac_experiments.campaign_spec import load_points
+
+    spec_path = tmp_path / "spec.yaml"
+    spec_path.write_text(
+        "grid:\n  scenario: [paper_rig, realistic_electromechanical]\n  law: [passive]\n"
+        "fixed:\n  duration: 4.0\n"
+    )
+    spec, points = load_points(spec_path)
+    done = {p.key: {"key": p.key, "status": "ok", "law": "passive"} for p in points}
+    write_results(spec, points, done, tmp_path)
+    with (tmp_path / "results.csv").open(newline="") as f:
+        assert [r["scenario"] for r in csv.DictReader(f)] == ["paper_rig", "realistic_electromechanical"]

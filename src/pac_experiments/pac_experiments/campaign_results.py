@@ -88,7 +88,13 @@ def result_columns(spec: Spec) -> list[str]:
 def write_results(spec: Spec, points: list[Point], done: dict[str, dict], out: Path) -> list[dict]:
     """``results.csv``: one row per grid point that has run, in grid order; returns those rows."""
     columns = result_columns(spec)
-    rows = [done[p.key] for p in points if p.key in done]
+    # A run's record is its flat scenario; a point's axes as the SPEC names them (``scenario``,
+    # which the record holds expanded) come from the point.
+    rows = [
+        {**done[p.key], **{a: p.values[a] for a in spec.axes if a in p.values}}
+        for p in points
+        if p.key in done
+    ]
     with write_atomic(Path(out) / RESULTS_FILE, "w", newline="") as f:
         writer = csv.writer(f)
         writer.writerow(columns)
