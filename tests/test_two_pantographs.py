@@ -187,7 +187,8 @@ def test_the_compiled_closed_loop_with_two_pantographs_equals_the_core_objects()
     flat = {"catenary_model": "fe", "duration": 0.4, "law": "line_adaptive", "observer": "contact_force"}
     two = scenario_from_flat({**flat, "pantographs": (0.0, SPACING), "controlled_pantograph": 1})
     compiled = [fields(rec) for rec in run(two)]
-    assert compiled == [fields(rec) for rec in run_cores(two, *build_cores(two))]
+    # Equal field by field, NaN where both are NaN (fields a ground-datum run leaves unmeasured).
+    np.testing.assert_equal(compiled, [fields(rec) for rec in run_cores(two, *build_cores(two))])
     # The window: 4 periods added at the rear, the first pantograph starts 4 periods further on
     # (support 8, not 4), the controlled one 200 m behind it.
     assert next(iter(run(two))).truth.contact_position == pytest.approx(8 * 55.0 - SPACING)

@@ -12,21 +12,17 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from pac_common.parameters import LoopParameters, ParameterError, ParameterSet, parameter
+from pac_common.parameters import ParameterError
 from pac_controller.controller import Command, Controller
 from pac_controller.kernels import MODES
 from pac_controller.laws import make_controller
-from pac_controller.parameters import ControllerParameters, LawParameters, ReferenceParameters
-from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.contact_force import ContactForceObserver, make_observer
 from pac_observer.observer import _DIVERGED_REASONS, AdaptiveObserver, Estimate, ObserverDivergedError
-from pac_observer.parameters import ObserverParameters
 from pac_plant.fe_plant import PantographTruth, make_plant, several_pantographs
-from pac_plant.parameters import PlantOptions
 from pac_plant.plant import Measurement, Plant, Truth
 
 from . import composition
@@ -40,34 +36,7 @@ from .loop import (
     CompiledLoop,
     compile_loop,
 )
-
-
-@dataclass(frozen=True)
-class ModelMismatch(ParameterSet):
-    """Offline only: how the simulated pantograph differs from the one the observer and controller assume."""
-
-    plant_mass_scale: float = parameter(
-        1.0, "plant's m1 and m2 scaled by this (observer and controller keep Table 1's)", low=0.1, high=10.0
-    )
-
-    def plant_pantograph(self, nominal: PantographParameters) -> PantographParameters:
-        return replace(nominal, m1=nominal.m1 * self.plant_mass_scale, m2=nominal.m2 * self.plant_mass_scale)
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """Everything that defines a run."""
-
-    pantograph: PantographParameters = field(default_factory=PantographParameters)
-    track: TrackParameters = field(default_factory=TrackParameters)
-    catenary: CatenaryParameters = field(default_factory=CatenaryParameters)
-    plant: PlantOptions = field(default_factory=PlantOptions)
-    observer: ObserverParameters = field(default_factory=ObserverParameters)
-    controller: ControllerParameters = field(default_factory=ControllerParameters)
-    reference: ReferenceParameters = field(default_factory=ReferenceParameters)
-    laws: LawParameters = field(default_factory=LawParameters)  # pid / lqr design (controller.law)
-    loop: LoopParameters = field(default_factory=LoopParameters)
-    mismatch: ModelMismatch = field(default_factory=ModelMismatch)
+from .scenario import Scenario
 
 
 @dataclass(frozen=True)

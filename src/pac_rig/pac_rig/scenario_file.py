@@ -24,6 +24,8 @@ from typing import Any
 from pac_common.data_file import DataFileError, Map, Presets, Reader
 from pac_common.parameters import ParameterError
 
+from .scenario import Scenario, from_flat, scenario_to_flat
+
 #: The parameter that names a scenario file.
 PARAMETER = "scenario"
 DEFAULT = "paper_rig"
@@ -58,9 +60,6 @@ def _load(path: str, mtime_ns: int, size: int) -> ScenarioFile:
 def parse_scenario(text: str, source: str) -> ScenarioFile:
     """Check a scenario file's text: known top-level keys, a ``parameters`` mapping of run
     parameters (never ``scenario`` itself), each value valid by that parameter's own rule."""
-    from .closed_loop import Scenario
-    from .simulate import scenario_from_flat, scenario_to_flat
-
     reader = Reader(source, ScenarioFileError)
     raw = reader.parse(text, TOP_KEYS)
     name = reader.text(raw, "name")
@@ -72,14 +71,14 @@ def parse_scenario(text: str, source: str) -> ScenarioFile:
     if not isinstance(given, Map):
         mark = raw.marks.get("parameters", raw.start)
         raise reader.fail("parameters", given, "a mapping of run parameters to values", mark)
-    known = set(scenario_to_flat(Scenario()))
+    known = set(scenario_to_flat(Scenario()))  # the names a run has
     for key in given:
         if key not in known:
             allowed = "a run parameter (`ros2 run pac_rig simulate --list`)"
             raise reader.fail(f"parameters.{key}", given[key], allowed, given.marks.get(key, given.start))
     values = {str(k): _plain(v) for k, v in given.items()}
     try:
-        scenario_from_flat(values)
+        from_flat(values)
     except ParameterError as exc:
         key = str(exc.name) if exc.name in values else next(iter(values), "parameters")
         mark = given.marks.get(key, given.start)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import shutil
 import signal
 import sys
@@ -19,7 +18,7 @@ import numpy as np
 from pac_bag.mcap_writer import COMPRESSIONS
 from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import messages
-from pac_common.parameters import ParameterError, ParameterSet, check_new_directory
+from pac_common.parameters import ParameterError, check_new_directory
 from pac_plant.fe_plant import several_pantographs
 
 from . import composition, scenario_file
@@ -37,35 +36,14 @@ from .closed_loop import (
 )
 from .loop import compile_loop
 from .progress import progress
-
-
-def scenario_sets(s: Scenario) -> dict[str, ParameterSet]:
-    return {f.name: getattr(s, f.name) for f in dataclasses.fields(s)}
-
-
-def scenario_to_flat(s: Scenario) -> dict[str, Any]:
-    flat: dict[str, Any] = {}
-    for pset in scenario_sets(s).values():
-        flat.update(pset.as_dict())
-    return flat
+from .scenario import from_flat, scenario_sets, scenario_to_flat
 
 
 def scenario_from_flat(values: dict[str, Any], base: Scenario | None = None) -> Scenario:
     """A scenario with ``values`` (flat parameter names) over ``base``; unknown names are errors.
     A ``scenario`` file's values come in where ``values`` gives none (``scenario_file.expand``)."""
     values, _ = scenario_file.expand(values)
-    base = base or Scenario()
-    known: set[str] = set()
-    updated: dict[str, Any] = {}
-    for name, pset in scenario_sets(base).items():
-        names = {spec.name for spec in pset.specs()}
-        known |= names
-        mine = {k: v for k, v in values.items() if k in names}
-        updated[name] = dataclasses.replace(pset, **mine) if mine else pset
-    unknown = sorted(set(values) - known)
-    if unknown:
-        raise ParameterError(unknown[0], values[unknown[0]], "a known parameter name (see --list)")
-    return Scenario(**updated)
+    return from_flat(values, base)
 
 
 @dataclass(frozen=True)
