@@ -29,6 +29,7 @@ def rows() -> list[dict[str, str]]:
                 }
             )
     out.append({**out[0], "status": "diverged", "en50318_contact_force_std": "1e9"})
+    out.append({**out[0], "law": "ideal", "line_seed": "-1"})  # a group of one run: no interval
     return out
 
 
@@ -46,7 +47,7 @@ def test_the_interval_is_students_t_on_the_runs():
 
 def test_groups_are_every_other_axis_and_failed_runs_are_left_out(tmp_path):
     groups = summarise(rows(), "line_seed")
-    assert [g for g, _ in groups] == [{"law": "passive"}, {"law": "pid"}]
+    assert [g for g, _ in groups] == [{"law": "passive"}, {"law": "pid"}, {"law": "ideal"}]
     passive = groups[0][1]["en50318_contact_force_std"]
     assert passive.n == 5 and passive.largest == 54.0  # the diverged run's 1e9 is not in it
     data = rows()
@@ -57,4 +58,10 @@ def test_groups_are_every_other_axis_and_failed_runs_are_left_out(tmp_path):
     assert main([str(tmp_path)]) == 0
     text = (tmp_path / "summary.md").read_text()
     assert "| passive | 5 |" in text and "52 [" in text
+    import json
+
+    def refuse(token: str) -> float:
+        raise AssertionError(f"not strict JSON: {token}")
+
+    json.loads((tmp_path / "summary.json").read_text(), parse_constant=refuse)
     assert main([str(tmp_path / "none")]) == 2

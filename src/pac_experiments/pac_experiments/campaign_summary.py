@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import math
 import statistics
 import sys
@@ -22,7 +21,7 @@ from pathlib import Path
 
 from scipy import stats
 
-from pac_common import markdown
+from pac_common import jsonio, markdown
 
 #: The measures summarised, as results.csv names them, and their headings.
 MEASURES = {
@@ -118,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     (args.out / "summary.md").write_text(text)
     data = [{"group": group, "measures": {k: vars(v) for k, v in m.items()}} for group, m in groups]
-    (args.out / "summary.json").write_text(json.dumps(data, indent=1, allow_nan=True) + "\n")
+    jsonio.write(args.out / "summary.json", data)  # strict JSON: a NaN (no interval) as null
     print(text)
     return 0
 
