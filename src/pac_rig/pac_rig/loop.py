@@ -309,7 +309,7 @@ def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, n1, n2, o
         return status, np.nan
     # Controller: law and safety chain.
     u, u_law, f_r, e1, e2, e3, mode = controller_step(
-        cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
+        cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat, out.actuator_force
     )
     if not abs(u_law) < DIVERGENCE_FORCE:
         return FORCE, u_law
