@@ -179,9 +179,10 @@ class LineAdaptiveLaw:
         applied = u_applied - self._pending_reference - self.u_mean - self.clip_offset
         self.a_acc += (2.0 / n) * applied * np.conj(self.basis[(tick + self.delay) % n])
         self.a_mean += applied / n
-        self.e_mean += e / n
+        told = math.isfinite(self._pending_measured)
+        self.e_mean += (self._pending_reference - self._pending_measured if told else e) / n
         f_hat = self._pending_reference - e
-        measured = self._pending_measured if math.isfinite(self._pending_measured) else u_applied
+        measured = self._pending_measured if told else u_applied
         self.span_ticks += 1
         self.bias_sum += f_hat - measured
         self.reference_sum += self._pending_reference

@@ -183,8 +183,8 @@ class Controller:
         actuator_force: float = math.nan,
     ) -> Command:
         """The command for ``tick`` from the estimate of that tick (F_hat: its contact_force_hat) and
-        the actuator force measured with it (NaN: not told; line_adaptive's guard then judges the
-        commands instead)."""
+        the actuator force measured with it (``ObserverEstimate.actuator_force``; NaN: not told,
+        line_adaptive then weighs its own commands instead)."""
         z_hat = np.ascontiguousarray(z_hat, dtype=np.float64)
         theta_hat = np.ascontiguousarray(theta_hat, dtype=np.float64)
         f_hat, measured, law = float(contact_force_hat), float(actuator_force), self.law

@@ -58,8 +58,10 @@ clip, asking for more changes nothing applied: the identified response would shr
 steps grow and the clipped share of a span grow without end (it reached 28 % at 360 km/h
 and pulled the mean force 6.5 % below its target).
 
-The mean: U_0 += gamma E_0 (E_0 the span's mean of F_r - F_hat; the static response is
--1 exactly), plus C, the mean the limits took off the last span's command, measured
+The mean: U_0 += gamma E_0 (E_0 the span's mean of F_r - F_a where the actuator's force F_a
+is measured, by that momentum balance, since F_hat's mean can be off by more: +12 N with the
+identified nominal on the realistic line, which held Fm 7 % below target; else of F_r - F_hat;
+the static response is -1 exactly), plus C, the mean the limits took off the last span's command, measured
 exactly on the applied command and given back (C^{j+1} = mean over span j of what the
 limits removed; a fixed point that converges, the clipped share being below one).  In a
 periodic steady state mean(F) = mean(u) (the pantograph's momentum balance), so U_0 stays
