@@ -21,6 +21,8 @@ MIN_INFORMATIVE_STEP = 0.5
 GUARD_SPANS = 3
 #: One span's sigma_b above this multiple of line_guard_ratio * sigma_b,passive trips the guard at once.
 GUARD_HARD_FACTOR = 3.0
+#: A back-off scales the learned harmonics by this.
+GUARD_BACKOFF = 0.5
 
 
 class LineAdaptiveLaw:
@@ -60,6 +62,10 @@ class LineAdaptiveLaw:
         self.runin_spans = laws.line_runin_spans
         self.guard_ratio = laws.line_guard_ratio
         self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
+        self.guard_bias, self.guard_loss = laws.line_guard_bias, laws.line_guard_loss
+        self.guard_saturation, self.guard_strikes = laws.line_guard_saturation, laws.line_guard_strikes
+        self._pending_measured = math.nan
+        self._pending_law = 0.0
         self._pending_error = 0.0
         self._pending_reference = 0.0
         self.restart(None)
@@ -105,6 +111,12 @@ class LineAdaptiveLaw:
         self.line_stiffness = 0.0  # the line model Z = k_s + i c w
         self.line_damping = 0.0
         self.model_valid = False
+        self.passive_loss = 0.0  # the largest share of F_hat <= 0 over the passive spans
+        self.strikes = 0
+        self.last_bias = 0.0  # mean of F_hat - F_applied over the last judged span
+        self.trip_reason = ""
+        self.fade_from = -1  # the tick the guard tripped: the feedforward fades out over one span
+        self._clear_sums()
 
     @property
     def mode(self) -> str:
@@ -128,13 +140,17 @@ class LineAdaptiveLaw:
         z_hat: np.ndarray,
         theta_hat: np.ndarray,
         contact_force_hat: float = math.nan,
+        actuator_force: float = math.nan,
     ) -> tuple[float, Errors]:
         error = float(f_r[0]) - contact_force_hat
         # The sample commit() accumulates (output itself changes nothing).
         self._pending_error = error
         self._pending_reference = float(f_r[0])
+        self._pending_measured = actuator_force
         new_run = self.restart_pending and self.last_commit_tick is not None and tick <= self.last_commit_tick
-        u_ff = 0.0 if self.tripped or new_run else self.feedforward(tick)
+        fade = max(0.0, 1.0 - (tick - self.fade_from) / self.period_ticks) if self.tripped else 1.0
+        u_ff = 0.0 if fade <= 0.0 or new_run else fade * self.feedforward(tick)
+        self._pending_law = float(f_r[0]) + u_ff
         return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
 
     def commit(self, tick: int, u_applied: float) -> None:
@@ -163,7 +179,15 @@ class LineAdaptiveLaw:
         applied = u_applied - self._pending_reference - self.u_mean - self.clip_offset
         self.a_acc += (2.0 / n) * applied * np.conj(self.basis[(tick + self.delay) % n])
         self.a_mean += applied / n
-        self.e_mean += e / n
+        told = math.isfinite(self._pending_measured)
+        self.e_mean += (self._pending_reference - self._pending_measured if told else e) / n
+        f_hat = self._pending_reference - e
+        measured = self._pending_measured if told else u_applied
+        self.span_ticks += 1
+        self.bias_sum += f_hat - measured
+        self.reference_sum += self._pending_reference
+        self.loss_ticks += f_hat - self.last_bias <= 0.0
+        self.clip_ticks += u_applied != self._pending_law
         if k % n == n - 1:
             self._end_of_span(k // n)
             self.open_span = None
@@ -173,6 +197,11 @@ class LineAdaptiveLaw:
         self.a_acc[:] = 0.0
         self.a_mean = 0.0
         self.e_mean = 0.0
+        self.span_ticks, self.bias_sum, self.reference_sum = 0, 0.0, 0.0
+        self.loss_ticks, self.clip_ticks = 0, 0
+
+    def _trip(self, reason: str) -> None:
+        self.tripped, self.trip_reason, self.fade_from = True, reason, self.last_commit_tick
 
     def _end_of_span(self, span: int) -> None:
         if span == self.tainted_span:
@@ -183,9 +212,17 @@ class LineAdaptiveLaw:
         # E_h), what the law acts on and the EN 50318 statistics keep. The raw variance of F_hat
         # is blind under sensor noise: 10 um on z1, z2 gave sigma(F_hat) ~210 N for sigma(F) ~35 N.
         var = 0.5 * float(np.sum(np.abs(self.e_acc) ** 2))
+        ticks = max(self.span_ticks, 1)
+        loss, bias = self.loss_ticks / ticks, self.bias_sum / ticks
+        reference = self.reference_sum / ticks
+        if span >= 1 and not self.tripped and not abs(bias) <= self.guard_bias * abs(reference):
+            self._trip("bias")  # the momentum balance: mean F_hat against the mean actuator force
+        self.last_bias = bias if span >= 1 else 0.0
+        back_off = False
         if 1 <= span < self.runin_spans:  # span 0 holds the start transient
             self.passive_var += var
             self.passive_spans += 1
+            self.passive_loss = max(self.passive_loss, loss)
         elif span >= self.runin_spans and self.passive_spans and not self.tripped:
             sigma_p = math.sqrt(self.passive_var / self.passive_spans)
             self.recent_var[span % GUARD_SPANS] = var
@@ -195,12 +232,19 @@ class LineAdaptiveLaw:
             span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
             judged = learned >= self.guard_after and not self.last_sigma_ratio <= self.guard_ratio
             if judged or not span_ratio <= GUARD_HARD_FACTOR * self.guard_ratio:
-                self.tripped = True
-                self.u_ff[:] = 0.0
-                self.u_mean = 0.0
-                self.clip_offset = 0.0
+                self._trip("harm")
+            else:
+                lost = loss > self.passive_loss + self.guard_loss
+                if lost or self.clip_ticks / ticks > self.guard_saturation:
+                    self.strikes += 1
+                    if self.strikes >= self.guard_strikes:
+                        self._trip("loss" if lost else "saturation")
+                    else:
+                        back_off = True
         if span >= self.runin_spans - 1 and not self.tripped:
             self._learn()
+            if back_off:
+                self.u_ff = GUARD_BACKOFF * self.u_ff
         self._clear_sums()
 
     def _learn(self) -> None:

@@ -98,6 +98,26 @@ def test_line_adaptive_brings_its_observer_and_the_fe_line_its_span():
 
 
 @pytest.mark.unit
+def test_the_controller_is_told_its_actuators_range():
+    """An actuator with a range R about its static force F0: the controller's limits are F0 -+ R
+    (from the actuator's table, not a copy of its number), so a command beyond it is clipped
+    where the law sees it; limits the user names are kept, the ideal actuator tells nothing."""
+    from pac_plant.hardware.actuators import ACTUATORS
+
+    for actuator in ("electromechanical", "pneumatic"):
+        values, notes = composition.derive({"actuator": actuator, "force_amplitude": 157.3})
+        reach = ACTUATORS[actuator].force_range
+        assert (values["u_min"], values["u_max"]) == (157.3 - reach, 157.3 + reach), notes
+        assert "fallback_force" not in values  # the default, 100 N, is within
+        scenario_from_flat(values)  # a valid controller
+    values, _ = composition.derive({"actuator": "electromechanical", "force_amplitude": 240.0})
+    assert values["u_min"] <= values["fallback_force"] <= values["u_max"]
+    values, _ = composition.derive({"actuator": "electromechanical", "u_max": 400.0})
+    assert "u_min" not in values and values["u_max"] == 400.0
+    assert "u_max" not in composition.derive({"actuator": "ideal"})[0]
+
+
+@pytest.mark.unit
 def test_the_rig_derives_the_observer_and_refuses_a_pair_that_cannot_work(tmp_path):
     rig = Rig(tmp_path / "bag", duration=1.0, params={"controller": {"law": "line_adaptive"}}, record=False)
     assert rig.params["observer"]["observer"] == "contact_force"

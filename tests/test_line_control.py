@@ -39,12 +39,13 @@ def run_fe(flat: dict) -> dict[str, np.ndarray]:
     from pac_rig.closed_loop import run
     from pac_rig.simulate import scenario_from_flat
 
-    cols: dict[str, list] = {"F": [], "F_hat": [], "x": [], "u": [], "mode": []}
+    cols: dict[str, list] = {"F": [], "F_hat": [], "x": [], "u": [], "F_r": [], "mode": []}
     for rec in run(scenario_from_flat(flat)):
         cols["F"].append(rec.truth.contact_force)
         cols["F_hat"].append(rec.estimate.contact_force_hat)
         cols["x"].append(rec.truth.contact_position)
         cols["u"].append(rec.command.u)
+        cols["F_r"].append(rec.command.force_reference)
         cols["mode"].append(rec.command.mode)
     return {k: np.array(v) for k, v in cols.items()}
 
@@ -140,6 +141,32 @@ def test_line_adaptive_lowers_sigma_against_passive_on_the_fe_line():
     assert abs(active.contact_force_mean - passive.contact_force_mean) < 0.02 * passive.contact_force_mean
 
 
+@pytest.mark.timeout(900)  # an 8-span FE run with the 3-mass pantograph
+@pytest.mark.slow
+def test_guard_falls_back_on_a_mean_biased_estimate_before_any_contact_loss():
+    """The 3-mass pantograph as the plant with Table 1 as the nominal (the observer's model): F_hat's
+    mean is several times the true force, and a law that learned on it drove the pantograph away
+    (diverged in the fourth span). The guard's momentum balance (mean F_hat against the mean
+    actuator force) must fall back before the law has moved anything, and the run must then
+    keep the wire: no contact loss after the start's transient (span 0, passive's too), no
+    divergence."""
+    flat = fe_flat(300.0, 8, law="line_adaptive", pantograph="three_mass")
+    r = run_fe(flat)
+    track = TrackParameters(speed_kmh=300.0, span_length=SPAN)
+    n = LineAdaptiveLaw(track, LawParameters(), 1e-3).period_ticks
+    assert len(r["F"]) == round(flat["duration"] / 1e-3), "the run stopped early (diverged)"
+    # The premise: the estimate's mean is wrong by far more than the bound (the truth's own
+    # momentum balance holds: mean F within a few % of the mean command).
+    span1 = slice(n, 2 * n)
+    assert np.mean(r["F_hat"][span1]) > 2.0 * np.mean(r["F"][span1])
+    assert abs(np.mean(r["F"][span1]) - np.mean(r["u"][span1])) < 0.05 * np.mean(r["u"][span1])
+    first_passive = list(r["mode"]).index("passive")
+    assert first_passive <= 2 * n  # at the end of span 1, the first judged
+    assert np.all(r["F"][n:] > 0.0), np.flatnonzero(r["F"][n:] <= 0.0)[:5] + n
+    # Falling back moved nothing: the law had not left F_r yet (it learns from span 2's end on).
+    assert np.all(r["u"] == r["F_r"])
+
+
 # -- the guard, on a synthetic periodic line (fast; the law's core only) -------------------------
 def synthetic_loop(
     gain_sign: float,
@@ -149,6 +176,8 @@ def synthetic_loop(
     noise: float = 0.0,
     lost: frozenset[int] = frozenset(),
     fallback: frozenset[int] = frozenset(),
+    f_hat_bias: float = 0.0,
+    tell_force: bool = False,
 ) -> tuple[LineAdaptiveLaw, list]:
     """F = F_r + d(t) + (u - F_r) delayed one tick: a line whose force follows u (D = -1 exactly).
 
@@ -159,7 +188,9 @@ def synthetic_loop(
     differentiated, almost all of it above the learned band. ``lost``: ticks with no estimate
     (live: the controller computes nothing for them, the last command is held). ``fallback``:
     ticks the controller commands the fallback force (100 N), not the law; it restarts the law
-    at the next tick it commands (as controller.Controller does).
+    at the next tick it commands (as controller.Controller does). ``f_hat_bias``: added to F_hat
+    (an estimate whose mean is off); ``tell_force``: the law is told the force applied over the
+    last period (the measurement's actuator force).
     """
     dt = 1e-3
     track = TrackParameters(speed_kmh=speed, span_length=SPAN)
@@ -174,7 +205,7 @@ def synthetic_loop(
     for k in range(spans * law.period_ticks):
         t = k * dt
         f_hat = f_r + 40 * math.cos(w * t) + 15 * math.sin(3 * w * t + 0.4) + (u_applied - f_r)
-        f_hat += noise * blue[k]
+        f_hat += noise * blue[k] + f_hat_bias
         if k in lost:
             out.append((law.mode, u_applied, f_hat))
             continue
@@ -184,7 +215,8 @@ def synthetic_loop(
             continue
         if k - 1 in fallback:
             law.restart(u_applied)
-        u, _ = law.output(k, t, np.array([f_r, 0, 0, 0, 0]), np.zeros(4), np.zeros(3), f_hat)
+        told = u_applied if tell_force else math.nan
+        u, _ = law.output(k, t, np.array([f_r, 0, 0, 0, 0]), np.zeros(4), np.zeros(3), f_hat, told)
         u = min(u, u_max)
         law.commit(k, u)
         out.append((law.mode, u, f_hat))
@@ -234,6 +266,19 @@ def test_clipped_feedforward_keeps_the_mean_force_and_does_not_wind_up():
     assert np.std(f_hat[-1]) < 0.6 * math.sqrt(40**2 + 15**2) / math.sqrt(2), np.std(f_hat[-1])
 
 
+def test_told_the_actuator_force_the_law_keeps_the_mean_force_on_target_under_a_biased_estimate():
+    """F_hat 20 N above the force (13 % of F_r: below the guard's bound, so the law keeps
+    learning). Its mean force is the mean command (the synthetic line's momentum balance); told
+    the actuator's force, the law takes its mean error on it and the mean stays on F_r; on F_hat
+    alone it would settle 20 N low (what held Fm 7 % below target on the realistic line)."""
+    spans = 16
+    for told, settles_at in ((True, 150.0), (False, 130.0)):
+        law, out = synthetic_loop(+1.0, spans=spans, f_hat_bias=20.0, tell_force=told)
+        assert not law.tripped
+        u = np.array([o[1] for o in out]).reshape(spans, law.period_ticks)
+        assert abs(u[-2:].mean() - settles_at) < 1.0, (told, u.mean(axis=1))
+
+
 def test_a_lost_last_tick_of_a_span_does_not_merge_two_spans():
     """Live, a tick can pass without an estimate; when it is a span's last tick, the law must still
     take one step per span (its sums running on into the next span doubled the feedforward that
@@ -279,14 +324,51 @@ def test_a_new_run_after_a_restart_forgets_and_runs_in_again():
 
 def test_guard_falls_back_to_passive_when_forced_to_harm():
     law, out = synthetic_loop(-1.0)
-    assert law.tripped
+    assert law.tripped and law.trip_reason == "harm"
     modes = [o[0] for o in out]
     first = modes.index("passive")
-    # Announced and latched, and from then on u = F_r exactly (the passive command).
+    n = law.period_ticks
+    # Announced and latched; the feedforward fades out over one span, then u = F_r exactly.
     assert set(modes[first:]) == {"passive"}
-    assert all(o[1] == 150.0 for o in out[first + 1 :])
+    assert all(o[1] == 150.0 for o in out[first + n :])
     # It fell back within the guard's spans after the run-in (3 + line_guard_spans + 1).
-    assert first < (3 + LawParameters().line_guard_spans + 1) * law.period_ticks
+    assert first < (3 + LawParameters().line_guard_spans + 1) * n
+
+
+def test_falling_back_fades_the_feedforward_out_over_one_span():
+    """A fallback that stepped the learned feedforward off would itself be a kick of up to its
+    peak (here ~90 N within a tick) that can lift the head off the wire. After the trip the
+    command's distance from F_r stays within the ramp (1 - k / N) of the feedforward's peak, and
+    no tick moves the command by more than the last learning span's own largest tick-to-tick
+    change plus the ramp's share of the peak (a step would be the whole feedforward at once)."""
+    law, out = synthetic_loop(-1.0)
+    n = law.period_ticks
+    u = np.array([o[1] for o in out])
+    first = [o[0] for o in out].index("passive")
+    learned = u[first - n + 1 : first] - 150.0  # the last learning span (its U_h: one set)
+    peak = np.max(np.abs(learned))
+    assert peak > 50.0  # a feedforward worth fading (the harm the guard answered)
+    after = np.abs(u[first : first + n] - 150.0)
+    ramp = 1.0 - np.arange(n) / n
+    assert np.all(after <= ramp * peak + 1e-9), np.max(after - ramp * peak)
+    jumps = np.abs(np.diff(u[first - 1 : first + n + 1]))
+    assert np.max(jumps) <= np.max(np.abs(np.diff(learned))) + peak / n + 1e-9, np.max(jumps)
+
+
+def test_guard_backs_off_then_falls_back_when_the_actuator_saturates():
+    """u <= F_r + 5 N against a 55 N disturbance: most of every span's commands are clipped. The
+    guard backs off (harmonics halved) line_guard_strikes - 1 times, then falls back; the
+    saturation guard is not the harm guard (the band of F_hat is not above passive's here)."""
+    law, out = synthetic_loop(+1.0, spans=24, u_max=155.0)
+    assert law.trip_reason == "saturation", (law.trip_reason, law.strikes)
+    assert law.strikes == LawParameters().line_guard_strikes
+    assert law.last_sigma_ratio <= LawParameters().line_guard_ratio
+
+
+def test_guard_lets_a_moderately_clipped_feedforward_learn():
+    """The anti-windup case (a fifth of a span clipped): no strike, the law keeps learning."""
+    law, _ = synthetic_loop(+1.0, spans=24, u_max=180.0)
+    assert not law.tripped and law.strikes == 0
 
 
 def test_line_adaptive_through_the_controller_needs_a_finite_force_estimate():

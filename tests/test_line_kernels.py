@@ -88,21 +88,25 @@ def test_compiled_law_resumes_after_a_fallback_as_the_numpy_law(episode):
 
 #: The law on its identified responses alone (no line model).
 OWN = {"line_model_below": 0.0}
+#: The saturation back-off off: the clipping cases learn to the end (anti-windup compared throughout).
+CLIPS = {"line_guard_saturation": 1.0}
 
 
 @pytest.mark.parametrize(
     "speed, seed, u_max, gain_sign, laws",
     [
         (300.0, 1, math.inf, 1.0, OWN),
-        (250.0, 2, 200.0, 1.0, OWN),  # the limits clip: anti-windup and the mean given back
+        (250.0, 2, 200.0, 1.0, {**OWN, **CLIPS}),  # the limits clip: anti-windup and the mean given back
         (360.0, 3, math.inf, -1.0, OWN),  # forced to harm: the guard trips
-        (200.0, 4, 190.0, 1.0, {**OWN, "line_max_frequency": 60.0, "design_delay_ticks": 2}),  # H > 8
+        (200.0, 4, 190.0, 1.0, {**OWN, **CLIPS, "line_max_frequency": 60.0, "design_delay_ticks": 2}),  # H>8
         (160.0, 6, math.inf, 1.0, {**OWN, "line_max_frequency": 200.0}),  # H > 128: numpy's sums recurse
         (330.0, 5, math.inf, 1.0, {**OWN, "line_response_min": 0.9, "line_forgetting": 0.3}),  # the floor
         # The line model is fitted every span (drive's force follows the command with one gain at
         # every harmonic, which no pantograph does: the fit finds no line, and stands in for none).
         (300.0, 7, math.inf, 1.0, {}),
         (220.0, 8, 180.0, 1.0, {"line_max_frequency": 60.0}),  # ... with H > 8 and the limits clipping
+        # ... and the saturation back-offs, then the fallback and its fade (half of each span clipped)
+        (250.0, 2, 175.0, 1.0, OWN),
     ],
 )
 def test_compiled_law_gives_the_numpy_laws_commands(speed, seed, u_max, gain_sign, laws):
@@ -120,6 +124,8 @@ def test_compiled_law_gives_the_numpy_laws_commands(speed, seed, u_max, gain_sig
     assert_same_law(np.asarray(compiled.u_ff), np.asarray(reference.u_ff))
     if gain_sign < 0:
         assert "passive" in modes  # the case did exercise the guard
+    elif u_max < math.inf and "line_guard_saturation" not in laws:
+        assert compiled.trip_reason == "saturation" and "active" in modes  # it did back off, then fall back
     else:
         assert modes[-1] == "active"
 

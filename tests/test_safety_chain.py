@@ -192,23 +192,28 @@ def test_a_stale_tick_restarts_the_law_from_the_actuators_force(law):
 
 def test_the_line_laws_commands_are_passive_once_its_guard_has_tripped():
     """Through the chain: one span far above the passive spans' force error trips line_adaptive's
-    guard at its end; from the next command on the commands say passive and are F_r."""
-    fast = dataclasses.replace(CHAIN, slew_rate_max=1e9)  # the step back to F_r in one tick
+    guard at its end; from the next command on the commands say passive, the feedforward fades
+    out over that span (within the ramp 1 - j / N of its peak) and from the span after they are F_r."""
+    fast = dataclasses.replace(CHAIN, slew_rate_max=1e9)  # the limits do not shape the fade
     ctrl = controller("line_adaptive", fast, ReferenceParameters(shape="constant"))
     law = ctrl.law
     n, w = law.period_ticks, law.omega_span
     runin = law.params[0]["line_runin_spans"]
-    modes = []
-    for k in range((runin + 2) * n):
+    modes, offsets = [], []
+    for k in range((runin + 3) * n):
         span = k // n
         a = 10.0 if span < runin else 100.0  # the first learning span: 10x passive
         f_r = ctrl.reference.at(k * DT)[0]
         cmd = ctrl.compute(k, *estimate(k)[:2], f_r - a * math.cos(w * k * DT))
         modes.append(cmd.mode)
-        if span == runin + 1:
+        offsets.append(cmd.u - f_r)
+        if span == runin + 2:
             assert cmd.u == pytest.approx(f_r, rel=1e-12)
     assert set(modes[: (runin + 1) * n]) == {"active"}
     assert set(modes[(runin + 1) * n :]) == {"passive"}
+    peak = max(abs(x) for x in offsets[runin * n : (runin + 1) * n])
+    fading = np.abs(offsets[(runin + 1) * n : (runin + 2) * n])
+    assert peak > 0.0 and np.all(fading <= (1.0 - np.arange(n) / n) * peak + 1e-9)
 
 
 @pytest.mark.parametrize("law", ["pid", "lqr"])

@@ -140,9 +140,15 @@ def pantograph_truth_fields(truths: Any, spacing: Any, tick: int, stamp_ns: int)
 
 
 def estimate_fields(
-    e: Any, stamp_ns: int, *, status: int = STATUS_OK, rejected: int = 0, reinitialisations: int = 0
+    e: Any,
+    stamp_ns: int,
+    *,
+    status: int = STATUS_OK,
+    rejected: int = 0,
+    reinitialisations: int = 0,
+    actuator_force: float = math.nan,
 ) -> dict[str, Any]:
-    """ObserverEstimate from pac_observer.observer.Estimate."""
+    """ObserverEstimate from pac_observer.observer.Estimate (``actuator_force``: the measurement's)."""
     return {
         "header": header(stamp_ns),
         "tick": e.tick,
@@ -154,6 +160,7 @@ def estimate_fields(
         "status": status,
         "rejected_measurements": rejected,
         "reinitialisations": reinitialisations,
+        "actuator_force": float(actuator_force),
     }
 
 
@@ -313,6 +320,7 @@ def tick_columns(block: Any, rate_hz: float, command_delay_ticks: int) -> dict[s
             "status": STATUS_OK,
             "rejected_measurements": 0,
             "reinitialisations": 0,
+            "actuator_force": block["actuator_force"],
         },
         "command": {
             **head,

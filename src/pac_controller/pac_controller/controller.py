@@ -175,16 +175,23 @@ class Controller:
         return int(s["law_tick"]) if s["has_law_tick"] else None
 
     def compute(
-        self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray, contact_force_hat: float = math.nan
+        self,
+        tick: int,
+        z_hat: np.ndarray,
+        theta_hat: np.ndarray,
+        contact_force_hat: float = math.nan,
+        actuator_force: float = math.nan,
     ) -> Command:
-        """The command for ``tick`` from the estimate of that tick (F_hat: its contact_force_hat)."""
+        """The command for ``tick`` from the estimate of that tick (F_hat: its contact_force_hat) and
+        the actuator force measured with it (``ObserverEstimate.actuator_force``; NaN: not told,
+        line_adaptive then weighs its own commands instead)."""
         z_hat = np.ascontiguousarray(z_hat, dtype=np.float64)
         theta_hat = np.ascontiguousarray(theta_hat, dtype=np.float64)
-        f_hat, law = float(contact_force_hat), self.law
+        f_hat, measured, law = float(contact_force_hat), float(actuator_force), self.law
         if isinstance(law, KernelLaw):
+            arrays = (law.table, law.memory)
             return self._command(
-                tick,
-                step_one(self.record, self.state, law.table, law.memory, int(tick), z_hat, theta_hat, f_hat),
+                tick, step_one(self.record, self.state, *arrays, int(tick), z_hat, theta_hat, f_hat, measured)
             )
         # A user's law compiled into the chain (user_law.UserLaw.chain_step): one compiled step too.
         compiled = getattr(law, "chain_step", None)

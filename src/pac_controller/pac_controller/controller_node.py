@@ -230,7 +230,9 @@ class ControllerNode(PacNode):
         # Tick 0 is the plant's start-up handshake (re-sent until answered, the real-time loop
         # starts after it): the watchdog arms with the loop itself, from tick 1.
         self.last_estimate_wall = time.monotonic() if tick > 0 else None
-        cmd = self.core.compute(tick, z_hat, theta_hat, float(msg.contact_force_hat))
+        cmd = self.core.compute(
+            tick, z_hat, theta_hat, float(msg.contact_force_hat), float(msg.actuator_force)
+        )
         if self.in_fallback:
             self.in_fallback = False
             self.get_logger().info(f"tick {tick}: fresh estimates again: back to {cmd.mode} control")

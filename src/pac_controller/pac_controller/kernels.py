@@ -99,6 +99,10 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_runin_spans", "i8"),
         ("line_guard_ratio", "f8"),
         ("line_guard_after", "i8"),
+        ("line_guard_bias", "f8"),  # |mean(F_hat - F_applied)| over a span, fraction of mean(F_r)
+        ("line_guard_loss", "f8"),  # share of a span's ticks with F_hat <= 0 above the passive spans'
+        ("line_guard_saturation", "f8"),  # share of a span's commands the limits changed
+        ("line_guard_strikes", "i8"),  # back-offs before the guard falls back
     ]
 )
 
@@ -146,6 +150,19 @@ CONTROLLER_STATE = np.dtype(
         ("line_last_commit", "i8"),  # the tick of the last commit (-1: none)
         ("line_restart_pending", "b1"),  # restarted after a fallback: resume or, on a new run, forget
         ("line_tainted_span", "i8"),  # a span a fallback episode touched: neither learned nor judged (-1)
+        # the guard's sums over the open span (line_adaptive_kernels: _end_of_span)
+        ("line_pending_measured", "f8"),  # the actuator force of this tick's measurement (NaN: none)
+        ("line_pending_law", "f8"),  # u_law of this tick (the limits changed it: saturated)
+        ("line_span_ticks", "i8"),
+        ("line_bias_sum", "f8"),  # sum of F_hat - F_applied
+        ("line_reference_sum", "f8"),  # sum of F_r
+        ("line_loss_ticks", "i8"),  # ticks with F_hat <= 0
+        ("line_clip_ticks", "i8"),  # ticks the limits changed u_law
+        ("line_passive_loss", "f8"),  # the largest share of F_hat <= 0 over the passive spans
+        ("line_strikes", "i8"),  # back-offs so far (contact loss, saturation)
+        ("line_last_bias", "f8"),  # mean of F_hat - F_applied over the last judged span
+        ("line_trip_reason", "i8"),  # line_adaptive_kernels.TRIP_*: why the guard fell back (0: it did not)
+        ("line_fade_from", "i8"),  # the tick the feedforward's fade-out started (the guard's trip)
     ]
 )
 
@@ -209,16 +226,17 @@ def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
 
 @njit(cache=True, error_model="numpy")
 def law_output(
-    p, s, table, memory, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float
+    p, s, table, memory, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float, force_measured: float
 ) -> tuple[float, float, float, float]:
     """The unlimited force u_law for ``tick`` and three law-specific errors; remembers them for commit.
 
     ``table``, ``memory``: the law's arrays (line_adaptive; NO_TABLE for the others); ``f_hat``:
     the estimate's contact force (read by the laws with ``uses_contact_force``: line_adaptive, and
-    pid and lqr with force_estimate contact_force_hat)."""
+    pid and lqr with force_estimate contact_force_hat), ``force_measured``: the actuator force the
+    measurement of this tick reports (NaN: none; read by line_adaptive only)."""
     law = p.law
     if law == _LINE:
-        return line_adaptive_kernels.line_output(p, s, table, memory, tick, f_r[0], f_hat)
+        return line_adaptive_kernels.line_output(p, s, table, memory, tick, f_r[0], f_hat, force_measured)
     if law == _ADAPTIVE or law == _KNOWN:  # eq. (43); the oracle is told the true theta
         if law == _ADAPTIVE:
             th0, th1, th2 = theta_hat[0], theta_hat[1], theta_hat[2]
@@ -364,7 +382,9 @@ def controller_fallback(p, s, tick: int) -> tuple[float, float, float, float, fl
 
 def safety_chain(restart, output, mode_of, commit):
     """The chain around a law, written once: ``controller_step(p, s, table, memory, tick, z_hat,
-    theta_hat, f_hat) -> (u, u_unsaturated, F_r, e1, e2, e3, mode code)`` for the law of the four
+    theta_hat, f_hat, force_measured) -> (u, u_unsaturated, F_r, e1, e2, e3, mode code)``
+    (``force_measured``: the actuator force reported with this tick's measurement, the force
+    applied over the last period; NaN where the controller is not told it) for the law of the four
     compiled functions (signatures of :func:`_restart_law`, :func:`law_output`, :func:`law_mode`,
     :func:`law_commit`; ``table`` and ``memory`` are the law's, passed through to them).
 
@@ -375,7 +395,7 @@ def safety_chain(restart, output, mode_of, commit):
 
     @njit(error_model="numpy")
     def controller_step(
-        p, s, table, memory, tick: int, z_hat, theta_hat, f_hat: float
+        p, s, table, memory, tick: int, z_hat, theta_hat, f_hat: float, force_measured: float
     ) -> tuple[float, float, float, float, float, float, int]:
         t = tick * p.dt
         f_r = reference_at4(
@@ -385,7 +405,7 @@ def safety_chain(restart, output, mode_of, commit):
             return controller_fallback(p, s, tick)
         if law_must_restart(s, tick):
             restart(p, s, table, memory, s.has_last, s.last_u)
-        u_law, e1, e2, e3 = output(p, s, table, memory, tick, t, f_r, z_hat, theta_hat, f_hat)
+        u_law, e1, e2, e3 = output(p, s, table, memory, tick, t, f_r, z_hat, theta_hat, f_hat, force_measured)
         if not math.isfinite(u_law):
             return controller_fallback(p, s, tick)
         mode = mode_of(p, s)  # before commit: line_adaptive's guard trips there, from the next command on
@@ -421,14 +441,16 @@ def _restart_one(params, states, memory, has_u, u_applied) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def _output_one(params, states, table, memory, tick, t, f0, f1, f2, f3, z_hat, theta_hat, f_hat):
-    return law_output(params[0], states[0], table, memory, tick, t, (f0, f1, f2, f3), z_hat, theta_hat, f_hat)
+def _output_one(params, states, table, memory, tick, t, f0, f1, f2, f3, z_hat, theta_hat, f_hat, measured):
+    return law_output(
+        params[0], states[0], table, memory, tick, t, (f0, f1, f2, f3), z_hat, theta_hat, f_hat, measured
+    )
 
 
 @njit(cache=True, error_model="numpy")
-def step_one(params, states, table, memory, tick, z_hat, theta_hat, f_hat):
+def step_one(params, states, table, memory, tick, z_hat, theta_hat, f_hat, force_measured):
     """:func:`controller_step` on the records of 1-element arrays."""
-    return controller_step(params[0], states[0], table, memory, tick, z_hat, theta_hat, f_hat)
+    return controller_step(params[0], states[0], table, memory, tick, z_hat, theta_hat, f_hat, force_measured)
 
 
 @njit(cache=True, error_model="numpy")
@@ -495,11 +517,12 @@ class KernelLaw:
         z_hat: np.ndarray,
         theta_hat: np.ndarray,
         contact_force_hat: float = math.nan,  # F_hat: read by the laws with uses_contact_force
+        actuator_force: float = math.nan,  # the measurement's actuator force: read by line_adaptive
     ) -> tuple[float, tuple[float, float, float]]:
         u, e1, e2, e3 = _output_one(
             self.params, self.state, self.table, self.memory, int(tick), float(t), float(f_r[0]),
             float(f_r[1]), float(f_r[2]), float(f_r[3]), np.asarray(z_hat, dtype=np.float64),
-            np.asarray(theta_hat, dtype=np.float64), float(contact_force_hat),
+            np.asarray(theta_hat, dtype=np.float64), float(contact_force_hat), float(actuator_force),
         )  # fmt: skip
         return u, (e1, e2, e3)
 

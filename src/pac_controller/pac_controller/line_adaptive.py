@@ -58,8 +58,10 @@ clip, asking for more changes nothing applied: the identified response would shr
 steps grow and the clipped share of a span grow without end (it reached 28 % at 360 km/h
 and pulled the mean force 6.5 % below its target).
 
-The mean: U_0 += gamma E_0 (E_0 the span's mean of F_r - F_hat; the static response is
--1 exactly), plus C, the mean the limits took off the last span's command, measured
+The mean: U_0 += gamma E_0 (E_0 the span's mean of F_r - F_a where the actuator's force F_a
+is measured, by that momentum balance, since F_hat's mean can be off by more: +12 N with the
+identified nominal on the realistic line, which held Fm 7 % below target; else of F_r - F_hat;
+the static response is -1 exactly), plus C, the mean the limits took off the last span's command, measured
 exactly on the applied command and given back (C^{j+1} = mean over span j of what the
 limits removed; a fixed point that converges, the clipped share being below one).  In a
 periodic steady state mean(F) = mean(u) (the pantograph's momentum balance), so U_0 stays
@@ -83,7 +85,18 @@ the RMS of sigma_b over the last ``GUARD_SPANS`` spans is compared with it: abov
 the secant learning may rise above passive for its first spans; one span above
 ``GUARD_HARD_FACTOR`` times that trips at once: at 220 km/h a first span at 2.1x passive
 was followed by -57 % once the responses were identified, so 2 was too tight), the law
-falls back to passive for the rest of the run (U = 0, ``Command.mode`` "passive"; latched).
+falls back to passive for the rest of the run (``Command.mode`` "passive"; latched).
+
+What F_hat cannot show, the guard judges on what it cannot bend (docs/laws.md, "A guard that an
+estimate cannot blind"): the mean, by the pantograph's momentum balance over a span,
+mean(F) = mean(F_a) + (roof spring, momentum change: a few N), so |mean(F_hat - F_a)| above
+``line_guard_bias`` mean(F_r) (F_a the actuator force the measurement reports, or the law's own
+commands when it is not told it) falls back at once, from span 1 on; contact loss (ticks with
+F_hat less the last span's bias <= 0 above the worst passive span's share by ``line_guard_loss``)
+and saturation (a share of the commands the limits changed above ``line_guard_saturation``) back
+off, the harmonics U_h halved, and the ``line_guard_strikes``-th time fall back. A fallback fades
+the feedforward as learned out over one span, u_ff (1 - (k - k_trip) / N), then U = 0: stepped
+off, the feedforward would itself kick the head off the wire.
 
 State: the law's numbers are fields of the controller's records (``kernels.CONTROLLER_PARAMS`` /
 ``CONTROLLER_STATE``, the ``line_`` fields), its per-harmonic arrays rows of two complex tables
@@ -110,6 +123,7 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     A_ACC,
     E_ACC,
     E_PREV,
+    GUARD_BACKOFF,
     GUARD_HARD_FACTOR,
     GUARD_SPANS,
     MEMORY_ROWS,
@@ -127,6 +141,9 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     line_restart,
 )
 from .parameters import LawParameters
+
+#: ``LineAdaptiveLaw.trip_reason`` by ``line_trip_reason`` (line_adaptive_kernels.TRIP_*).
+TRIP_REASONS = ("", "harm", "bias", "loss", "saturation")
 
 
 def line_model_rows(pantograph: PantographParameters, omega: np.ndarray, dt: float) -> np.ndarray:
@@ -188,6 +205,9 @@ class LineAdaptiveLaw(KernelLaw):
         p["line_model_below"] = laws.line_model_below
         p["line_guard_ratio"] = laws.line_guard_ratio
         p["line_guard_after"] = max(laws.line_guard_spans, GUARD_SPANS)
+        p["line_guard_bias"], p["line_guard_loss"] = laws.line_guard_bias, laws.line_guard_loss
+        p["line_guard_saturation"] = laws.line_guard_saturation
+        p["line_guard_strikes"] = laws.line_guard_strikes
         self.dt = dt
         self.omega_span = w
         self.restart(None)
@@ -201,6 +221,12 @@ class LineAdaptiveLaw(KernelLaw):
     u_ff = property(lambda self: self.memory[U_FF])
     tripped = property(lambda self: bool(self.state[0]["line_tripped"]))
     last_sigma_ratio = property(lambda self: float(self.state[0]["line_last_sigma_ratio"]))
+    strikes = property(lambda self: int(self.state[0]["line_strikes"]))
+
+    @property
+    def trip_reason(self) -> str:
+        """Why the guard fell back: "" (it did not), "harm", "bias", "loss" or "saturation"."""
+        return TRIP_REASONS[int(self.state[0]["line_trip_reason"])]
 
     @property
     def start_tick(self) -> int | None:

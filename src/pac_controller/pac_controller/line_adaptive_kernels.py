@@ -18,6 +18,12 @@ MIN_INFORMATIVE_STEP = 0.5
 GUARD_SPANS = 3
 #: One span's sigma_b above this multiple of line_guard_ratio * sigma_b,passive trips the guard at once.
 GUARD_HARD_FACTOR = 3.0
+#: A back-off (contact loss or saturation in a span) scales the feedforward's harmonics by this.
+GUARD_BACKOFF = 0.5
+#: Why the guard fell back (``line_trip_reason``): not at all; the span-periodic sigma of F_hat above
+#: passive's (harm); the mean of F_hat off the actuator's (bias); contact loss / saturation in
+#: ``line_guard_strikes`` spans (each one backed off first).
+TRIP_NONE, TRIP_HARM, TRIP_BIAS, TRIP_LOSS, TRIP_SATURATION = range(5)
 
 
 #: Rows of the ``memory`` table (complex, one column per harmonic); S_h is stored as real parts.
@@ -96,6 +102,10 @@ def line_forget(s, memory) -> None:
     s.line_last_sigma_ratio, s.line_tripped = 0.0, False
     s.line_stiffness, s.line_damping, s.line_model_valid = 0.0, 0.0, False
     s.line_pending_error, s.line_pending_reference = 0.0, 0.0
+    s.line_pending_measured, s.line_pending_law = math.nan, 0.0
+    s.line_passive_loss, s.line_strikes, s.line_last_bias = 0.0, 0, 0.0
+    s.line_trip_reason, s.line_fade_from = TRIP_NONE, -1
+    _clear_sums(s, memory)
 
 
 @njit(cache=True, error_model="numpy")
@@ -112,14 +122,28 @@ def line_feedforward(p, s, table, memory, tick: int) -> float:
 
 @njit(cache=True, error_model="numpy")
 def line_output(
-    p, s, table, memory, tick: int, f_r0: float, f_hat: float
+    p, s, table, memory, tick: int, f_r0: float, f_hat: float, force_measured: float
 ) -> tuple[float, float, float, float]:
-    """(u_law, error, u_ff, sigma ratio): F_r + the feedforward (0 once the guard has tripped)."""
+    """(u_law, error, u_ff, sigma ratio): F_r + the feedforward, faded out over one span once the
+    guard has tripped (then 0)."""
     error = f_r0 - f_hat
     s.line_pending_error, s.line_pending_reference = error, f_r0  # what commit accumulates
+    s.line_pending_measured = force_measured
     new_run = s.line_restart_pending and s.line_last_commit >= 0 and tick <= s.line_last_commit
-    u_ff = 0.0 if s.line_tripped or new_run else line_feedforward(p, s, table, memory, tick)
+    fade = fade_factor(s.line_tripped, s.line_fade_from, tick, p.line_period)
+    u_ff = 0.0 if fade <= 0.0 or new_run else fade * line_feedforward(p, s, table, memory, tick)
+    s.line_pending_law = f_r0 + u_ff
     return f_r0 + u_ff, error, u_ff, s.line_last_sigma_ratio
+
+
+@njit(cache=True, inline="always")
+def fade_factor(tripped: bool, fade_from: int, tick: int, n: int) -> float:
+    """The share of the feedforward kept at ``tick``: 1 until the guard trips, then a ramp to 0 over
+    the next n ticks (one span) from ``fade_from``, the tick it tripped at: a fallback that stepped
+    the feedforward off would itself kick the pantograph off the wire."""
+    if not tripped:
+        return 1.0
+    return max(0.0, 1.0 - (tick - fade_from) / n)
 
 
 @njit(cache=True, error_model="numpy")
@@ -158,7 +182,18 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     applied = u_applied - s.line_pending_reference - s.line_u_mean - s.line_clip_offset
     _accumulate(table, memory, A_ACC, (tick + p.line_delay) % n, (2.0 / n) * applied, h)
     s.line_a_mean += applied / n
-    s.line_e_mean += e / n
+    # E_0 by the momentum balance where the actuator's force is measured: mean(F) = mean(F_a) up to
+    # a few N, where F_hat's mean can be off by more (+12 N on the realistic line: Fm 7 % low).
+    told = math.isfinite(s.line_pending_measured)
+    s.line_e_mean += (s.line_pending_reference - s.line_pending_measured if told else e) / n
+    # The guard's sums: the momentum balance's two sides, F_hat <= 0, a command the limits changed.
+    f_hat = s.line_pending_reference - e
+    measured = s.line_pending_measured if told else u_applied
+    s.line_span_ticks += 1
+    s.line_bias_sum += f_hat - measured
+    s.line_reference_sum += s.line_pending_reference
+    s.line_loss_ticks += 1 if f_hat - s.line_last_bias <= 0.0 else 0  # F_hat less its mean's bias
+    s.line_clip_ticks += 1 if u_applied != s.line_pending_law else 0
     if k % n == n - 1:
         _end_of_span(p, s, table, memory, k // n)
         s.line_open_span = -1
@@ -170,6 +205,8 @@ def _clear_sums(s, memory) -> None:
     memory[A_ACC, :] = 0.0
     s.line_a_mean = 0.0
     s.line_e_mean = 0.0
+    s.line_span_ticks, s.line_bias_sum, s.line_reference_sum = 0, 0.0, 0.0
+    s.line_loss_ticks, s.line_clip_ticks = 0, 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -186,9 +223,21 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         a = _cabs(memory[E_ACC, j].real, memory[E_ACC, j].imag)
         memory[SCRATCH, j] = complex(a * a, 0.0)
     var = 0.5 * _sum_real(memory[SCRATCH], h)
-    if 1 <= span < p.line_runin_spans:  # span 0 holds the start transient
+    ticks = max(s.line_span_ticks, 1)
+    loss = s.line_loss_ticks / ticks
+    # The pantograph's momentum balance over a span: its mean contact force is the mean force on it,
+    # the actuator's (what the observer is told), up to the roof spring's and the momentum's small
+    # terms; a mean of F_hat - F_applied beyond line_guard_bias times the mean reference is an
+    # estimate whose mean is wrong, which the band the law judges below cannot show (docs/laws.md).
+    bias, reference = s.line_bias_sum / ticks, s.line_reference_sum / ticks
+    if span >= 1 and not s.line_tripped and not abs(bias) <= p.line_guard_bias * abs(reference):
+        _trip(s, TRIP_BIAS)  # span 0 holds the start transient
+    s.line_last_bias = bias if span >= 1 else 0.0
+    back_off = False
+    if 1 <= span < p.line_runin_spans:
         s.line_passive_var += var
         s.line_passive_spans += 1
+        s.line_passive_loss = max(s.line_passive_loss, loss)
     elif span >= p.line_runin_spans and s.line_passive_spans and not s.line_tripped:
         sigma_p = math.sqrt(s.line_passive_var / s.line_passive_spans)
         s.line_recent_var[span % GUARD_SPANS] = var
@@ -201,13 +250,41 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
         judged = learned >= p.line_guard_after and not s.line_last_sigma_ratio <= p.line_guard_ratio
         if judged or not span_ratio <= GUARD_HARD_FACTOR * p.line_guard_ratio:
-            s.line_tripped = True
-            memory[U_FF, : p.line_harmonics] = 0.0
-            s.line_u_mean = 0.0
-            s.line_clip_offset = 0.0
+            _trip(s, TRIP_HARM)
+        else:
+            back_off = _struck(p, s, loss, s.line_clip_ticks / ticks)
     if span >= p.line_runin_spans - 1 and not s.line_tripped:
         _learn(p, s, table, memory)
+        if back_off:  # on what the step gives: it steps from the harmonics applied, not from U_h
+            for j in range(p.line_harmonics):
+                u = memory[U_FF, j]
+                memory[U_FF, j] = complex(GUARD_BACKOFF * u.real, GUARD_BACKOFF * u.imag)
     _clear_sums(s, memory)
+
+
+@njit(cache=True, error_model="numpy")
+def _struck(p, s, loss: float, clipped: float) -> bool:
+    """Whether a learning span backs off: more of its ticks with F_hat <= 0 (less the last span's
+    bias) than the worst passive span's by ``line_guard_loss``, or more of its commands changed by
+    the limits than ``line_guard_saturation``. The ``line_guard_strikes``-th such span falls back
+    instead (and does not back off)."""
+    lost = loss > s.line_passive_loss + p.line_guard_loss
+    if not (lost or clipped > p.line_guard_saturation):
+        return False
+    s.line_strikes += 1
+    if s.line_strikes >= p.line_guard_strikes:
+        _trip(s, TRIP_LOSS if lost else TRIP_SATURATION)
+        return False
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _trip(s, reason: int) -> None:
+    """Fall back to passive (latched): the feedforward as learned fades out over the next span
+    (``fade_factor``) from the last tick committed."""
+    s.line_tripped = True
+    s.line_trip_reason = reason
+    s.line_fade_from = s.line_last_commit
 
 
 @njit(cache=True, error_model="numpy")

@@ -312,3 +312,37 @@ class LawParameters(ParameterSet):
         low=3,
         high=100,
     )
+    line_guard_bias: float = parameter(
+        0.25,
+        "line_adaptive: fall back to passive when the mean of F_hat over a span differs from the mean "
+        "actuator force (the pantograph's momentum balance) by more than this times the mean "
+        "reference: an estimate whose mean is wrong",
+        "",
+        low=0.0,
+        low_open=True,
+        high=10.0,
+    )
+    line_guard_loss: float = parameter(
+        0.01,
+        "line_adaptive: back off (harmonics halved and capped) when a learning span has more of its "
+        "ticks with F_hat <= 0 than the worst passive span by more than this share",
+        "",
+        low=0.0,
+        high=1.0,
+    )
+    line_guard_saturation: float = parameter(
+        0.25,
+        "line_adaptive: back off likewise when the actuator limits (u_min, u_max, slew_rate_max) "
+        "changed more than this share of a span's commands (the anti-windup keeps the law sound with "
+        "a fifth of them clipped: docs/laws.md)",
+        "",
+        low=0.0,
+        high=1.0,
+    )
+    line_guard_strikes: int = parameter(
+        3,
+        "line_adaptive: the span that would back off this many times falls back to passive instead",
+        "spans",
+        low=1,
+        high=100,
+    )

@@ -24,7 +24,12 @@ class RelayController(Controller):
     """A :class:`Controller` whose ``compute`` does no work (no law, no limits)."""
 
     def compute(
-        self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray, contact_force_hat: float = math.nan
+        self,
+        tick: int,
+        z_hat: np.ndarray,
+        theta_hat: np.ndarray,
+        contact_force_hat: float = math.nan,
+        actuator_force: float = math.nan,
     ) -> Command:
         self.last_tick = tick
         return Command(tick, tick * self.sample_period, 0.0, 0.0, 0.0, (0.0, 0.0, 0.0), False, "active")

@@ -238,7 +238,10 @@ class UserLaw:
         records; None for a law at Python speed (the controller calls it between the chain's parts)."""
         if self.file.step_one is None:
             return None
-        return self.file.step_one(params, states, self.consts, self.state, tick, z_hat, theta_hat, f_hat)
+        # A law file reads no actuator force (the chain passes NaN for it).
+        return self.file.step_one(
+            params, states, self.consts, self.state, tick, z_hat, theta_hat, f_hat, math.nan
+        )
 
     def _compile(self) -> None:
         """Compile the chain with the law's functions now, on a copy of its memory and the types the
@@ -251,7 +254,9 @@ class UserLaw:
         step_one = self.file.step_one
         assert step_one is not None
         try:
-            step_one(params, states, self.consts.copy(), self.state.copy(), 0, np.zeros(4), np.zeros(3), 0.0)
+            step_one(
+                params, states, self.consts.copy(), self.state.copy(), 0, np.zeros(4), np.zeros(3), 0.0, 0.0
+            )
         except NumbaError as exc:
             raise refuse(self.file.path, f"its njit functions do not compile: {_numba_reason(exc)}") from None
         except Exception:  # noqa: BLE001 - compiled; what it raised on these made-up inputs is no refusal
@@ -312,7 +317,9 @@ def compiled_chain(restart: Callable, output: Callable, commit: Callable) -> tup
         restart(consts, state, has_u, u_applied)
 
     @njit(error_model="numpy")
-    def law_output(p, s, consts, state, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float):
+    def law_output(
+        p, s, consts, state, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float, measured: float
+    ):
         return float(output(consts, state, t, f_r, z_hat, theta_hat, f_hat)), 0.0, 0.0, 0.0
 
     @njit(error_model="numpy")
@@ -322,7 +329,7 @@ def compiled_chain(restart: Callable, output: Callable, commit: Callable) -> tup
     step = safety_chain(restart_law, law_output, _user_mode, commit_law)
 
     @njit(error_model="numpy")
-    def step_one(params, states, consts, state, tick: int, z_hat, theta_hat, f_hat: float):
-        return step(params[0], states[0], consts, state, tick, z_hat, theta_hat, f_hat)
+    def step_one(params, states, consts, state, tick: int, z_hat, theta_hat, f_hat: float, measured: float):
+        return step(params[0], states[0], consts, state, tick, z_hat, theta_hat, f_hat, measured)
 
     return step, step_one

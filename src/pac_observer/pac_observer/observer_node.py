@@ -99,7 +99,7 @@ class ObserverNode(PacNode):
         self.follow_run()
         self.watch_start(self.missing)
         # (estimate, status, rejected, reinitialisations) last published
-        self.last_estimate: tuple[Estimate, int, int, int] | None = None
+        self.last_estimate: tuple[Estimate, int, int, int, float] | None = None
         self.last_seen_tick = -1
         self.reinitialisations = 0
         self.rejected = 0
@@ -176,16 +176,21 @@ class ObserverNode(PacNode):
             est = self.core.update(tick, (z1, z2), force)
             status = messages.STATUS_REINITIALISED
         self.rejected_since_estimate = False
-        self.last_estimate = (est, status, self.rejected, self.reinitialisations)
+        self.last_estimate = (est, status, self.rejected, self.reinitialisations, force)
         self.publish(*self.last_estimate)
         self.timing.record(start_ns, (time.monotonic_ns() - start_ns) * 1e-9)
         self.handled_tick(tick)
 
-    def publish(self, est, status: int, rejected: int, reinitialisations: int) -> None:
+    def publish(self, est, status: int, rejected: int, reinitialisations: int, actuator_force: float) -> None:
         # The factory refills one message object per type: never keep it, re-make it.
         stamp = messages.tick_stamp_ns(est.tick, self.loop.rate_hz)
         fields = messages.estimate_fields(
-            est, stamp, status=status, rejected=rejected, reinitialisations=reinitialisations
+            est,
+            stamp,
+            status=status,
+            rejected=rejected,
+            reinitialisations=reinitialisations,
+            actuator_force=actuator_force,
         )
         self.estimate_pub.publish(self.factory.make(messages.OBSERVER_ESTIMATE, fields))
 

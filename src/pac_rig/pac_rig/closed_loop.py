@@ -214,7 +214,7 @@ def run_cores(
             est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force)
         except ObserverDivergedError as exc:
             raise DivergenceError(y.tick, exc.reason) from exc
-        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat)
+        cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat, y.actuator_force)
         if not abs(cmd.u_unsaturated) < DIVERGENCE_FORCE:
             raise DivergenceError(y.tick, divergence_reason(FORCE, cmd.u_unsaturated))
         yield TickRecord(y, truth, est, cmd, pantographs)

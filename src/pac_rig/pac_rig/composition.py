@@ -15,7 +15,8 @@ observer states what it gives (``pac_observer.parameters.OBSERVER_GIVES``). From
   equivalent stiffness (``design_stiffness``: its mean static stiffness over a period of the design
   spans, ``pac_plant.fe_plant.equivalent_contact_stiffness``), not the lumped model's k0; an
   actuator as hardware works about the run's reference (``actuator_static_force`` =
-  ``force_amplitude``);
+  ``force_amplitude``) and the controller is told its range (``u_min``, ``u_max`` = that force
+  -+ the range);
 - **refused**, with one line naming both parts and what would fit: a law that needs what its
   observer does not give (``adaptive_backstepping`` on ``observer:=contact_force`` would run on
   theta_hat = 0; so would ``pid`` told ``force_estimate:=k_hat_z1`` there).
@@ -110,6 +111,9 @@ def derive(
             f"actuator_static_force:={static_force:g} (the run's force_amplitude: the "
             f"{given['actuator']} actuator's range is about it)"
         )
+    actuator = str(given.get("actuator", "ideal"))
+    if actuator != "ideal" and "u_min" not in given and "u_max" not in given:
+        notes.extend(_actuator_limits(actuator, {**given, **out}, out))
     return out, notes
 
 
@@ -145,6 +149,28 @@ def _fe_line_design(
                 out[name] = value
                 notes.append(f"{name}:={value:g} (law {law}'s design for the FE line)")
     return notes
+
+
+def _actuator_limits(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
+    """The controller told its actuator's range: u_min, u_max = F0 -+ R (F0 the actuator's static
+    force), so that a command beyond it is clipped where the law sees it (its anti-windup learns
+    on what was applied, its guard counts the clipped share) instead of downstream, where the law
+    would keep asking for a force it never gets (docs/laws.md)."""
+    from pac_plant.hardware.actuators import ACTUATORS
+
+    reach = ACTUATORS[actuator].force_range
+    if not reach < float("inf"):
+        return []
+    from pac_controller.parameters import ControllerParameters
+
+    static = float(given["actuator_static_force"])
+    out["u_min"], out["u_max"] = static - reach, static + reach
+    lines = [f"u_min:={out['u_min']:g}, u_max:={out['u_max']:g} (the {actuator} actuator's range)"]
+    fallback = float(given.get("fallback_force", ControllerParameters().fallback_force))
+    if "fallback_force" not in given and not out["u_min"] <= fallback <= out["u_max"]:
+        out["fallback_force"] = min(max(fallback, out["u_min"]), out["u_max"])
+        lines.append(f"fallback_force:={out['fallback_force']:g} (within the actuator's range)")
+    return lines
 
 
 def check_pair(law: str, observer: str, force_estimate: str | None = None) -> None:

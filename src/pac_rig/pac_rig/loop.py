@@ -360,7 +360,7 @@ def closed_loop_for(step):
             return status, np.nan
         # Controller: law and safety chain.
         u, u_law, f_r, e1, e2, e3, mode = step(
-            cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat
+            cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat, out.actuator_force
         )
         if not abs(u_law) < DIVERGENCE_FORCE:
             return FORCE, u_law

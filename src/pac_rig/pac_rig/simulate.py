@@ -78,7 +78,9 @@ def tick_fields(rec: TickRecord, scenario: Scenario) -> dict[str, dict[str, Any]
     fields = {
         "measurement": messages.measurement_fields(rec.measurement, stamp),
         "plant_truth": messages.truth_fields(rec.truth, stamp, applied_command_tick=applied),
-        "estimate": messages.estimate_fields(rec.estimate, stamp),
+        "estimate": messages.estimate_fields(
+            rec.estimate, stamp, actuator_force=rec.measurement.actuator_force
+        ),
         "command": messages.command_fields(rec.command, stamp),
     }
     if rec.pantographs:
