@@ -18,9 +18,9 @@ from pac_rig.composition import CompositionError
 from pac_rig.launcher import Rig
 from pac_rig.simulate import scenario_from_flat
 
-#: The pairs that cannot work as a run composes them: the law built on theta_hat on the filter that
-#: gives none (pid and lqr read that filter's own F_hat there).
-REFUSED = {("adaptive_backstepping", "contact_force")}
+#: The pairs that cannot work as a run composes them: the law built on theta_hat on the observers
+#: that give none (pid and lqr read their own F_hat there).
+REFUSED = {("adaptive_backstepping", "contact_force"), ("adaptive_backstepping", "head_balance")}
 
 
 @pytest.mark.unit

@@ -289,8 +289,11 @@ class ContactForceObserver:
     #: step loaded before the loop, not at its first tick.
     warm_up = AdaptiveObserver.warm_up
 
-    def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
-        """Process y_k of ``tick`` and the force applied over (t_{k-1}, t_k]; a gap is predicted through."""
+    def update(
+        self, tick: int, y: tuple[float, float], actuator_force: float, head_acceleration: float = math.nan
+    ) -> Estimate:
+        """Process y_k of ``tick`` and the force applied over (t_{k-1}, t_k]; a gap is predicted through
+        (``head_acceleration``: not read; the head-balance observer's)."""
         y1, y2 = float(y[0]), float(y[1])
         if self.tick < 0:
             self.tick = tick
@@ -308,21 +311,32 @@ class ContactForceObserver:
         return self._estimate()
 
     def _estimate(self) -> Estimate:
-        st = self._st[0]
-        return Estimate(
-            tick=self.tick,
-            time=self.tick * self.sample_period,
-            z_hat=st["z_hat"].copy(),
-            theta_hat=np.zeros(3),
-            stiffness_hat=0.0,
-            contact_force_hat=float(st["cf_force"]),
-            innovation=st["innovation"].copy(),
-        )
+        return force_estimate(self.tick, self.sample_period, self._st)
+
+
+def force_estimate(tick: int, sample_period: float, state: np.ndarray) -> Estimate:
+    """The Estimate of an observer that gives F_hat and no theta_hat (this one, the head balance):
+    z_hat, F_hat and the innovation of its OBSERVER_STATE record ``state``; theta_hat zeros."""
+    st = state[0]
+    return Estimate(
+        tick=tick,
+        time=tick * sample_period,
+        z_hat=st["z_hat"].copy(),
+        theta_hat=np.zeros(3),
+        stiffness_hat=0.0,
+        contact_force_hat=float(st["cf_force"]),
+        innovation=st["innovation"].copy(),
+    )
 
 
 def make_observer(
     pantograph: PantographParameters, track: TrackParameters, params: ObserverParameters, sample_period: float
 ):
-    """The observer ``params.observer`` names: the paper's (eq. (17)) or the contact-force filter."""
-    cls = ContactForceObserver if params.observer == "contact_force" else AdaptiveObserver
+    """The observer ``params.observer`` names: the paper's (eq. (17)), the contact-force filter or
+    the head balance."""
+    from .head_balance import HeadBalanceObserver  # it imports this module's neighbours
+
+    cls = {"contact_force": ContactForceObserver, "head_balance": HeadBalanceObserver}.get(
+        params.observer, AdaptiveObserver
+    )
     return cls(pantograph, track, params, sample_period)

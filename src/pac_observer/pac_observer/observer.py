@@ -51,7 +51,8 @@ _DIVERGED_REASONS = {
     1: "xi or Lambda is not finite",
     2: "S_theta not positive definite (Cholesky failed)",
     3: "theta_hat is not finite",
-    6: "the contact-force state is not finite",  # pac_observer.contact_force (4, 5: pac_rig.loop's)
+    6: "the contact-force state is not finite",  # pac_observer.contact_force (4, 5, 7: pac_rig.loop's)
+    8: "the head-balance estimate is not finite (a head accelerometer reading NaN)",  # .head_balance
 }
 
 
@@ -89,6 +90,9 @@ OBSERVER_STATE = np.dtype(
         ("cf_selected", "i8"),
         ("cf_force", "f8"),
         ("cf_pred", "f8", 5),
+        # observer:=head_balance (pac_observer.head_balance; F_hat in cf_force): C, the mean's offset
+        ("hb_offset", "f8"),
+        ("hb_samples", "i8"),  # samples the mean has taken so far
     ]
 )
 
@@ -110,10 +114,14 @@ OBSERVER_CONSTS = np.dtype(
         # observer:=contact_force (the filters' Phi, Gamma, K are its bank's arrays)
         ("cf_forget", "f8"),  # lam = exp(-dt / frame_mass_window)
         ("cf_inv_r2", "f8"),  # 1 / position_noise^2
+        # observer:=head_balance (pac_observer.head_balance)
+        ("hb_k1", "f8"),
+        ("hb_b1", "f8"),
+        ("hb_forget", "f8"),  # lam = exp(-dt / head_balance_window)
     ]
 )
 #: OBSERVER_CONSTS.kind
-ADAPTIVE, CONTACT_FORCE = 0, 1
+ADAPTIVE, CONTACT_FORCE, HEAD_BALANCE = 0, 1, 2
 
 
 @njit(cache=True, error_model="numpy")
@@ -443,7 +451,9 @@ def _s_z_maps(
 class SampleUpdater(Protocol):
     """What the nodes call on an observer core each sample (AdaptiveObserver, ContactForceObserver)."""
 
-    def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate: ...
+    def update(
+        self, tick: int, y: tuple[float, float], actuator_force: float, head_acceleration: float = ...
+    ) -> Estimate: ...
 
 
 class AdaptiveObserver:
@@ -525,8 +535,11 @@ class AdaptiveObserver:
         twin.update(3, (0.0, 0.0), 0.0)
 
     # -- one tick ----------------------------------------------------------------
-    def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
-        """Process the sample y_k = (z1, z2) of ``tick`` and the force applied over (t_{k-1}, t_k].
+    def update(
+        self, tick: int, y: tuple[float, float], actuator_force: float, head_acceleration: float = math.nan
+    ) -> Estimate:
+        """Process the sample y_k = (z1, z2) of ``tick`` and the force applied over (t_{k-1}, t_k]
+        (``head_acceleration``: not read; the head-balance observer's).
 
         The first call initialises and returns the initial estimate.  Ticks must
         increase; a gap (lost samples) is bridged period by period with y

@@ -168,12 +168,12 @@ class ObserverNode(PacNode):
             self.bridged += tick - self.core.tick - 1
         self.processed += 1
         try:
-            est = self.core.update(tick, (z1, z2), force)
+            est = self.core.update(tick, (z1, z2), force, float(msg.head_acceleration))
         except ObserverDivergedError as exc:
             self.reinitialisations += 1
             self.get_logger().error(f"{exc}; re-initialising")
             self.core.reset()
-            est = self.core.update(tick, (z1, z2), force)
+            est = self.core.update(tick, (z1, z2), force, float(msg.head_acceleration))
             status = messages.STATUS_REINITIALISED
         self.rejected_since_estimate = False
         self.last_estimate = (est, status, self.rejected, self.reinitialisations, force)

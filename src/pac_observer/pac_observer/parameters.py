@@ -13,6 +13,7 @@ from pac_common.parameters import ParameterSet, parameter
 OBSERVER_GIVES: dict[str, frozenset[str]] = {
     "adaptive": frozenset({"theta_hat", "contact_force_hat"}),
     "contact_force": frozenset({"contact_force_hat"}),
+    "head_balance": frozenset({"contact_force_hat"}),
 }
 
 
@@ -25,7 +26,9 @@ class ObserverParameters(ParameterSet):
         "adaptive",
         "'adaptive' the paper's observer, eq. (17) (theta_hat, F_hat = k_hat z1); 'contact_force' a "
         "Kalman filter on the nominal pantograph with F as a random-walk state (no F = k z1; no "
-        "theta_hat: for laws line_adaptive, pid, lqr (on its F_hat) or passive)",
+        "theta_hat: for laws line_adaptive, pid, lqr (on its F_hat) or passive); 'head_balance' F "
+        "from the head's equation of motion with its accelerometer (a train's sensors: "
+        "sensors:=train or train_load_cell; pac_observer.head_balance)",
         choices=tuple(OBSERVER_GIVES),
     )
     force_process_noise: float = parameter(
@@ -58,6 +61,14 @@ class ObserverParameters(ParameterSet):
         "",
         low=0.001,
         high=0.9,
+    )
+    head_balance_window: float = parameter(
+        2.0,
+        "head_balance: time constant T over which F_hat's mean follows the actuator's force (the "
+        "momentum balance; above 1/(2 pi T) F_hat is the head's balance)",
+        "s",
+        low=0.01,
+        high=1000.0,
     )
     frame_mass_window: float = parameter(
         0.5,

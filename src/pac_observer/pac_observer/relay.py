@@ -7,6 +7,7 @@ measurement with an estimate of the same tick whose values are zero: the floor t
 
 from __future__ import annotations
 
+import math
 import sys
 
 import numpy as np
@@ -22,7 +23,9 @@ class RelayObserver(AdaptiveObserver):
 
     _ZEROS2, _ZEROS3, _ZEROS4 = np.zeros(2), np.zeros(3), np.zeros(4)
 
-    def update(self, tick: int, y: tuple[float, float], actuator_force: float) -> Estimate:
+    def update(
+        self, tick: int, y: tuple[float, float], actuator_force: float, head_acceleration: float = math.nan
+    ) -> Estimate:
         self.tick = tick
         return Estimate(tick, tick * self.sample_period, self._ZEROS4, self._ZEROS3, 0.0, 0.0, self._ZEROS2)
 

@@ -63,7 +63,9 @@ class DivergenceError(RuntimeError):
 def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
     """The plant, observer and controller of ``s``; ParameterError (one line) for parts that do not
     fit together (pac_rig.composition) or a design the parameters do not allow."""
-    composition.check_pair(s.controller.effective_law, s.observer.observer, s.laws.force_estimate)
+    composition.check_pair(
+        s.controller.effective_law, s.observer.observer, s.laws.force_estimate, s.plant.sensors
+    )
     dt = s.loop.sample_period
     if (s.plant.pantograph or s.pantograph.nominal_pantograph) and s.mismatch.plant_mass_scale != 1.0:
         raise ParameterError(
@@ -211,7 +213,7 @@ def run_cores(
         if not (abs(y.z1) < DIVERGENCE_DISPLACEMENT and abs(y.z2) < DIVERGENCE_DISPLACEMENT):
             raise DivergenceError(y.tick, divergence_reason(DISPLACEMENT, y.z1))
         try:
-            est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force)
+            est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force, y.head_acceleration)
         except ObserverDivergedError as exc:
             raise DivergenceError(y.tick, exc.reason) from exc
         cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat, y.actuator_force)

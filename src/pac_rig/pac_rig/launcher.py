@@ -181,7 +181,12 @@ class Rig:
             names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
             self.params[name].update({k: v for k, v in derived.items() if k != "law" and k in names})
         observer = self.params["observer"].get("observer", ObserverParameters().observer)
-        composition.check_pair(str(law), str(observer), self.params["controller"].get("force_estimate"))
+        composition.check_pair(
+            str(law),
+            str(observer),
+            self.params["controller"].get("force_estimate"),
+            str(self.params["plant"].get("sensors", "ground")),
+        )
 
     def composed_command(self) -> list[str]:
         """``composed`` with a params file holding one section per node (by node name)."""

@@ -42,7 +42,14 @@ from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLa
 from pac_controller.user_law import UserLaw
 from pac_model import model
 from pac_observer.contact_force import ContactForceObserver, contact_force_advance, contact_force_start
-from pac_observer.observer import CONTACT_FORCE, AdaptiveObserver, observer_advance, observer_start
+from pac_observer.head_balance import HeadBalanceObserver, head_balance_advance, head_balance_start
+from pac_observer.observer import (
+    CONTACT_FORCE,
+    HEAD_BALANCE,
+    AdaptiveObserver,
+    observer_advance,
+    observer_start,
+)
 from pac_plant.catenary import kernels as fe
 from pac_plant.fe_plant import FEPlant, several_pantographs
 from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
@@ -309,8 +316,17 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
 
 @njit(cache=True, error_model="numpy")
 def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
-    """The observer at tick k (eq. (17), or the contact-force filter); the estimate into ``out``."""
-    if oc.kind == CONTACT_FORCE:
+    """The observer at tick k (eq. (17), the contact-force filter or the head balance); the estimate
+    into ``out``."""
+    if oc.kind == HEAD_BALANCE:
+        if k == 0:
+            status = head_balance_start(os, oc, y1, y2, u_applied, out.head_acceleration)
+        else:
+            status = head_balance_advance(os, oc, y1, y2, 1, u_applied, out.head_acceleration)
+        if status:
+            return status
+        out.stiffness_hat, out.contact_force_hat = 0.0, os.cf_force
+    elif oc.kind == CONTACT_FORCE:
         if k == 0:
             contact_force_start(os, bank, y1, y2)
         else:
@@ -493,16 +509,19 @@ class CompiledLoop:
 
 
 def compile_loop(
-    plant: Plant, observer: AdaptiveObserver | ContactForceObserver, controller: Controller, delay: int
+    plant: Plant,
+    observer: AdaptiveObserver | ContactForceObserver | HeadBalanceObserver,
+    controller: Controller,
+    delay: int,
 ) -> CompiledLoop | None:
     """The records of the cores as built (``closed_loop.build_cores``; copies: the cores are not
     changed by running them), or None if the loop has no compiled form for them: a plant other
-    than :class:`Plant` / :class:`FEPlant`, an observer other than the two, a law without kernel
+    than :class:`Plant` / :class:`FEPlant`, an observer other than the three, a law without kernel
     (not a :class:`KernelLaw`, nor a user's law file with njit functions), more delay than
     :data:`MAX_DELAY`."""
     if (
         type(plant) not in (Plant, FEPlant)
-        or type(observer) not in (AdaptiveObserver, ContactForceObserver)
+        or type(observer) not in (AdaptiveObserver, ContactForceObserver, HeadBalanceObserver)
         or type(controller) is not Controller
     ):
         return None
