@@ -63,6 +63,7 @@ class LineAdaptiveLaw:
         self.guard_ratio = laws.line_guard_ratio
         self.guard_after = max(laws.line_guard_spans, GUARD_SPANS)
         self.guard_bias, self.guard_loss = laws.line_guard_bias, laws.line_guard_loss
+        self.loss_margin = laws.line_guard_loss_margin
         self.guard_saturation, self.guard_strikes = laws.line_guard_saturation, laws.line_guard_strikes
         self._pending_measured = math.nan
         self._pending_law = 0.0
@@ -111,7 +112,7 @@ class LineAdaptiveLaw:
         self.line_stiffness = 0.0  # the line model Z = k_s + i c w
         self.line_damping = 0.0
         self.model_valid = False
-        self.passive_loss = 0.0  # the largest share of F_hat <= 0 over the passive spans
+        self.passive_loss = 0.0  # the largest share of F_hat nearly lost over the passive spans
         self.strikes = 0
         self.last_bias = 0.0  # mean of F_hat - F_applied over the last judged span
         self.trip_reason = ""
@@ -186,7 +187,7 @@ class LineAdaptiveLaw:
         self.span_ticks += 1
         self.bias_sum += f_hat - measured
         self.reference_sum += self._pending_reference
-        self.loss_ticks += f_hat - self.last_bias <= 0.0
+        self.loss_ticks += f_hat - self.last_bias <= self.loss_margin * self._pending_reference
         self.clip_ticks += u_applied != self._pending_law
         if k % n == n - 1:
             self._end_of_span(k // n)

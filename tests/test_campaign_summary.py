@@ -65,3 +65,20 @@ def test_groups_are_every_other_axis_and_failed_runs_are_left_out(tmp_path):
 
     json.loads((tmp_path / "summary.json").read_text(), parse_constant=refuse)
     assert main([str(tmp_path / "none")]) == 2
+
+
+def test_against_pairs_each_run_with_the_reference_run_of_its_line():
+    """pid's runs are 10 N below passive's on the same seed (50+s against 40+s): the change is
+    -10/(50+s) per pair, not the change of the means; a run without its passive run is counted as
+    unpaired; more contact loss than its own passive run is counted."""
+    from pac_experiments.campaign_summary import compare
+
+    data = [dict(r, en50318_contact_loss_percent="0") for r in rows() if r["law"] != "ideal"]
+    data[5 + 2]["en50318_contact_loss_percent"] = "0.1"  # pid on seed 2 loses contact, passive not
+    data.append({**data[5], "line_seed": "9"})  # a pid run whose passive run is missing
+    (pid,) = compare(data, "line_seed", "passive")
+    assert pid.group == {"law": "pid"} and pid.unpaired == 1 and pid.more_loss == 1
+    expected = [100.0 * ((40.0 + s) / (50.0 + s) - 1.0) for s in range(5)]
+    assert pid.sigma_change.n == 5
+    assert pid.sigma_change.mean == pytest.approx(np.mean(expected))
+    assert pid.sigma_change.largest == pytest.approx(max(expected))

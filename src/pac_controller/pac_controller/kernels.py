@@ -100,9 +100,13 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_guard_ratio", "f8"),
         ("line_guard_after", "i8"),
         ("line_guard_bias", "f8"),  # |mean(F_hat - F_applied)| over a span, fraction of mean(F_r)
-        ("line_guard_loss", "f8"),  # share of a span's ticks with F_hat <= 0 above the passive spans'
+        ("line_guard_loss", "f8"),  # share of a span's ticks nearly lost above the passive spans'
+        ("line_guard_loss_margin", "f8"),  # nearly lost: F_hat <= this times F_r
         ("line_guard_saturation", "f8"),  # share of a span's commands the limits changed
         ("line_guard_strikes", "i8"),  # back-offs before the guard falls back
+        ("line_supports", "i8"),  # supports of the design layout in the table (< 2: the period N)
+        ("line_position_start", "f8"),  # the law's x at tick 0 (with the position error)
+        ("line_step_distance", "f8"),  # v dt
     ]
 )
 
@@ -163,6 +167,8 @@ CONTROLLER_STATE = np.dtype(
         ("line_last_bias", "f8"),  # mean of F_hat - F_applied over the last judged span
         ("line_trip_reason", "i8"),  # line_adaptive_kernels.TRIP_*: why the guard fell back (0: it did not)
         ("line_fade_from", "i8"),  # the tick the feedforward's fade-out started (the guard's trip)
+        ("line_cursor", "i8"),  # the layout's span the last position fell in
+        ("line_first_span", "i8"),  # the layout's span of the run's first command (its span 0)
     ]
 )
 

@@ -92,7 +92,8 @@ estimate cannot blind"): the mean, by the pantograph's momentum balance over a s
 mean(F) = mean(F_a) + (roof spring, momentum change: a few N), so |mean(F_hat - F_a)| above
 ``line_guard_bias`` mean(F_r) (F_a the actuator force the measurement reports, or the law's own
 commands when it is not told it) falls back at once, from span 1 on; contact loss (ticks with
-F_hat less the last span's bias <= 0 above the worst passive span's share by ``line_guard_loss``)
+F_hat less the last span's bias <= ``line_guard_loss_margin`` F_r, nearly lost, above the worst passive
+span's share by ``line_guard_loss``)
 and saturation (a share of the commands the limits changed above ``line_guard_saturation``) back
 off, the harmonics U_h halved, and the ``line_guard_strikes``-th time fall back. A fallback fades
 the feedforward as learned out over one span, u_ff (1 - (k - k_trip) / N), then U = 0: stepped
@@ -188,10 +189,16 @@ class LineAdaptiveLaw(KernelLaw):
         orders = np.arange(1, h + 1)
         # table[p, h-1] = exp(i h w p dt): one span of every harmonic, by phase index p = tick mod N;
         # table[N] = exp(i h w dt / 2): the hold's half period; then the line model's rows.
-        table = np.empty((n + TABLE_EXTRA_ROWS, h), dtype=np.complex128)
+        # then the design layout's supports, row-major in the real parts (line_supports).
+        supports = np.asarray(laws.line_supports if len(laws.line_supports) >= 2 else (), dtype=float)
+        layout_rows = -(-len(supports) // h)
+        table = np.zeros((n + TABLE_EXTRA_ROWS + layout_rows, h), dtype=np.complex128)
         table[:n] = np.exp(1j * np.outer(np.arange(n), orders) * w * dt)
         table[n] = np.exp(1j * orders * w * 0.5 * dt)
-        table[n + 1 :] = line_model_rows(pantograph or PantographParameters(), orders * w, dt)
+        table[n + 1 : n + TABLE_EXTRA_ROWS] = line_model_rows(
+            pantograph or PantographParameters(), orders * w, dt
+        )
+        table[n + TABLE_EXTRA_ROWS :].real.flat[: len(supports)] = supports
         self.table = table
         self.memory = np.zeros((MEMORY_ROWS, h), dtype=np.complex128)
         super().__init__("line_adaptive", dt)
@@ -206,8 +213,12 @@ class LineAdaptiveLaw(KernelLaw):
         p["line_guard_ratio"] = laws.line_guard_ratio
         p["line_guard_after"] = max(laws.line_guard_spans, GUARD_SPANS)
         p["line_guard_bias"], p["line_guard_loss"] = laws.line_guard_bias, laws.line_guard_loss
+        p["line_guard_loss_margin"] = laws.line_guard_loss_margin
         p["line_guard_saturation"] = laws.line_guard_saturation
         p["line_guard_strikes"] = laws.line_guard_strikes
+        p["line_supports"] = len(supports)
+        p["line_position_start"] = laws.line_position_start + laws.line_position_error
+        p["line_step_distance"] = speed * dt
         self.dt = dt
         self.omega_span = w
         self.restart(None)

@@ -6,6 +6,9 @@ from dataclasses import dataclass
 
 from pac_common.parameters import ParameterError, ParameterSet, parameter
 
+#: The most supports a line map may name (a 100 km line of 50 m spans).
+MAX_LINE_SUPPORTS = 2001
+
 
 @dataclass(frozen=True)
 class ReferenceParameters(ParameterSet):
@@ -325,7 +328,15 @@ class LawParameters(ParameterSet):
     line_guard_loss: float = parameter(
         0.01,
         "line_adaptive: back off (harmonics halved and capped) when a learning span has more of its "
-        "ticks with F_hat <= 0 than the worst passive span by more than this share",
+        "ticks with F_hat <= line_guard_loss_margin F_r than the worst passive span by more than this share",
+        "",
+        low=0.0,
+        high=1.0,
+    )
+    line_guard_loss_margin: float = parameter(
+        0.15,
+        "line_adaptive: a tick counts as (nearly) lost when F_hat is below this times F_r: an estimate "
+        "misses the millisecond dips of a contact loss, not the approach to one (docs/laws.md)",
         "",
         low=0.0,
         high=1.0,
@@ -345,4 +356,31 @@ class LawParameters(ParameterSet):
         "spans",
         low=1,
         high=100,
+    )
+    line_supports: tuple = parameter(
+        (0.0,),
+        "line_adaptive: the design layout's support positions along the line, increasing (the line "
+        "map a train carries: what the infrastructure manager publishes, not the drawn deviation); "
+        "the law learns over each span's own length (phase = (x - x_m) / L_m) instead of the nominal "
+        "span's period. Fewer than two: none (derived on a whole FE line, docs/laws.md)",
+        "m",
+        low=0.0,
+        high=1e6,
+        max_length=MAX_LINE_SUPPORTS,
+    )
+    line_position_start: float = parameter(
+        0.0,
+        "line_adaptive: the contact point's position along the line at the first tick (derived with "
+        "line_supports); then x = this + v t",
+        "m",
+        low=-1e6,
+        high=1e6,
+    )
+    line_position_error: float = parameter(
+        0.0,
+        "line_adaptive: the error of the train's position along the line (odometry and line map): "
+        "the law's x is the true one plus this (0.5: the bound of a line map, docs/laws.md)",
+        "m",
+        low=-100.0,
+        high=100.0,
     )

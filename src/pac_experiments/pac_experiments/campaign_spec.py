@@ -37,6 +37,7 @@ from pac_common.contact_statistics import target_mean_force, whole_spans
 from pac_common.files import FileInputError, excerpt, read_yaml
 from pac_common.parameters import ParameterError
 from pac_controller.laws import LAWS
+from pac_controller.parameters import LawParameters
 from pac_controller.user_law import file_digest
 from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig import composition
@@ -78,7 +79,21 @@ KEY_NEUTRAL_DEFAULTS = {
     "passive_pantograph": "three_mass",
     "passive_pantograph_uplift": 0.0,
     "force_estimate": "k_hat_z1",
+    # line_adaptive's guard on what F_hat cannot bend, and its line map (its runs change with the
+    # law's code: make campaigns and make fe-experiment run afresh, not resumed)
+    "line_guard_bias": 0.25,
+    "line_guard_loss": 0.01,
+    "line_guard_saturation": 0.25,
+    "line_guard_strikes": 3,
+    "line_guard_loss_margin": 0.15,
+    "line_supports": (0.0,),
+    "line_position_start": 0.0,
+    "line_position_error": 0.0,
+    "head_balance_window": 2.0,
 }
+#: The prefix of one law's own parameters: a run of another law does not read them, so they hash at
+#: their default there (a scenario's line map does not split the passive law's runs from its others).
+LAW_OWN_PREFIXES = {"line_adaptive": "line_"}
 
 
 class SpecError(ValueError):
@@ -284,6 +299,12 @@ def point_key(scenario: Scenario, window: tuple[float, float], statistics: str =
     """A stable hash of every parameter of the scenario (validated, normalised), the window,
     (when not the default) the statistics and (for a user's law file) the text of the file."""
     parameters = scenario_to_flat(scenario)
+    law_defaults = LawParameters()
+    for law, prefix in LAW_OWN_PREFIXES.items():
+        if parameters.get("law") != law:
+            for name in parameters:
+                if name.startswith(prefix) and hasattr(law_defaults, name):
+                    parameters[name] = getattr(law_defaults, name)
     for name, default in KEY_NEUTRAL_DEFAULTS.items():
         if parameters.get(name) == default:
             del parameters[name]
@@ -322,6 +343,7 @@ def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
                             scenario.controller.effective_law,
                             scenario.observer.observer,
                             scenario.laws.force_estimate,
+                            scenario.plant.sensors,
                         )
                 except ParameterError as exc:  # parts that do not fit; a law file that cannot be loaded
                     raise SpecError(str(exc)) from None

@@ -7,6 +7,13 @@ the other axes, over the runs that are ``ok``, the number of runs and, per measu
 its 95 % confidence interval (Student's t on the runs' standard error: the runs are independent
 draws of the line), the smallest and the largest value. A group of one run (the ideal rig, whose
 line has no seed) gets its value, no interval.
+
+``--against passive`` compares every other law with that one, run by run: each run is paired with
+the reference law's run that has the same value on every other axis (the same line seed, speed,
+scenario; the observer may differ), and ``DIR/against.md`` / ``against.json`` give per group the
+change of sigma [%] (mean with its 95 % interval over the pairs, and the worst: the largest), the
+runs with more contact loss than their reference run, and the paired runs' Fm, Fm - 3 sigma, largest
+|u| and F_hat error. A run without its reference run is left out (and counted).
 """
 
 from __future__ import annotations
@@ -87,10 +94,112 @@ def summarise(rows: list[dict[str, str]], over: str) -> list[tuple[dict[str, str
     return out
 
 
+#: What ``--against`` reports besides the change of sigma: results.csv's name, its heading.
+AGAINST_MEASURES = {
+    "en50318_contact_force_mean": "Fm [N]",
+    "en50318_statistical_min": "Fm-3sigma [N]",
+    "en50318_contact_loss_percent": "loss [%]",
+    "u_max_abs": "max |u| [N]",
+    "force_hat_error_percent": "F_hat error [%]",
+}
+#: Axes a run and its reference run may differ on besides the law (the reference reads no estimate).
+PAIR_FREE = ("law", "observer")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One law's runs against the reference law's on the same other axes."""
+
+    group: dict[str, str]
+    sigma_change: Interval  # percent, per pair
+    more_loss: int  # pairs where the run lost contact more than its reference run
+    unpaired: int
+    measures: dict[str, Interval]
+
+
+def compare(rows: list[dict[str, str]], over: str, reference: str) -> list[Comparison]:
+    """Every law but ``reference`` against it, pair by pair (module docstring), grouped by every axis
+    but ``over`` (runs that are not ``ok`` are left out, with their pairs)."""
+    ok = [r for r in rows if r.get("status") == "ok"]
+    if not ok:
+        return []
+    columns = list(rows[0])
+    head = columns[: columns.index("status")] if "status" in columns else columns
+    axes = [c for c in head if c not in NOT_AXES]
+    pair_axes = [a for a in axes if a not in PAIR_FREE]
+    references = {tuple(r[a] for a in pair_axes): r for r in ok if r["law"] == reference}
+    groups: dict[tuple[str, ...], list[tuple[dict[str, str], dict[str, str] | None]]] = {}
+    for row in ok:
+        if row["law"] == reference:
+            continue
+        key = tuple(row[a] for a in axes if a != over)
+        groups.setdefault(key, []).append((row, references.get(tuple(row[a] for a in pair_axes))))
+    out = []
+    sigma = "en50318_contact_force_std"
+    loss = "en50318_contact_loss_percent"
+    for key, members in groups.items():
+        pairs = [(run, ref) for run, ref in members if ref is not None]
+        if not pairs:
+            continue
+        changes = [100.0 * (float(run[sigma]) / float(ref[sigma]) - 1.0) for run, ref in pairs]
+        more = sum(float(run[loss]) > float(ref[loss]) for run, ref in pairs)
+        measures = {}
+        for name in AGAINST_MEASURES:
+            values = [float(r[name]) for r, _ in pairs if r.get(name) not in (None, "", "nan")]
+            if values:
+                measures[name] = Interval.of(values)
+        group = dict(zip([a for a in axes if a != over], key, strict=True))
+        out.append(Comparison(group, Interval.of(changes), more, len(members) - len(pairs), measures))
+    return out
+
+
+def write_against(out: Path, comparisons: list[Comparison], over: str, reference: str) -> str:
+    """``against.md`` and ``against.json`` in ``out``; returns the markdown."""
+    axes = list(comparisons[0].group)
+    header = [*axes, "pairs", "sigma change [%]", "worst [%]", "more loss", *AGAINST_MEASURES.values()]
+    table = []
+    for c in comparisons:
+        change = c.sigma_change
+        interval = f"{change.mean:+.1f}"
+        if change.n > 1:
+            interval += f" [{change.low:+.1f}, {change.high:+.1f}]"
+        table.append(
+            [
+                *c.group.values(),
+                str(change.n),
+                interval,
+                f"{change.largest:+.1f}",
+                str(c.more_loss),
+                *(c.measures[k].text() if k in c.measures else "" for k in AGAINST_MEASURES),
+            ]
+        )
+    text = (
+        f"# Against `{reference}` over `{over}` in {out.name}\n\n"
+        f"Each run against the `{reference}` run on the same {over} and other axes: the change of the "
+        "EN 50318 sigma [%] (mean [95 % confidence interval], worst = largest), the runs with more "
+        f"contact loss than their `{reference}` run, then the runs' measures (mean [95 % interval] "
+        "(smallest..largest)).\n\n" + markdown.table(header, table) + "\n"
+    )
+    (out / "against.md").write_text(text)
+    data = [
+        {
+            "group": c.group,
+            "sigma_change_percent": vars(c.sigma_change),
+            "more_loss": c.more_loss,
+            "unpaired": c.unpaired,
+            "measures": {k: vars(v) for k, v in c.measures.items()},
+        }
+        for c in comparisons
+    ]
+    jsonio.write(out / "against.json", data)
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="campaign_summary", description=__doc__)
     parser.add_argument("out", type=Path, help="a campaign's output directory (with results.csv)")
     parser.add_argument("--over", default="line_seed", help="the axis summarised over (default line_seed)")
+    parser.add_argument("--against", metavar="LAW", help="also compare every other law with LAW, run by run")
     args = parser.parse_args(argv)
     path = args.out / "results.csv"
     try:
@@ -119,6 +228,12 @@ def main(argv: list[str] | None = None) -> int:
     data = [{"group": group, "measures": {k: vars(v) for k, v in m.items()}} for group, m in groups]
     jsonio.write(args.out / "summary.json", data)  # strict JSON: a NaN (no interval) as null
     print(text)
+    if args.against:
+        comparisons = compare(rows, args.over, args.against)
+        if not comparisons:
+            print(f"campaign_summary: no run of {path} pairs with a {args.against} run", file=sys.stderr)
+            return 2
+        print(write_against(args.out, comparisons, args.over, args.against))
     return 0
 
 

@@ -81,7 +81,12 @@ def derive(
     entry = LAWS.get(law)
     if "observer" not in given and entry is not None and entry.observer is not None:
         out["observer"] = entry.observer
-        notes.append(f"observer:={out['observer']} (what law {law} runs on)")
+        why = f"what law {law} runs on"
+        if entry.observer == "contact_force" and _head_accelerometer(given):
+            # A train's sensors: the head's own balance, not the filter that differentiates their
+            # noise twice (pac_observer.head_balance, docs/laws.md).
+            out["observer"], why = "head_balance", f"the F_hat law {law} runs on, from the head accelerometer"
+        notes.append(f"observer:={out['observer']} ({why})")
     observer = str(out.get("observer", given.get("observer", ObserverParameters().observer)))
     fe_line = given.get("catenary_model") == "fe"
     catenary = str(given.get("catenary", PlantOptions().catenary))
@@ -104,6 +109,8 @@ def derive(
 
         out["span_length"] = load_catenary(catenary).data.span
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
+    if fe_line and law == "line_adaptive" and "line_supports" not in given:
+        notes += _line_map(given, out, catenary)
     static_force = actuator_static_force(given)
     if static_force is not None:
         out["actuator_static_force"] = static_force
@@ -114,6 +121,8 @@ def derive(
     actuator = str(given.get("actuator", "ideal"))
     if actuator != "ideal" and "u_min" not in given and "u_max" not in given:
         notes.extend(_actuator_limits(actuator, {**given, **out}, out))
+    if law == "line_adaptive" and actuator != "ideal":
+        notes.extend(_line_design_for_actuator(actuator, given, out))
     return out, notes
 
 
@@ -151,6 +160,59 @@ def _fe_line_design(
     return notes
 
 
+#: line_adaptive's design for an actuator as hardware (docs/laws.md, "The law on the realistic
+#: line"): the command's harmonics weighted more (mu) and fewer of them (up to 8 Hz), chosen on the
+#: design lines of the realistic scenario (line seeds 0-9), not on the lines reported.
+LINE_DESIGN_FOR_ACTUATOR = {"line_effort_weight": 0.05, "line_max_frequency": 8.0}
+
+
+def _line_design_for_actuator(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
+    """line_adaptive with an actuator of limited range and rate: ``LINE_DESIGN_FOR_ACTUATOR`` where
+    the user named nothing (the ideal actuator keeps the law's defaults, which its +-500 N allow)."""
+    notes = []
+    for name, value in LINE_DESIGN_FOR_ACTUATOR.items():
+        if name not in given:
+            out[name] = value
+            notes.append(f"{name}:={value:g} (line_adaptive's design for the {actuator} actuator)")
+    return notes
+
+
+def _head_accelerometer(given: Mapping[str, Any]) -> bool:
+    """Whether the run's sensor suite has a head accelerometer."""
+    from pac_plant.hardware.sensors import SENSORS
+    from pac_plant.parameters import PlantOptions
+
+    suite = SENSORS.get(str(given.get("sensors", PlantOptions().sensors)))
+    return suite is not None and suite.head_acceleration is not None
+
+
+def _line_map(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -> list[str]:
+    """line_adaptive told the design layout of a whole line (the line map a train carries: its
+    supports, not the drawn deviation) and where its contact point starts on it (the plant's start:
+    the first interior support with every pantograph on the line, ``pac_plant.fe_plant``), into
+    ``out``; nothing on a period (the law learns over the nominal span's period there)."""
+    import numpy as np
+
+    from pac_plant.catenary.catenary_file import load_catenary
+    from pac_plant.parameters import PlantOptions
+
+    defaults = PlantOptions()
+    seed = int(given.get("line_seed", defaults.line_seed))
+    supports = load_catenary(catenary).design_supports(None if seed < 0 else seed)
+    if supports is None:
+        return []
+    spacings = tuple(float(s) for s in given.get("pantographs", defaults.pantographs))
+    controlled = int(given.get("controlled_pantograph", defaults.controlled_pantograph))
+    start = max(1, int(np.searchsorted(supports, spacings[-1])))
+    # To 1 mm: values that do not move with the last bits of a sum (campaign keys hash them).
+    out["line_supports"] = tuple(round(float(x), 3) for x in supports)
+    out["line_position_start"] = round(float(supports[start]) - spacings[controlled], 3)
+    return [
+        f"line_supports:=({len(supports)} supports of the design layout of {catenary}, line seed {seed}), "
+        f"line_position_start:={out['line_position_start']:g} (where the contact point starts)"
+    ]
+
+
 def _actuator_limits(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
     """The controller told its actuator's range: u_min, u_max = F0 -+ R (F0 the actuator's static
     force), so that a command beyond it is clipped where the law sees it (its anti-windup learns
@@ -173,11 +235,25 @@ def _actuator_limits(actuator: str, given: Mapping[str, Any], out: dict[str, Any
     return lines
 
 
-def check_pair(law: str, observer: str, force_estimate: str | None = None) -> None:
+def check_pair(
+    law: str, observer: str, force_estimate: str | None = None, sensors: str | None = None
+) -> None:
     """Refuse (CompositionError) law ``law`` on observer ``observer`` if it needs what that one
     does not give (a fixed-gain law: with F_hat in the form ``force_estimate``, None: the
     parameter's default); one line naming both and what would fit. A user's law file is loaded
-    here (refused in one line if it cannot be)."""
+    here (refused in one line if it cannot be). ``sensors`` (the plant's suite; None: not
+    checked): the observer ``head_balance`` reads a head accelerometer, which it must have."""
+    if sensors is not None and observer == "head_balance":
+        from pac_plant.hardware.sensors import SENSORS
+
+        with_one = [name for name, suite in SENSORS.items() if suite.head_acceleration is not None]
+        if sensors in SENSORS and SENSORS[sensors].head_acceleration is None:
+            raise CompositionError(
+                "observer",
+                observer,
+                f"observer 'head_balance' reads a head accelerometer, which sensors '{sensors}' do not "
+                f"have: sensors:={' or '.join(with_one)}, or observer:=contact_force",
+            )
     from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS, law_entry
     from pac_controller.parameters import LawParameters
     from pac_observer.parameters import OBSERVER_GIVES

@@ -52,6 +52,19 @@ class CatenaryFile:
             return self.data
         return self.drawing.draw(seed)
 
+    def design_supports(self, seed: int | None = None) -> np.ndarray | None:
+        """The supports of a whole line as designed [m from its start, both ends]: the spans its
+        layout rule draws for ``seed`` (the file's ``line_seed`` if None), without the deviation
+        (what the infrastructure manager publishes). None for a period (no layout rule)."""
+        if self.drawing is None or self.drawing.layout is None:
+            return None
+        lengths = (
+            [span.length for span in self.line(seed).spans]
+            if seed is None
+            else [span.length for span in draw_spans(self.drawing.layout, np.random.default_rng([seed, 0]))]
+        )
+        return np.concatenate(([0.0], np.cumsum(lengths)))
+
 
 @dataclass(frozen=True)
 class LineDrawing:

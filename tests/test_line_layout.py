@@ -1,0 +1,74 @@
+"""line_adaptive on a whole line: told the design layout (the line map a train carries), it learns
+over each span's own length instead of the nominal span's period (line_adaptive_kernels.locate);
+the layout and the start are derived from the line the plant runs."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pac_controller.line_adaptive import LineAdaptiveLaw
+from pac_controller.line_adaptive_kernels import locate
+from pac_controller.parameters import LawParameters
+from pac_model.parameters import TrackParameters
+from pac_plant.catenary.catenary_file import load_catenary
+from pac_rig import composition
+
+DT = 1e-3
+
+
+def _law(supports: tuple[float, ...], start: float = 0.0, error: float = 0.0, speed_kmh: float = 300.0):
+    laws = LawParameters(line_supports=supports, line_position_start=start, line_position_error=error)
+    return LineAdaptiveLaw(TrackParameters(speed_kmh=speed_kmh, span_length=55.0), laws, DT)
+
+
+@pytest.mark.unit
+def test_a_span_of_the_layout_is_found_and_its_phase_scaled_to_its_own_length():
+    """Spans of 50, 60 and 55 m: the position v t falls in the span whose supports bracket it, and
+    the phase index is floor(N (x - x_m) / L_m), N the nominal span's ticks, whatever L_m is."""
+    law = _law((0.0, 50.0, 110.0, 165.0))
+    p, table = law.params[0], law.table
+    n, step = law.period_ticks, 300 / 3.6 * DT
+    for x, span, fraction in ((0.0, 0, 0.0), (25.0, 0, 0.5), (80.0, 1, 0.5), (110.0 + 41.25, 2, 0.75)):
+        tick = round(x / step)
+        found, phase = locate(p, table, tick, 0)
+        assert found == span
+        assert abs(phase - n * fraction) <= n * step / 50.0 + 1  # one tick's distance, in phase
+    # The cursor may start anywhere: the search walks both ways.
+    assert locate(p, table, round(80.0 / step), 2)[0] == 1
+    # The position error moves x: +0.5 m shifts the phase by 0.5 / L of a span.
+    shifted = _law((0.0, 50.0, 110.0, 165.0), error=0.5)
+    assert locate(shifted.params[0], shifted.table, 0, 0)[1] == int(n * 0.5 / 50.0)
+
+
+@pytest.mark.unit
+def test_without_a_layout_the_span_is_the_nominal_period():
+    law = _law((0.0,))
+    p, n = law.params[0], law.period_ticks
+    assert p["line_supports"] == 0
+    for tick in (0, n - 1, n, 5 * n + 3):
+        assert locate(p, law.table, tick, 0) == (tick // n, tick % n)
+
+
+@pytest.mark.unit
+def test_the_layout_derived_is_the_design_of_the_line_the_plant_runs():
+    """On a whole drawn line (realistic_3km) the derived supports are those of the plant's line
+    (its layout, to 1 mm) and the start is where the plant's contact point starts; the line's
+    deviation (the seed's other stream) is not in them. A period derives nothing."""
+    from pac_rig.closed_loop import build_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    given = {"law": "line_adaptive", "catenary_model": "fe", "catenary": "realistic_3km", "line_seed": 3}
+    values, notes = composition.derive(given)
+    assert any("line_supports" in note for note in notes)
+    plant, _, _ = build_cores(scenario_from_flat({**values, "duration": 0.01}))
+    np.testing.assert_allclose(values["line_supports"], plant.line.layout.support_x, rtol=0, atol=5e-4)
+    assert values["line_position_start"] == pytest.approx(plant.sim.x - plant.sim.lags[0], abs=5e-4)
+    other = load_catenary("realistic_3km").design_supports(4)
+    assert other is not None and len(other) > 2 and not np.allclose(other[:5], values["line_supports"][:5])
+    periodic, _ = composition.derive({"law": "line_adaptive", "catenary_model": "fe"})
+    assert "line_supports" not in periodic
+    # With a second pantograph 200 m behind, the run starts at the first support past 200 m.
+    two, _ = composition.derive({**given, "pantographs": (0.0, 200.0), "controlled_pantograph": 1})
+    supports = np.array(two["line_supports"])
+    assert two["line_position_start"] == pytest.approx(supports[np.searchsorted(supports, 200.0)] - 200.0)
