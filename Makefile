@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -119,6 +119,13 @@ sweep: setup
 # Resumable: an interrupted run goes on where it stopped (ARGS="--workers N").
 realistic-passive: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_passive.yaml --out reports/realistic/passive $(ARGS)
+
+# The laws on the realistic scenario: passive, pid, lqr and line_adaptive on 20 drawn lines per speed,
+# both actuators (config/campaigns/realistic_laws.yaml -> reports/realistic/laws/; then each law
+# against passive run by run, against.md; docs/realistic_scenario.md). Resumable (ARGS="--workers N").
+realistic-experiment: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_laws.yaml --out reports/realistic/laws $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/laws --against passive
 
 campaigns: setup
 	set -e; for c in $(CAMPAIGNS); do \
