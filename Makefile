@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-pair line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -126,6 +126,11 @@ realistic-passive: setup
 realistic-experiment: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_laws.yaml --out reports/realistic/laws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/laws --against passive
+
+# Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair
+# (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic_pair.py).
+realistic-pair: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_pair $(ARGS)
 
 campaigns: setup
 	set -e; for c in $(CAMPAIGNS); do \

@@ -35,6 +35,7 @@ setup(
             "realistic_figure = pac_experiments.realistic_figure:main",
             "fe_live = pac_experiments.fe_live:main",
             "two_pantographs = pac_experiments.two_pantographs:main",
+            "realistic_pair = pac_experiments.realistic_pair:main",
             "line_response = pac_experiments.line_response:main",
         ],
     },

@@ -1,0 +1,174 @@
+"""Two pantographs 200 m apart on the realistic line: the active one leading or trailing, the other
+passive, against a passive pair (``make realistic-pair``).
+
+Every run: ``realistic_electromechanical`` with two benchmark-like 3-mass pantographs 200 m apart
+(``pantographs: [0, 200]``), the roof fixed (``roof_motion: ''``: the roof under a passive
+pantograph of an FE line is not wired, docs/vehicle_and_hardware.md), F_r the EN 50367 target at
+each pantograph. Three runs per line: both passive (law ``passive`` on the leading one), the
+leading one active (law ``line_adaptive``, ``controlled_pantograph: 0``), the trailing one active
+(``controlled_pantograph: 1``); the passive ones press with their file's uplift, the same target.
+Each pantograph's EN 50318 statistics (20 Hz low-pass, contact loss
+on the raw force) over the same stretch of line: from the support ``FIRST_SPAN`` to ``LAST_SPAN``
+of the design layout counted from the start of the leading pantograph, which both pass.
+
+Writes ``reports/realistic/pair/`` (pair.md, results.csv).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import statistics as stats_lib
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pac_common import markdown
+from pac_common.contact_statistics import contact_statistics, target_mean_force
+from pac_experiments.campaign_summary import Interval
+
+SEEDS = tuple(range(100, 120))
+SPEED = 300.0
+SPACING = 200.0
+FIRST_SPAN, LAST_SPAN = 10, 30  # supports counted from the leading pantograph's start
+CONFIGS = {
+    "passive pair": ("passive", 0),
+    "active leading": ("line_adaptive", 0),
+    "active trailing": ("line_adaptive", 1),
+}
+OUT = Path("reports/realistic/pair")
+
+
+def run_one(seed: int, config: str, speed: float = SPEED) -> dict[str, Any]:
+    """One run: each pantograph's sigma, Fm and contact loss over the stretch."""
+    from pac_rig import composition
+    from pac_rig.closed_loop import build_cores, run_blocks
+    from pac_rig.loop import compile_loop
+    from pac_plant.fe_plant import FEPlant
+    from pac_rig.simulate import scenario_from_flat
+
+    law, controlled = CONFIGS[config]
+    values: dict[str, Any] = {
+        "scenario": "realistic_electromechanical",
+        "roof_motion": "",
+        "pantographs": (0.0, SPACING),
+        "controlled_pantograph": controlled,
+        "law": law,
+        "line_seed": seed,
+        "speed_kmh": speed,
+        "force_amplitude": round(target_mean_force(speed), 3),
+    }
+    values, _ = composition.derive(values)
+    s = scenario_from_flat({**values, "duration": 0.01})
+    plant, _, _ = build_cores(s)
+    assert isinstance(plant, FEPlant)
+    supports = plant.line.layout.support_x
+    lead_start = float(plant.sim.x)  # the leading pantograph's contact point at the start
+    first = supports[np.searchsorted(supports, lead_start) + FIRST_SPAN]
+    last = supports[np.searchsorted(supports, lead_start) + LAST_SPAN]
+    duration = (last + SPACING + 0.5 * (supports[1] - supports[0]) - lead_start) / (speed / 3.6)
+    s = scenario_from_flat({**values, "duration": round(duration, 3)})
+    plant, observer, controller = build_cores(s)
+    loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
+    assert loop is not None
+    out = np.concatenate(list(run_blocks(s, plant, loop)))
+    row: dict[str, Any] = {"line_seed": seed, "config": config, "speed_kmh": speed}
+    for k, name in enumerate(("leading", "trailing")):
+        st = contact_statistics(
+            out["pantograph_contact_force"][:, k],
+            out["pantograph_contact_position"][:, k],
+            s.loop.sample_period,
+            first,
+            last,
+        )
+        row[f"{name}_sigma"], row[f"{name}_mean"] = st.contact_force_std, st.contact_force_mean
+        row[f"{name}_loss_percent"] = st.contact_loss_percent
+    return row
+
+
+def _run(args: tuple[int, str]) -> dict[str, Any]:
+    return run_one(*args)
+
+
+def write_report(rows: list[dict[str, Any]], out: Path) -> str:
+    """pair.md: per configuration and pantograph, sigma and loss over the lines, and the change of
+    each pantograph's sigma against the passive pair on the same line."""
+    out.mkdir(parents=True, exist_ok=True)
+    with (out / "results.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    passive = {r["line_seed"]: r for r in rows if r["config"] == "passive pair"}
+    table = []
+    for config in CONFIGS:
+        members = [r for r in rows if r["config"] == config]
+        for name in ("leading", "trailing"):
+            sigma = Interval.of([r[f"{name}_sigma"] for r in members])
+            paired = [r for r in members if r["line_seed"] in passive]
+            change = Interval.of(
+                [
+                    100.0 * (r[f"{name}_sigma"] / passive[r["line_seed"]][f"{name}_sigma"] - 1.0)
+                    for r in paired
+                ]
+            )
+            more = sum(
+                r[f"{name}_loss_percent"] > passive[r["line_seed"]][f"{name}_loss_percent"] for r in paired
+            )
+            loss = stats_lib.fmean(r[f"{name}_loss_percent"] for r in members)
+            active = (config == "active leading" and name == "leading") or (
+                config == "active trailing" and name == "trailing"
+            )
+            table.append(
+                [
+                    config,
+                    name + (" (active)" if active else ""),
+                    str(len(members)),
+                    sigma.text(),
+                    ""
+                    if config == "passive pair"
+                    else f"{change.mean:+.1f} [{change.low:+.1f}, {change.high:+.1f}] "
+                    f"(worst {change.largest:+.1f})",
+                    f"{loss:.3f}",
+                    "" if config == "passive pair" else str(more),
+                ]
+            )
+    header = [
+        "configuration",
+        "pantograph",
+        "lines",
+        "sigma [N]",
+        "sigma vs passive pair [%]",
+        "mean loss [%]",
+        "more loss than passive pair",
+    ]
+    text = (
+        "# Two pantographs 200 m apart on the realistic line\n\n"
+        f"Generated by `make realistic-pair` (src/pac_experiments/pac_experiments/realistic_pair.py): "
+        f"realistic_electromechanical with the roof fixed, {SPEED:g} km/h, line seeds "
+        f"{SEEDS[0]}-{SEEDS[-1]}, EN 50318 statistics of each pantograph over supports "
+        f"{FIRST_SPAN}-{LAST_SPAN} of the leading one's start. "
+        "sigma: mean [95 % interval] (smallest..largest) over the lines; the change against the passive pair "
+        "on the same line, per line.\n\n" + markdown.table(header, table) + "\n"
+    )
+    (out / "pair.md").write_text(text)
+    return text
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="realistic_pair", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=OUT, help="report folder (default: %(default)s)")
+    parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    parser.add_argument("--seeds", type=int, nargs="*", default=list(SEEDS), help="line seeds")
+    args = parser.parse_args(argv)
+    jobs = [(seed, config) for seed in args.seeds for config in CONFIGS]
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = list(pool.map(_run, jobs))
+    print(write_report(rows, args.out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
