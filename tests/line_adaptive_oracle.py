@@ -117,6 +117,7 @@ class LineAdaptiveLaw:
         self.last_bias = 0.0  # mean of F_hat - F_applied over the last judged span
         self.trip_reason = ""
         self.fade_from = -1  # the tick the guard tripped: the feedforward fades out over one span
+        self.backoff_from = -1  # the tick a back-off's ramp started
         self._clear_sums()
 
     @property
@@ -150,6 +151,9 @@ class LineAdaptiveLaw:
         self._pending_measured = actuator_force
         new_run = self.restart_pending and self.last_commit_tick is not None and tick <= self.last_commit_tick
         fade = max(0.0, 1.0 - (tick - self.fade_from) / self.period_ticks) if self.tripped else 1.0
+        if self.backoff_from >= 0:
+            ramp = min(1.0, max(0.0, (tick - self.backoff_from) / self.period_ticks))
+            fade *= 1.0 - (1.0 - GUARD_BACKOFF) * ramp
         u_ff = 0.0 if fade <= 0.0 or new_run else fade * self.feedforward(tick)
         self._pending_law = float(f_r[0]) + u_ff
         return float(f_r[0]) + u_ff, (error, u_ff, self.last_sigma_ratio)
@@ -242,10 +246,13 @@ class LineAdaptiveLaw:
                         self._trip("loss" if lost else "saturation")
                     else:
                         back_off = True
-        if span >= self.runin_spans - 1 and not self.tripped:
+        if self.backoff_from >= 0:  # the span that ramped a back-off down: halved, nothing learned
+            self.backoff_from = -1
+            self.u_ff = GUARD_BACKOFF * self.u_ff
+        elif span >= self.runin_spans - 1 and not self.tripped:
             self._learn()
             if back_off:
-                self.u_ff = GUARD_BACKOFF * self.u_ff
+                self.backoff_from = self.last_commit_tick + 1
         self._clear_sums()
 
     def _learn(self) -> None:

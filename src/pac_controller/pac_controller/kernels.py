@@ -169,6 +169,7 @@ CONTROLLER_STATE = np.dtype(
         ("line_fade_from", "i8"),  # the tick the feedforward's fade-out started (the guard's trip)
         ("line_cursor", "i8"),  # the layout's span the last position fell in
         ("line_first_span", "i8"),  # the layout's span of the run's first command (its span 0)
+        ("line_backoff_from", "i8"),  # the tick a back-off's ramp started (-1: none)
     ]
 )
 

@@ -106,6 +106,7 @@ def line_forget(s, memory) -> None:
     s.line_passive_loss, s.line_strikes, s.line_last_bias = 0.0, 0, 0.0
     s.line_trip_reason, s.line_fade_from = TRIP_NONE, -1
     s.line_cursor, s.line_first_span = 0, 0
+    s.line_backoff_from = -1
     _clear_sums(s, memory)
 
 
@@ -163,6 +164,7 @@ def line_output(
     s.line_pending_measured = force_measured
     new_run = s.line_restart_pending and s.line_last_commit >= 0 and tick <= s.line_last_commit
     fade = fade_factor(s.line_tripped, s.line_fade_from, tick, p.line_period)
+    fade *= backoff_factor(s.line_backoff_from, tick, p.line_period)
     u_ff = 0.0 if fade <= 0.0 or new_run else fade * line_feedforward(p, s, table, memory, tick)
     s.line_pending_law = f_r0 + u_ff
     return f_r0 + u_ff, error, u_ff, s.line_last_sigma_ratio
@@ -176,6 +178,17 @@ def fade_factor(tripped: bool, fade_from: int, tick: int, n: int) -> float:
     if not tripped:
         return 1.0
     return max(0.0, 1.0 - (tick - fade_from) / n)
+
+
+@njit(cache=True, inline="always")
+def backoff_factor(backoff_from: int, tick: int, n: int) -> float:
+    """The share of the feedforward kept at ``tick`` while a back-off ramps it down: from 1 at
+    ``backoff_from`` to GUARD_BACKOFF n ticks (one span) later (1 without a back-off): halved in one
+    step at a span's end, the feedforward jumped by half its value there, which on the ideal rig at
+    280 km/h itself lost contact (0.11 %) where the law without the loss check kept it."""
+    if backoff_from < 0:
+        return 1.0
+    return 1.0 - (1.0 - GUARD_BACKOFF) * min(1.0, max(0.0, (tick - backoff_from) / n))
 
 
 @njit(cache=True, error_model="numpy")
@@ -229,9 +242,8 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     s.line_bias_sum += f_hat - measured
     s.line_reference_sum += s.line_pending_reference
     # Nearly lost: F_hat (less its mean's bias) below a margin of F_r. F_hat misses the millisecond
-    # dips of a loss (the sensors' bandwidth) but not the approach to one: on the realistic line at
-    # 250 km/h the spans where contact was lost had 1.2-2 % of their ticks below 0.15 F_r, the
-    # spans where it was kept 0-0.35 %, while F_hat <= 0 counted 0-0.1 % in both.
+    # dips of a loss (the sensors' bandwidth) but not all of the approach to one (docs/laws.md: the
+    # margin is a compromise between the realistic line's losses and the ideal rig's false alarms).
     near = p.line_guard_loss_margin * s.line_pending_reference
     s.line_loss_ticks += 1 if f_hat - s.line_last_bias <= near else 0
     s.line_clip_ticks += 1 if u_applied != s.line_pending_law else 0
@@ -313,12 +325,17 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
             _trip(s, TRIP_HARM)
         else:
             back_off = _struck(p, s, loss, s.line_clip_ticks / ticks)
-    if span >= p.line_runin_spans - 1 and not s.line_tripped:
+    if s.line_backoff_from >= 0:
+        # This span ramped a back-off down: its feedforward is now GUARD_BACKOFF U_h, and what it
+        # applied (a ramp's mixture) teaches nothing; the next span steps on from there.
+        s.line_backoff_from = -1
+        for j in range(p.line_harmonics):
+            u = memory[U_FF, j]
+            memory[U_FF, j] = complex(GUARD_BACKOFF * u.real, GUARD_BACKOFF * u.imag)
+    elif span >= p.line_runin_spans - 1 and not s.line_tripped:
         _learn(p, s, table, memory)
-        if back_off:  # on what the step gives: it steps from the harmonics applied, not from U_h
-            for j in range(p.line_harmonics):
-                u = memory[U_FF, j]
-                memory[U_FF, j] = complex(GUARD_BACKOFF * u.real, GUARD_BACKOFF * u.imag)
+        if back_off:  # the step as learned, ramped down to GUARD_BACKOFF of it over the next span
+            s.line_backoff_from = s.line_last_commit + 1
     _clear_sums(s, memory)
 
 

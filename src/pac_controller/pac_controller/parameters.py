@@ -334,7 +334,7 @@ class LawParameters(ParameterSet):
         high=1.0,
     )
     line_guard_loss_margin: float = parameter(
-        0.15,
+        0.05,
         "line_adaptive: a tick counts as (nearly) lost when F_hat is below this times F_r: an estimate "
         "misses the millisecond dips of a contact loss, not the approach to one (docs/laws.md)",
         "",

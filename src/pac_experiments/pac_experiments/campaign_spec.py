@@ -85,7 +85,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "line_guard_loss": 0.01,
     "line_guard_saturation": 0.25,
     "line_guard_strikes": 3,
-    "line_guard_loss_margin": 0.15,
+    "line_guard_loss_margin": 0.05,
     "line_supports": (0.0,),
     "line_position_start": 0.0,
     "line_position_error": 0.0,

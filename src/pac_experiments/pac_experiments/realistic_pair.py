@@ -44,10 +44,10 @@ OUT = Path("reports/realistic/pair")
 
 def run_one(seed: int, config: str, speed: float = SPEED) -> dict[str, Any]:
     """One run: each pantograph's sigma, Fm and contact loss over the stretch."""
+    from pac_plant.fe_plant import FEPlant
     from pac_rig import composition
     from pac_rig.closed_loop import build_cores, run_blocks
     from pac_rig.loop import compile_loop
-    from pac_plant.fe_plant import FEPlant
     from pac_rig.simulate import scenario_from_flat
 
     law, controlled = CONFIGS[config]
