@@ -126,6 +126,7 @@ realistic-passive: setup
 realistic-experiment: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_laws.yaml --out reports/realistic/laws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/laws --against passive
+	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/laws
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair
 # (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic_pair.py).

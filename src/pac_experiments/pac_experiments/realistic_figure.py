@@ -27,7 +27,7 @@ from pac_rig.simulate import scenario_from_flat
 DT = 1e-3
 
 
-def passive_series(values: dict, spans: tuple[float, float]) -> dict[str, np.ndarray]:
+def force_series(values: dict, spans: tuple[float, float]) -> dict[str, np.ndarray]:
     """Position from the start [m], raw and filtered force [N], uplift [mm] over spans a..b, and
     the supports there [m from the start]."""
     derived, _ = derive(values)
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     }
     fig, axes = plt.subplots(len(runs), 1, figsize=(12, 7), sharex=True)
     for ax, (title, values) in zip(axes, runs.items(), strict=True):
-        s = passive_series(values, tuple(args.spans))
+        s = force_series(values, tuple(args.spans))
         ax.plot(s["x"], s["raw"], lw=0.4, color="0.7", label="contact force, raw")
         ax.plot(s["x"], s["filtered"], lw=1.0, color="C0", label="contact force, 20 Hz low-pass")
         ax.axhline(common["force_amplitude"], color="k", lw=0.6, ls="--", label="EN 50367 target")
