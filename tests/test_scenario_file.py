@@ -42,14 +42,16 @@ def test_the_users_values_win_over_the_files():
 
 @pytest.mark.unit
 def test_derive_sees_the_files_parts():
-    """The actuator a scenario names works about the run's reference, and the FE line's span and
-    the law's observer are derived from the file's values as from the user's."""
+    """The actuator a scenario names works about the run's reference, and the FE line's span, its
+    map, the law's observer (the head balance: the file's sensors have a head accelerometer) and the
+    law's design for the actuator are derived from the file's values as from the user's."""
     values, _ = composition.derive(
         {"scenario": "realistic_electromechanical", "law": "line_adaptive", "force_amplitude": 157.3}
     )
     assert values["actuator_static_force"] == 157.3
-    assert values["observer"] == "contact_force"
+    assert values["observer"] == "head_balance"
     assert 50.0 <= values["span_length"] <= 60.0  # the drawn line's mean span (50-60 m rule)
+    assert len(values["line_supports"]) > 50 and values["line_effort_weight"] == 0.05
 
 
 @pytest.mark.unit
@@ -143,3 +145,15 @@ def test_a_campaigns_results_name_the_scenario_of_each_row(tmp_path):
     write_results(spec, points, done, tmp_path)
     with (tmp_path / "results.csv").open(newline="") as f:
         assert [r["scenario"] for r in csv.DictReader(f)] == ["paper_rig", "realistic_electromechanical"]
+
+
+@pytest.mark.unit
+def test_the_rig_derives_from_the_plants_parts_as_simulate_does(tmp_path):
+    """The launcher derives with the plant's parts in view (its sensors, line, actuator): the same
+    observer, line map, actuator range and law design as ``composition.derive`` gives offline."""
+    given = {"scenario": "realistic_electromechanical", "law": "line_adaptive", "line_seed": 101}
+    rig = Rig(tmp_path / "bag", duration=1.0, params={"all": {**given, "force_amplitude": 157.3}})
+    offline, _ = composition.derive({**given, "force_amplitude": 157.3})
+    assert rig.params["observer"]["observer"] == offline["observer"] == "head_balance"
+    for name in ("line_supports", "line_position_start", "line_effort_weight", "u_min", "u_max"):
+        assert rig.params["controller"][name] == offline[name], name

@@ -39,20 +39,29 @@ LIVE_OUT = Path("reports/catenary/live")
 SIGMA_TOLERANCE = 0.10
 
 
-def choose(points: list[Point], law: str, speed: float) -> Point:
+def choose(points: list[Point], law: str, speed: float, seed: int | None = None) -> Point:
+    """The campaign's nominal point of ``law`` at ``speed``; with ``seed``, its point on that line
+    seed (a campaign over drawn lines, e.g. config/campaigns/realistic_laws.yaml)."""
     for p in points:
+        if seed is not None:
+            if p.values.get("law") == law and float(p.values.get("speed_kmh", math.nan)) == speed:
+                if int(p.values.get("line_seed", -1)) == seed:
+                    return p
+            continue
         if p.values.get("law") == law and float(p.values.get("speed_kmh", math.nan)) == speed:
             if case_of(p.values) == "nominal":
                 return p
-    raise ValueError(f"no nominal point with law {law} at {speed:g} km/h in the campaign")
+    on = f" on line seed {seed}" if seed is not None else ""
+    raise ValueError(f"no nominal point with law {law} at {speed:g} km/h{on} in the campaign")
 
 
 def loop_parameters(point: Point) -> dict[str, Any]:
-    """The point's values the loop nodes take (``duration`` goes to the rig itself)."""
+    """The point's values the loop nodes take (``duration`` goes to the rig itself; a ``scenario``
+    the rig expands into the nodes' values)."""
     from pac_rig.configs import parameter_sets
     from pac_rig.nodes import LOOP_NODES
 
-    names = {s.name for n in LOOP_NODES for c in parameter_sets(n) for s in c.specs()}
+    names = {s.name for n in LOOP_NODES for c in parameter_sets(n) for s in c.specs()} | {"scenario"}
     return {k: v for k, v in point.values.items() if k in names and k != "duration"}
 
 
@@ -89,6 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--campaign", type=Path, default=OUT, help="the campaign's output (its offline row)")
     parser.add_argument("--law", default="line_adaptive")
     parser.add_argument("--speed", type=float, default=300.0)
+    parser.add_argument("--seed", type=int, default=None, help="the campaign's point on this line seed")
     parser.add_argument("--out", type=Path, default=LIVE_OUT)
     parser.add_argument("--bag", type=Path, default=None, help="default bags/fe_live_<time>")
     parser.add_argument(
@@ -99,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     from pac_rig.simulate import scenario_from_flat
 
-    point = choose(expand(load_spec(args.spec)), args.law, args.speed)
+    point = choose(expand(load_spec(args.spec)), args.law, args.speed, args.seed)
     scenario = scenario_from_flat(point.values)
     duration = scenario.loop.duration
     bag_path = args.bag or Path("bags") / f"fe_live_{datetime.now():%Y%m%d_%H%M%S}"
@@ -159,7 +169,18 @@ def write_up(
     )
     done = read_done(args.campaign)
     offline = done.get(point.key)
-    passive = passive_for(list(done.values()), {**point.values, "plant_mass_scale": 1.0})
+    if args.seed is None:
+        passive = passive_for(list(done.values()), {**point.values, "plant_mass_scale": 1.0})
+    else:  # the passive run on the same line
+        same = ("scenario", "speed_kmh", "line_seed")
+        passive = next(
+            (
+                r
+                for r in done.values()
+                if r.get("law") == "passive" and all(r.get(k) == point.values.get(k) for k in same)
+            ),
+            None,
+        )
     sigma_passive = float(passive[SIGMA]) if passive and passive.get("status") == "ok" else math.nan
     raw = compute_metrics(bag, *point.window)
     timing = loop_timing(bag)

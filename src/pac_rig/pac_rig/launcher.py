@@ -174,8 +174,10 @@ class Rig:
         law = self.params["controller"].get("law")
         if law is None or self.relay:
             return
+        # The plant's parts too: its line (a whole line's map), its sensors (the observer they
+        # allow), its actuator (the law's design for it).
         derived, _ = composition.derive(
-            {"law": law}, {**self.params["observer"], **self.params["controller"]}
+            {"law": law}, {**self.params["plant"], **self.params["observer"], **self.params["controller"]}
         )
         for name in ("observer", "controller"):  # each derived value to the node that has it
             names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
