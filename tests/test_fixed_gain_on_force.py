@@ -164,3 +164,26 @@ def test_lockstep_rig_on_the_contact_force_observer_equals_the_offline_simulatio
     offline = assert_lockstep_equals_offline(rig.bag_path, flat, tmp_path / "offline", columns)
     u = np.asarray(offline["command"]["u"])
     assert np.all(np.abs(u) < ControllerParameters().u_max)  # not the +500 N of theta_hat = 0
+
+
+@pytest.mark.unit
+def test_pid_on_the_realistic_scenario_is_given_a_crossover_it_can_hold():
+    """On the identified 3-mass nominal no derivative filter makes the 21 rad/s design stable: the
+    composition lowers the crossover to the highest listed one that is, and the design builds (the
+    campaign's pid runs failed at the build before). The ideal FE line keeps 21 rad/s."""
+    from pac_controller.laws import FE_LINE_PID_CROSSOVERS
+    from pac_controller.parameters import LawParameters
+    from pac_controller.pid import design_pid
+    from pac_model.parameters import PantographParameters
+    from pac_rig import composition
+
+    given = {"law": "pid", "observer": "head_balance", "scenario": "realistic_electromechanical"}
+    values, _ = composition.derive(given)
+    assert values["pid_bandwidth"] in FE_LINE_PID_CROSSOVERS
+    pantograph = PantographParameters(nominal_pantograph="three_mass_identified_2dof")
+    laws = LawParameters.from_mapping(values)
+    assert design_pid(pantograph, laws, 1e-3).spectral_radius < 1.0
+    with pytest.raises(ParameterError):  # the default crossover cannot be held there
+        design_pid(pantograph, LawParameters.from_mapping({**values, "pid_bandwidth": 21.0}), 1e-3)
+    ideal, _ = composition.derive({"law": "pid", "observer": "contact_force", "catenary_model": "fe"})
+    assert "pid_bandwidth" not in ideal
