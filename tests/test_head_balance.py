@@ -127,3 +127,13 @@ def test_a_law_on_the_force_estimate_runs_on_the_head_balance_where_the_head_has
 def test_simulate_refuses_the_head_balance_without_a_head_accelerometer_in_one_line(tmp_path):
     line = simulate_refusal(tmp_path / "bag", "law:=line_adaptive", "observer:=head_balance")
     assert "observer 'head_balance' reads a head accelerometer" in line
+
+
+@pytest.mark.unit
+def test_the_head_balance_warms_up_as_a_node_does_before_its_first_sample():
+    """The node loads the compiled step on a copy before the loop (warm_up): it must not raise (it
+    did: the copy was fed no head acceleration, and the live observer stopped before tick 0), and
+    the observer itself stays untouched."""
+    core = HeadBalanceObserver(PantographParameters(), TrackParameters(), ObserverParameters(), 1e-3)
+    core.warm_up()
+    assert core.tick == -1

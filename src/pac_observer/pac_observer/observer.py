@@ -530,9 +530,9 @@ class AdaptiveObserver:
         """Updates on a copy (first sample, a tick, a gap): numba loads the compiled code now, not at
         the loop's first tick. Any observer with ``update`` may share it (the contact-force one does)."""
         twin = copy.deepcopy(self)
-        twin.update(0, (0.0, 0.0), 0.0)
-        twin.update(1, (0.0, 0.0), 0.0)
-        twin.update(3, (0.0, 0.0), 0.0)
+        twin.update(0, (0.0, 0.0), 0.0, 0.0)  # a head acceleration: the head balance reads one
+        twin.update(1, (0.0, 0.0), 0.0, 0.0)
+        twin.update(3, (0.0, 0.0), 0.0, 0.0)
 
     # -- one tick ----------------------------------------------------------------
     def update(
