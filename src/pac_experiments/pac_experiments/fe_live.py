@@ -171,13 +171,14 @@ def write_up(
     offline = done.get(point.key)
     if args.seed is None:
         passive = passive_for(list(done.values()), {**point.values, "plant_mass_scale": 1.0})
-    else:  # the passive run on the same line
-        same = ("scenario", "speed_kmh", "line_seed")
+    else:  # the passive run on the same line and train as the offline row (a row holds no scenario)
+        same = ("catenary", "actuator", "sensors", "speed_kmh", "line_seed")
+        ref = offline or {}
         passive = next(
             (
                 r
                 for r in done.values()
-                if r.get("law") == "passive" and all(r.get(k) == point.values.get(k) for k in same)
+                if r.get("law") == "passive" and all(r.get(k) == ref.get(k) for k in same)
             ),
             None,
         )
