@@ -98,3 +98,6 @@ def test_the_live_run_gives_the_loop_nodes_the_points_values():
     }
     given = loop_parameters(Point(key="k", values=values, grid=0))
     assert given == {k: v for k, v in values.items() if k not in ("duration", "not_a_parameter")}
+    # A scenario goes through: the rig expands it into the nodes' values (the realistic live run).
+    with_file = loop_parameters(Point(key="k", values={**values, "scenario": "realistic_pneumatic"}, grid=0))
+    assert with_file["scenario"] == "realistic_pneumatic"
