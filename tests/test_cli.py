@@ -117,7 +117,7 @@ def test_topic_echo(live):
     msg = yaml.safe_load(once.stdout.removesuffix("---\n"))
     assert list(msg) == [
         "header", "tick", "z_hat", "theta_hat", "stiffness_hat", "contact_force_hat",
-        "innovation", "status", "rejected_measurements", "reinitialisations",
+        "innovation", "status", "rejected_measurements", "reinitialisations", "actuator_force",
     ]  # fmt: skip
     assert len(msg["z_hat"]) == 4 and len(msg["theta_hat"]) == 3
     assert set(msg["header"]["stamp"]) == {"sec", "nanosec"}

@@ -61,6 +61,7 @@ from .observer import (
     AdaptiveObserver,
     Estimate,
     ObserverDivergedError,
+    force_estimate,
 )
 from .parameters import ObserverParameters
 
@@ -312,21 +313,6 @@ class ContactForceObserver:
 
     def _estimate(self) -> Estimate:
         return force_estimate(self.tick, self.sample_period, self._st)
-
-
-def force_estimate(tick: int, sample_period: float, state: np.ndarray) -> Estimate:
-    """The Estimate of an observer that gives F_hat and no theta_hat (this one, the head balance):
-    z_hat, F_hat and the innovation of its OBSERVER_STATE record ``state``; theta_hat zeros."""
-    st = state[0]
-    return Estimate(
-        tick=tick,
-        time=tick * sample_period,
-        z_hat=st["z_hat"].copy(),
-        theta_hat=np.zeros(3),
-        stiffness_hat=0.0,
-        contact_force_hat=float(st["cf_force"]),
-        innovation=st["innovation"].copy(),
-    )
 
 
 def make_observer(

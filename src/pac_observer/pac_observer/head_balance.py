@@ -44,7 +44,6 @@ from numba import njit
 
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
-from .contact_force import force_estimate
 from .observer import (
     HEAD_BALANCE,
     OBSERVER_CONSTS,
@@ -52,6 +51,7 @@ from .observer import (
     AdaptiveObserver,
     Estimate,
     ObserverDivergedError,
+    force_estimate,
 )
 from .parameters import ObserverParameters
 

@@ -393,6 +393,22 @@ def _advance_one(states, tick, y1, y2, gap, u, consts) -> tuple[int, int]:
     return observer_advance(tick, states[0], y1, y2, gap, u, consts[0])
 
 
+def force_estimate(tick: int, sample_period: float, state: np.ndarray) -> Estimate:
+    """The Estimate of an observer that gives F_hat and no theta_hat (the contact-force filter, the
+    head balance):
+    z_hat, F_hat and the innovation of its OBSERVER_STATE record ``state``; theta_hat zeros."""
+    st = state[0]
+    return Estimate(
+        tick=tick,
+        time=tick * sample_period,
+        z_hat=st["z_hat"].copy(),
+        theta_hat=np.zeros(3),
+        stiffness_hat=0.0,
+        contact_force_hat=float(st["cf_force"]),
+        innovation=st["innovation"].copy(),
+    )
+
+
 class ObserverDivergedError(RuntimeError):
     """The update produced non-finite values or lost positive definiteness; state is unchanged."""
 
