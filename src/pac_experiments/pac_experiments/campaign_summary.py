@@ -195,6 +195,17 @@ def write_against(out: Path, comparisons: list[Comparison], over: str, reference
     return text
 
 
+def read_results(out: Path, prog: str) -> list[dict[str, str]] | None:
+    """The rows of ``out/results.csv``; None (after one line on stderr naming ``prog``) if unreadable."""
+    path = out / "results.csv"
+    try:
+        with path.open(newline="") as f:
+            return list(csv.DictReader(f))
+    except OSError as exc:
+        print(f"{prog}: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+        return None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="campaign_summary", description=__doc__)
     parser.add_argument("out", type=Path, help="a campaign's output directory (with results.csv)")
@@ -202,11 +213,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--against", metavar="LAW", help="also compare every other law with LAW, run by run")
     args = parser.parse_args(argv)
     path = args.out / "results.csv"
-    try:
-        with path.open(newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as exc:
-        print(f"campaign_summary: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+    rows = read_results(args.out, "campaign_summary")
+    if rows is None:
         return 2
     groups = summarise(rows, args.over)
     if not groups:

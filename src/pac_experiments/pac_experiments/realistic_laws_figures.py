@@ -15,13 +15,12 @@ one tension length), so the stretch is of plain spans.
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
 from pac_common.contact_statistics import target_mean_force
 
-from .campaign_summary import compare
+from .campaign_summary import compare, read_results
 from .realistic_figure import force_series
 
 #: The issue's goals for the recommended law: mean sigma change at 300 km/h and at every speed.
@@ -99,12 +98,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--speed", type=float, default=300.0)
     parser.add_argument("--spans", type=float, nargs=2, default=(20.0, 30.0))
     args = parser.parse_args(argv)
-    path = args.out / "results.csv"
-    try:
-        with path.open(newline="") as f:
-            rows = list(csv.DictReader(f))
-    except OSError as exc:
-        print(f"realistic_laws_figures: cannot read {path}: {exc.strerror or exc}", file=sys.stderr)
+    rows = read_results(args.out, "realistic_laws_figures")
+    if rows is None:
         return 2
     sigma_change_figure(rows, args.out / "fig_sigma_change.png")
     force_figure(args.seed, args.speed, tuple(args.spans), args.out / "fig_force.png")
