@@ -419,11 +419,12 @@ def test_messages_lost_to_a_stalled_recorder_are_counted_in_the_bag(tmp_path, do
     """A recorder that cannot run for 3 s while 1 kHz samples arrive (stopped with SIGSTOP, as a
     starved process would be): the publisher's keep-last 1000 drops what the recorder had not
     acknowledged. The loss was silent; now the recorder counts DDS's message-lost events, stores
-    them in the bag and every reader reports them."""
+    them in the bag and every reader reports them. The stall is longer than the recorder's
+    idle_timeout: the recorder's own silence does not close the bag, it records to the end."""
     import signal
     import subprocess
 
-    from conftest import ROS2, stop
+    from conftest import ROS2
 
     source = tmp_path / "source"
     simulate_to_bag(scenario_from_flat({"duration": 6.0}), source)
@@ -441,6 +442,8 @@ def test_messages_lost_to_a_stalled_recorder_are_counted_in_the_bag(tmp_path, do
                 f"bag_path:={bag}",
                 "-p",
                 "topics:=plant_truth",
+                "-p",
+                "idle_timeout:=2.0",
             ],
             stdout=log,
             stderr=subprocess.STDOUT,
@@ -459,13 +462,13 @@ def test_messages_lost_to_a_stalled_recorder_are_counted_in_the_bag(tmp_path, do
     time.sleep(3.0)
     recorder.send_signal(signal.SIGCONT)
     player.wait(timeout=60)
-    time.sleep(2.0)
-    assert stop(recorder) == 0
+    assert recorder.wait(timeout=30) == 0  # closed by its idle_timeout, once the replay ended
     text = (tmp_path / "recorder.log").read_text()
     bag_data = read_bag(bag)
     recorded = len(bag_data.topics["plant_truth"])
     lost_lines = [w for w in bag_data.warnings if "lost before they reached the recorder" in w]
     print(f"\nrecorded {recorded} of 6000; {lost_lines}; {text.strip().splitlines()[-1]}")
+    assert bag_data.topics["plant_truth"]["tick"].max() == 5999, text[-1500:]
     if recorded < 6000:  # the stall lost samples: they must be counted, not silent
         (line,) = lost_lines
         assert f"'plant_truth': {6000 - recorded} messages lost" in line

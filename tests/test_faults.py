@@ -394,12 +394,16 @@ def test_full_disk_gives_a_clear_error_and_keeps_what_was_written(rigs, tmp_path
     if mounted.returncode != 0:
         pytest.skip(f"cannot mount a small tmpfs here ({mounted.stderr.strip()})")
     try:
-        rig = rigs("full_disk", duration=0.0)
+        # Normal scheduling: the subject is the disk. At the rig's SCHED_FIFO priorities a loop that
+        # fills a 2-core host keeps the recorder (below it) off the CPU for as long as it runs.
+        rig = rigs("full_disk", duration=0.0, priorities={})
         rig.bag_path = mount_point / "bag"
         rig.params["recorder"].update({"bag_path": str(rig.bag_path), "stop_after_tick": -1})
         rig.start()
         recorder = rig.processes["recorder"]
-        assert recorder.wait(60.0) == 1, recorder.log()[-2000:]
+        assert recorder.wait(60.0) == 1, "\n".join(
+            f"== {name}\n{p.log()[-1500:]}" for name, p in rig.processes.items()
+        )
         errors = [line for line in recorder.log().splitlines() if "recording stopped" in line]
         assert len(errors) == 1 and "No space left on device" in errors[0]
         # Its counters and its last /diagnostics status say so too (ERROR: recording stopped).

@@ -129,7 +129,9 @@ class RecorderNode(PacNode):
         self.writer.start()
         self.follow_run()
         if params.idle_timeout > 0:
-            self.create_timer(min(0.1, params.idle_timeout / 2), self._check_idle)
+            self.idle_check_period = min(0.1, params.idle_timeout / 2)
+            self.last_idle_check = time.monotonic()
+            self.create_timer(self.idle_check_period, self._check_idle)
         self.get_logger().info(f"recording {', '.join(topics)} to {path}")
 
     WRITE_PERIOD = 0.01  # s: how often the writer thread drains the callbacks' queue
@@ -260,8 +262,18 @@ class RecorderNode(PacNode):
         self._check_run_recorded()
 
     def _check_idle(self) -> None:
+        now = time.monotonic()
+        late = now - self.last_idle_check > 2 * self.idle_check_period + 0.05
+        self.last_idle_check = now
+        if late and self.last_message_wall is not None:
+            # This check ran late: the recorder itself was kept off the CPU (a loop at a higher
+            # SCHED_FIFO priority on a small host), and the executor runs this timer before the
+            # subscriptions that hold the backlog. The silence was ours, not the publishers':
+            # closing now would cut a running run's bag (seen on one core, 5 s starved).
+            self.last_message_wall = now
+            return
         last = self.last_message_wall
-        if last is not None and time.monotonic() - last > self.params.idle_timeout:
+        if last is not None and now - last > self.params.idle_timeout:
             self.get_logger().info(f"no message for {self.params.idle_timeout:g} s: closing")
             self.finished = True
 
