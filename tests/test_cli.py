@@ -4,6 +4,7 @@ The rig (plant in real time at 200 Hz, observer, controller) runs in its own ROS
 module; every process it starts is stopped at teardown, pass or fail.
 """
 
+import concurrent.futures
 import fcntl
 import os
 import pty
@@ -267,9 +268,12 @@ def test_every_pac_tool_answers_help_with_its_usage():
     tools = [line.split() for line in listed if line.startswith("pac_")]
     tools = [(pkg, exe) for pkg, exe in tools if exe not in NODE_EXECUTABLES]
     assert {"simulate", "replay", "info", "report", "demo", "sweep", "reproduce"} <= {e for _, e in tools}
-    for pkg, exe in tools:
-        out = ros2(env, "run", pkg, exe, "--help")
-        assert out.returncode == 0 and out.stdout.startswith(f"usage: {exe}"), (pkg, exe, out.stderr[-300:])
+    # One process per tool, as many at once as there are cores (each spends its time importing).
+    with concurrent.futures.ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+        answers = pool.map(lambda tool: ros2(env, "run", *tool, "--help"), tools)
+        for (pkg, exe), out in zip(tools, answers, strict=True):
+            answered = out.returncode == 0 and out.stdout.startswith(f"usage: {exe}")
+            assert answered, (pkg, exe, out.stderr[-300:])
 
 
 @pytest.mark.slow

@@ -112,11 +112,28 @@ def _pid_on_fe_line(pantograph: PantographParameters, laws: LawParameters, dt: f
     pid_bandwidth; where none does (on the realistic scenario's identified 3-mass nominal the sampled
     loop at 21 rad/s is unstable for every ratio), the highest of FE_LINE_PID_CROSSOVERS below it
     where one does: a design that runs rather than a run refused at the build."""
+    design = {name: getattr(laws, name) for name in PID_DESIGN_FIELDS}
+    return dict(_pid_design_on_fe_line(pantograph, dataclasses.replace(LawParameters(), **design), dt))
+
+
+#: What pid.design_pid reads of the law parameters: the cache's key holds these and no other.
+PID_DESIGN_FIELDS = tuple(spec.name for spec in LawParameters.specs() if spec.name.startswith("pid_")) + (
+    "design_delay_ticks",
+    "design_stiffness",
+)
+
+
+@functools.lru_cache(maxsize=64)
+def _pid_design_on_fe_line(
+    pantograph: PantographParameters, laws: LawParameters, dt: float
+) -> tuple[tuple[str, float], ...]:
+    # Cached: the search designs the loop up to a few hundred times (0.4 s), and a campaign derives
+    # it for every point of a grid whose lines differ but whose pantograph and law do not.
     for crossover in (laws.pid_bandwidth, *(w for w in FE_LINE_PID_CROSSOVERS if w < laws.pid_bandwidth)):
         n = least_derivative_filter(pantograph, dataclasses.replace(laws, pid_bandwidth=crossover), dt)
         if n is not None:
-            return {"pid_derivative_filter": n, "pid_bandwidth": crossover}
-    return {}
+            return (("pid_derivative_filter", n), ("pid_bandwidth", crossover))
+    return ()
 
 
 def _lqr_on_fe_line(pantograph: PantographParameters, laws: LawParameters, dt: float) -> dict[str, float]:
