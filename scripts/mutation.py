@@ -93,6 +93,11 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
         ("observer_advance", "observer_start"),
         ("tests/test_observer.py", "tests/test_compiled.py"),
     ),
+    "head_balance": (
+        "pac_observer.head_balance",
+        ("_raw_force", "head_balance_start", "head_balance_advance", "_output"),
+        ("tests/test_head_balance.py", "tests/test_fixed_gain_on_force.py"),
+    ),
     "line": (
         "pac_plant.catenary.line",
         ("Line._assemble", "Line.solve_dropper_lengths", "Line.set_dropper_lengths", "Line._assemble_wires"),

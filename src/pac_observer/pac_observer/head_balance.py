@@ -60,17 +60,15 @@ NOT_FINITE = 8
 
 
 @njit(cache=True, inline="always")
-def _raw_force(c, y1: float, y2: float, y1_prev: float, y2_prev: float, a1: float) -> float:
-    """k1 (y2 - y1) + b1 d(y2 - y1)/dt - m1 a1 (module docstring)."""
-    deflection = y2 - y1
-    rate = (deflection - (y2_prev - y1_prev)) / c.dt
-    return c.hb_k1 * deflection + c.hb_b1 * rate - c.m1 * a1
+def _raw_force(c, y1: float, y2: float, v1: float, v2: float, a1: float) -> float:
+    """F_raw = k1 (y2 - y1) + b1 (v2 - v1) - m1 a1: eq. (3) solved for F (module docstring)."""
+    return c.hb_k1 * (y2 - y1) + c.hb_b1 * (v2 - v1) - c.m1 * a1
 
 
 @njit(cache=True, error_model="numpy")
 def head_balance_start(st, c, y1: float, y2: float, u: float, a1: float) -> int:
     """The first sample: F_hat = the actuator's force (C_0 = F_a - F_raw), velocities 0."""
-    raw = _raw_force(c, y1, y2, y1, y2, a1)
+    raw = _raw_force(c, y1, y2, 0.0, 0.0, a1)
     st.hb_offset = u - raw
     st.hb_samples = 1
     return _output(st, y1, y2, 0.0, 0.0, raw)
@@ -81,8 +79,7 @@ def head_balance_advance(st, c, y1: float, y2: float, gap: int, u: float, a1: fl
     """y_k after ``gap`` periods (velocities over the gap); 0, or NOT_FINITE (state untouched)."""
     span = gap * c.dt
     v1, v2 = (y1 - st.y_prev[0]) / span, (y2 - st.y_prev[1]) / span
-    deflection = y2 - y1
-    raw = c.hb_k1 * deflection + c.hb_b1 * (v2 - v1) - c.m1 * a1
+    raw = _raw_force(c, y1, y2, v1, v2, a1)
     weight = max(1.0 - c.hb_forget**gap, gap / (st.hb_samples + gap))
     offset = st.hb_offset + weight * (u - raw - st.hb_offset)
     if not (math.isfinite(raw) and math.isfinite(offset)):
