@@ -97,6 +97,66 @@ def test_the_estimate_starts_at_the_actuators_force_and_its_mean_follows_it():
 
 
 @pytest.mark.unit
+def test_at_rest_the_estimate_is_the_actuators_force_and_the_velocities_are_differences_over_a_gap():
+    """The head at rest with a steady actuator force: F_hat = F_a at every sample (eq. (3) at rest:
+    the contact force balances the applied one), whatever the deflection's rest length or b1. The
+    first sample's velocities are 0; later ones are the positions' differences over the ticks
+    between two samples (a missed sample widens the difference, it does not scale it)."""
+    head = PantographParameters()
+    core = HeadBalanceObserver(head, TrackParameters(), ObserverParameters(), 1e-3)
+    y0 = (0.01, 0.025)
+    first = core.update(0, y0, 120.0, 0.0)
+    np.testing.assert_array_equal(first.z_hat, [*y0, 0.0, 0.0])
+    np.testing.assert_array_equal(first.innovation, 0.0)  # no prediction, hence no innovation
+    for tick in range(1, 50):
+        est = core.update(tick, y0, 120.0, 0.0)
+        assert est.contact_force_hat == pytest.approx(120.0, abs=1e-9)
+    # Both moving (the roof-relative deflection steady), then three ticks with one sample.
+    v1, v2 = 0.02, 0.05
+    est = core.update(50, (y0[0] + v1 * 1e-3, y0[1] + v2 * 1e-3), 120.0, 0.0)
+    np.testing.assert_allclose(est.z_hat[2:], [v1, v2], rtol=1e-9)
+    est = core.update(53, (y0[0] + v1 * 4e-3, y0[1] + v2 * 4e-3), 120.0, 0.0)
+    np.testing.assert_allclose(est.z_hat[2:], [v1, v2], rtol=1e-9)
+
+
+@pytest.mark.unit
+def test_past_its_first_window_the_mean_follows_the_actuator_exponentially_over_it():
+    """C_k = C_{k-1} + w (F_a - F_raw - C_{k-1}) with w = 1 - exp(-dt/T) once the plain mean's
+    weight 1/(k + 1) is below it: after a step of F_a from 100 to 200 N (the head at rest), F_hat
+    = 200 - 100 exp(-k dt / T) at the k-th sample after it (the module docstring's filter, solved)."""
+    window, dt = 0.05, 1e-3
+    core = HeadBalanceObserver(
+        PantographParameters(), TrackParameters(), ObserverParameters(head_balance_window=window), dt
+    )
+    for tick in range(200):  # past the plain mean's 50 samples: C is F_a - F_raw
+        core.update(tick, (0.01, 0.02), 100.0, 0.0)
+    for k in range(1, 101):
+        est = core.update(199 + k, (0.01, 0.02), 200.0, 0.0)
+        if k in (1, 10, 100):
+            assert est.contact_force_hat == pytest.approx(
+                200.0 - 100.0 * math.exp(-k * dt / window), rel=1e-9
+            )
+
+
+@pytest.mark.unit
+def test_a_non_finite_actuator_force_never_enters_the_mean():
+    """A NaN actuator force (a load cell's dropout) is refused and leaves the state as it was: the
+    next sample's estimate is the one the run without it gives."""
+    cores = [HeadBalanceObserver(PantographParameters(), TrackParameters(), ObserverParameters(), 1e-3)]
+    cores.append(HeadBalanceObserver(PantographParameters(), TrackParameters(), ObserverParameters(), 1e-3))
+    for core in cores:
+        for tick in range(20):
+            core.update(tick, (0.01, 0.02 + 1e-5 * tick), 100.0 + tick, 0.1)
+    before = cores[0].state.copy()
+    with pytest.raises(ObserverDivergedError):
+        cores[0].update(20, (0.01, 0.0202), math.nan, 0.1)
+    np.testing.assert_array_equal(cores[0].state, before)
+    after, without = (core.update(21, (0.01, 0.0203), 130.0, 0.1) for core in cores)
+    assert after.contact_force_hat == without.contact_force_hat  # one machine, same operations
+    np.testing.assert_array_equal(after.z_hat, without.z_hat)
+
+
+@pytest.mark.unit
 def test_a_missing_accelerometer_reading_never_becomes_an_estimate():
     """A NaN acceleration raises ObserverDivergedError and leaves the state as it was."""
     core = HeadBalanceObserver(PantographParameters(), TrackParameters(), ObserverParameters(), 1e-3)

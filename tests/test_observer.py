@@ -107,6 +107,26 @@ def test_divergence_is_reported_and_state_left_untouched():
     obs.update(obs.tick + 1, (0.0, 0.0), 100.0)
 
 
+def test_a_divergence_inside_a_bridged_gap_names_the_tick_it_failed_at():
+    """Three ticks in one update, the sample NaN: y is interpolated from the last sample, so the
+    first period of the gap already fails; the error names that tick and the state is untouched."""
+    obs = AdaptiveObserver(PANTO, TRACK, ObserverParameters(), DT)
+    open_loop(obs, 100)
+    last, before = obs.tick, obs.xi.copy()
+    with pytest.raises(ObserverDivergedError) as failed:
+        obs.update(last + 3, (math.nan, 0.0), 100.0)
+    assert failed.value.tick == last + 1 and f"tick {last + 1}:" in str(failed.value)
+    assert obs.tick == last
+    np.testing.assert_array_equal(obs.xi, before)
+
+
+def test_the_first_innovation_is_the_sample_against_the_initial_estimate():
+    """The a priori innovation y - C z_hat at the first sample: against z_hat0 (not zero here)."""
+    obs = AdaptiveObserver(PANTO, TRACK, ObserverParameters(z_hat0=(0.01, 0.02, 0.0, 0.0)), DT)
+    est = obs.update(0, (0.015, 0.005), 0.0)
+    np.testing.assert_allclose(est.innovation, [0.005, -0.015], rtol=1e-12)
+
+
 def test_stale_tick_is_refused():
     obs = AdaptiveObserver(PANTO, TRACK, ObserverParameters(), DT)
     obs.update(0, (0.0, 0.0), 0.0)
