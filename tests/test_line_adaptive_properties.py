@@ -29,18 +29,20 @@ LAWS = LawParameters()
 PASSIVE = 10.0  # N, the error's amplitude over the passive spans
 
 
-def imposed(amplitudes: list[float]) -> tuple[LineAdaptiveLaw, list[str]]:
-    """Span j's F_hat = F_r - a_j cos(w_s t); the law's mode at the first tick of every span, and
-    one more entry: the mode after the last span."""
+def imposed(amplitudes: list[float], bias: list[float] | None = None) -> tuple[LineAdaptiveLaw, list[str]]:
+    """Span j's F_hat = F_r + b_j - a_j cos(w_s t) (b_j = 0 unless ``bias`` is given) while the
+    actuator applies what the law asks: the law's mode at the first tick of every span, and one
+    more entry: the mode after the last span."""
     law = LineAdaptiveLaw(TRACK, LAWS, DT)
     n, w = law.period_ticks, law.omega_span
     f_r = np.array([F_R, 0.0, 0.0, 0.0])
     modes = []
     for j, a in enumerate(amplitudes):
         modes.append(law.mode)
+        b = 0.0 if bias is None else bias[j]
         for i in range(n):
             k = j * n + i
-            u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R - a * math.cos(w * k * DT))
+            u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R + b - a * math.cos(w * k * DT))
             law.commit(k, u)
     modes.append(law.mode)
     return law, modes
@@ -97,6 +99,81 @@ def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judge
     learning[1] = 0.95 * limit * PASSIVE
     law, modes = imposed(amplitudes(learning))
     assert not law.tripped and set(modes) == {"active"}
+
+
+def strikes_after_a_span_with_lost_ticks(lost: int, bias: float = 0.0, lost_passive: int = 0) -> int:
+    """The back-offs counted after the first learning span, in which ``lost`` ticks had F_hat =
+    ``bias`` (a loss, read through an estimate whose mean is ``bias`` off in every span) and the
+    rest the passive spans' error; the last passive span lost ``lost_passive`` ticks likewise."""
+    law = LineAdaptiveLaw(TRACK, LAWS, DT)
+    n, w = law.period_ticks, law.omega_span
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    learning = LAWS.line_runin_spans
+    for k in range((learning + 1) * n):
+        f_hat = F_R + bias - PASSIVE * math.cos(w * k * DT)
+        span, i = divmod(k, n)
+        if (span == learning and i < lost) or (span == learning - 1 and i < lost_passive):
+            f_hat = bias
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), f_hat)
+        law.commit(k, u)
+    return law.strikes
+
+
+def test_a_span_backs_off_when_its_share_of_lost_ticks_exceeds_line_guard_loss():
+    """line_guard_loss is a share of the span's ticks: just below it no back-off, just above it one."""
+    n = LineAdaptiveLaw(TRACK, LAWS, DT).period_ticks
+    allowed = LAWS.line_guard_loss * n
+    assert strikes_after_a_span_with_lost_ticks(math.floor(allowed) - 1) == 0
+    assert strikes_after_a_span_with_lost_ticks(math.ceil(allowed) + 1) == 1
+
+
+def test_lost_ticks_are_counted_on_the_estimate_less_its_mean_bias():
+    """F_hat's mean 15 N high in every span (within line_guard_bias): a loss reads F_hat = 15 N,
+    above line_guard_loss_margin F_r, and is counted only once the last span's bias is taken off.
+    Counted so in the passive spans too, they set the bar: as many lost ticks in a learning span
+    as in the worst passive one are no back-off."""
+    n = LineAdaptiveLaw(TRACK, LAWS, DT).period_ticks
+    bias, lost = 0.1 * F_R, math.ceil(2 * LAWS.line_guard_loss * n)
+    assert bias > LAWS.line_guard_loss_margin * F_R and bias < LAWS.line_guard_bias * F_R
+    assert strikes_after_a_span_with_lost_ticks(lost, bias) == 1
+    assert strikes_after_a_span_with_lost_ticks(lost, bias, lost_passive=lost) == 0
+
+
+def test_a_fallback_episode_taints_its_own_span_only():
+    """Commands that were not the law's (a fallback episode, then restart) in span 0: that span
+    teaches nothing, and the next one counts again: spans 1 .. line_runin_spans - 1 all give the
+    guard's passive sigma_b, as without the episode."""
+    counts = []
+    for episode in (False, True):
+        law = LineAdaptiveLaw(TRACK, LAWS, DT)
+        n, w = law.period_ticks, law.omega_span
+        f_r = np.array([F_R, 0.0, 0.0, 0.0])
+        for k in range((LAWS.line_runin_spans + 1) * n):
+            if episode and k == n // 2:
+                law.restart(F_R)
+            u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R - PASSIVE * math.cos(w * k * DT))
+            law.commit(k, u)
+        counts.append(int(law.state[0]["line_passive_spans"]))
+    assert counts == [LAWS.line_runin_spans - 1] * 2
+
+
+def modes_with_a_biased_mean(bias: list[float]) -> tuple[LineAdaptiveLaw, list[str]]:
+    """The passive spans' error in every span, F_hat's mean off the momentum balance by bias_j."""
+    return imposed([PASSIVE] * len(bias), bias)
+
+
+def test_a_mean_off_the_momentum_balance_by_more_than_line_guard_bias_trips_at_the_first_judged_span():
+    """|mean(F_hat) - mean(F_a)| above line_guard_bias times the mean reference trips at the end of
+    span 1 (span 0 holds the start's transient and is not judged: a bias there alone trips
+    nothing); just below the bound, nothing trips (over the passive spans: F_hat is imposed here, so
+    once the law learns it would chase the mean error it cannot move)."""
+    bound = LAWS.line_guard_bias * F_R
+    law, modes = modes_with_a_biased_mean([5.0 * bound] + [0.9 * bound] * (LAWS.line_runin_spans - 1))
+    assert not law.tripped and set(modes) == {"active"}
+    for sign in (1.0, -1.0):
+        law, modes = modes_with_a_biased_mean([0.0] + [sign * 1.1 * bound] * 3)
+        assert law.trip_reason == "bias"
+        assert modes[1] == "active" and modes[2] == "passive"  # judged at the end of span 1
 
 
 # -- the learning step by property ----------------------------------------------------------

@@ -4,6 +4,8 @@ the layout and the start are derived from the line the plant runs."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -105,3 +107,30 @@ def test_the_recommended_law_lowers_sigma_on_a_short_realistic_run():
     assert active.contact_force_std < 0.9 * passive.contact_force_std, stats
     assert modes["line_adaptive"] == {"active"}
     assert active.contact_loss_percent <= passive.contact_loss_percent
+
+
+@pytest.mark.unit
+def test_a_span_longer_than_the_nominal_is_judged_by_its_shape_not_by_its_ticks():
+    """The same error shape on every span, a cos(2 pi (x - x_m) / L_m): the passive spans 50 m
+    long, the learning spans 60 m (20 % more ticks each). Each span's harmonic sums are taken over
+    its own ticks, so its sigma_b is a / sqrt(2) whatever its length, and the guard's ratio of the
+    learning spans to the passive ones is 1 (not 60 / 50). The error is imposed (an open loop) and
+    its phase computed here from the supports, not by the law's own lookup."""
+    laws = LawParameters()
+    passive_spans = laws.line_runin_spans
+    supports = np.concatenate(
+        [50.0 * np.arange(passive_spans + 1), 50.0 * passive_spans + 60.0 * np.arange(1, 5)]
+    )
+    law = _law(tuple(supports))
+    speed, amplitude = 300 / 3.6, 10.0
+    f_r = np.array([150.0, 0.0, 0.0, 0.0])
+    ticks = int(supports[-1] / (speed * DT)) - 1
+    for k in range(ticks):
+        x = speed * k * DT
+        m = int(np.searchsorted(supports, x, side="right")) - 1
+        shape = math.cos(2 * math.pi * (x - supports[m]) / (supports[m + 1] - supports[m]))
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), 150.0 - amplitude * shape)
+        law.commit(k, u)
+    assert not law.tripped
+    # 1 to the sampling of the cosine by each span's ticks (1e-7 here); 1.2 were sums by tick count.
+    assert law.last_sigma_ratio == pytest.approx(1.0, abs=1e-3)
