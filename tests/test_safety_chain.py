@@ -376,3 +376,17 @@ def test_the_compiled_records_keep_the_capabilities_of_each_law():
         assert bool(record["uses_estimate"]) == (law != "passive"), law
         assert bool(record["uses_contact_force"]) == (law == "line_adaptive"), law
     assert kernels.MODES[2] == "fallback"
+
+
+def test_the_estimate_check_reads_the_estimate_it_is_given_and_no_further():
+    """Every element of z_hat (4) and theta_hat (3) is checked, and nothing past them: the compiled
+    check has no bounds checks, so a loop one element too long would read whatever memory follows
+    (and might refuse a sound estimate, or pass by chance). Run as Python, where it would raise."""
+    check = kernels.estimate_refused.py_func
+    p = dataclasses.make_dataclass("P", ["uses_estimate", "uses_contact_force"])(True, False)
+    z_hat, theta_hat = np.zeros(4), np.zeros(3)
+    assert not check(p, z_hat, theta_hat, math.nan)
+    for values, i in ((z_hat, 3), (theta_hat, 2)):
+        values[i] = math.inf
+        assert check(p, z_hat, theta_hat, 0.0)
+        values[i] = 0.0
