@@ -101,17 +101,20 @@ def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judge
     assert not law.tripped and set(modes) == {"active"}
 
 
-def strikes_after_a_span_with_lost_ticks(lost: int, bias: float = 0.0, lost_passive: int = 0) -> int:
+def strikes_after_a_span_with_lost_ticks(
+    lost: int, bias: float = 0.0, lost_passive: int = 0, start_bias: float = 0.0
+) -> int:
     """The back-offs counted after the first learning span, in which ``lost`` ticks had F_hat =
     ``bias`` (a loss, read through an estimate whose mean is ``bias`` off in every span) and the
-    rest the passive spans' error; the last passive span lost ``lost_passive`` ticks likewise."""
+    rest the passive spans' error; the last passive span lost ``lost_passive`` ticks likewise;
+    span 0 (the start's transient) has ``start_bias`` added."""
     law = LineAdaptiveLaw(TRACK, LAWS, DT)
     n, w = law.period_ticks, law.omega_span
     f_r = np.array([F_R, 0.0, 0.0, 0.0])
     learning = LAWS.line_runin_spans
     for k in range((learning + 1) * n):
-        f_hat = F_R + bias - PASSIVE * math.cos(w * k * DT)
         span, i = divmod(k, n)
+        f_hat = F_R + bias + (start_bias if span == 0 else 0.0) - PASSIVE * math.cos(w * k * DT)
         if (span == learning and i < lost) or (span == learning - 1 and i < lost_passive):
             f_hat = bias
         u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), f_hat)
@@ -137,6 +140,8 @@ def test_lost_ticks_are_counted_on_the_estimate_less_its_mean_bias():
     assert bias > LAWS.line_guard_loss_margin * F_R and bias < LAWS.line_guard_bias * F_R
     assert strikes_after_a_span_with_lost_ticks(lost, bias) == 1
     assert strikes_after_a_span_with_lost_ticks(lost, bias, lost_passive=lost) == 0
+    # The start's transient has its own mean (span 0 is not judged): it shifts no later count.
+    assert strikes_after_a_span_with_lost_ticks(lost, start_bias=LAWS.line_guard_bias * F_R * 5) == 1
 
 
 def test_a_fallback_episode_taints_its_own_span_only():
