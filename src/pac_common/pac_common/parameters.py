@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -59,7 +59,7 @@ class ParameterSpec:
     high: float | None = None
     low_open: bool = False
     high_open: bool = False
-    choices: tuple[str, ...] | None = None
+    choices: Sequence[str] | None = None
     length: int | None = None  # fixed-length float array when set
     runtime: bool = False  # may be changed while the node runs (validated like at start)
     max_length: int | None = None  # float array of 1 .. max_length values when set
@@ -222,7 +222,7 @@ def parameter(
     high: float | None = None,
     low_open: bool = False,
     high_open: bool = False,
-    choices: tuple[str, ...] | None = None,
+    choices: Sequence[str] | None = None,
     length: int | None = None,
     runtime: bool = False,
     max_length: int | None = None,

@@ -28,10 +28,10 @@ from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
 from .line_adaptive import LineAdaptiveLaw
 from .lqr import LqrLaw, design_lqr
-from .parameters import FORCE_ESTIMATES, LAW_NAMES, ControllerParameters, LawParameters, ReferenceParameters
+from .parameters import FORCE_ESTIMATES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
 from .pid import PidLaw, design_pid, least_derivative_filter
-from .user_law import LawFile, LawSetup, UserLaw, load_law_file
+from .user_law import LawFile, LawSetup, UserLaw, load_law_file, load_law_module
 
 #: Laws that need the catenary parameters (k0, alpha, beta): the controller is told them.
 NEEDS_CATENARY = frozenset({"backstepping_known"})
@@ -91,6 +91,11 @@ class LawEntry:
     #: A fixed-gain law's design values on the FE line besides its stiffness, from the pantograph,
     #: the design (LawParameters at the line's stiffness) and the period (docs/laws.md).
     fe_line: Callable[[PantographParameters, LawParameters, float], dict[str, float]] | None = None
+    #: Whether the law has a compiled form (the compiled loop and the batch run it): pac's kernel
+    #: laws, and a law module or file whose output, restart and commit are numba's.
+    compiled: bool = True
+    #: A law of the file protocol: its module's name (a law module) or its file's path; None: a kernel law.
+    source: str | None = None
 
     def needs_of(self, force_estimate: str) -> frozenset[str]:
         """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
@@ -140,6 +145,25 @@ def _lqr_on_fe_line(pantograph: PantographParameters, laws: LawParameters, dt: f
     return {"lqr_force_scale": FE_LINE_LQR_FORCE_SCALE}
 
 
+def _user(law: LawFile, pantograph, track, params, reference, laws, catenary, dt) -> Law:
+    return UserLaw(law, LawSetup(dt, pantograph, track, params, reference, laws))
+
+
+def law_module(module: str, observer: str | None = None) -> LawEntry:
+    """The registry entry of a law module: a module of the law-file protocol (user_law's
+    docstring, docs/laws.md "Your own law") shipped with the package. A new law is that module
+    and one line in :data:`LAWS`; the parameter's choices, the composition rules, the loop, the
+    batch, campaigns and the per-law tests read the registry. Its compiled chain is a closure
+    (compiled once per process, as a user's compiled file; not in numba's disk cache)."""
+    return _entry(load_law_module(module), observer)
+
+
+def _entry(law: LawFile, observer: str | None = None) -> LawEntry:
+    """A law of the file protocol (a module or a user's file) as an entry of the registry."""
+    build = functools.partial(_user, law)
+    return LawEntry(build, law.needs - {"z_hat"}, observer, compiled=law.compiled, source=law.path)
+
+
 LAWS: dict[str, LawEntry] = {
     "adaptive_backstepping": LawEntry(_adaptive, THETA),
     "backstepping_known": LawEntry(_known),  # told the true theta: z_hat only
@@ -148,7 +172,6 @@ LAWS: dict[str, LawEntry] = {
     "passive": LawEntry(_passive),
     "line_adaptive": LawEntry(_line_adaptive, frozenset({"contact_force_hat"}), observer="contact_force"),
 }
-assert tuple(LAWS) == LAW_NAMES, "the registry and the parameter's choices must agree"
 
 
 def law_entry(name: str) -> LawEntry:
@@ -156,12 +179,7 @@ def law_entry(name: str) -> LawEntry:
     .py, loaded from the file: ParameterError in one line when it cannot be)."""
     if name in LAWS:
         return LAWS[name]
-    law = load_law_file(name)
-    return LawEntry(functools.partial(_user, law), law.needs - {"z_hat"})
-
-
-def _user(law: LawFile, pantograph, track, params, reference, laws, catenary, dt) -> Law:
-    return UserLaw(law, LawSetup(dt, pantograph, track, params, reference, laws))
+    return _entry(load_law_file(name))
 
 
 def make_law(

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from pac_common.parameters import ParameterError, ParameterSet, parameter
+from pac_common.registry import RegistryNames
 
 #: The most supports a line map may name (a 100 km line of 50 m spans).
 MAX_LINE_SUPPORTS = 2001
@@ -44,14 +45,13 @@ class ReferenceParameters(ParameterSet):
     )
 
 
-#: The control laws ``law`` selects (pac_controller.laws.LAWS maps them to their cores).
-LAW_NAMES = ("adaptive_backstepping", "backstepping_known", "pid", "lqr", "passive", "line_adaptive")
+#: The control laws ``law`` selects: the keys of pac_controller.laws.LAWS (one line adds a law).
+LAW_NAMES = RegistryNames("pac_controller.laws", "LAWS")
 #: The forms of F_hat the fixed-gain laws (pid, lqr) can feed back (``force_estimate``);
 #: pac_controller.laws.FORCE_ESTIMATE_NEEDS says what each needs of the observer.
 FORCE_ESTIMATES = ("k_hat_z1", "contact_force_hat")
-#: The laws with a compiled kernel (pac_controller.kernels): the compiled loop and the batch run
-#: these.  Every law has one.
-COMPILED_LAW_NAMES = LAW_NAMES
+#: The laws with a compiled form (LawEntry.compiled): the compiled loop and the batch run these.
+COMPILED_LAW_NAMES = RegistryNames("pac_controller.laws", "LAWS", lambda entry: entry.compiled)
 
 
 @dataclass(frozen=True)
@@ -63,8 +63,9 @@ class ControllerParameters(ParameterSet):
         "control law: 'adaptive_backstepping' (eq. (43) on z_hat, theta_hat), 'backstepping_known' "
         "(eq. (43) given the true theta: an oracle, needs k0, alpha, beta), 'pid' (PID on F_hat), "
         "'lqr' (LQ servo at design_stiffness), 'passive' (u = F_r), 'line_adaptive' (span-periodic "
-        "learning on F_hat for a distributed line, with a do-no-harm guard), or the path of your own law's "
-        "Python file (docs/laws.md, 'Your own law'). Fixed for a run (docs/laws.md)",
+        "learning on F_hat for a distributed line, with a do-no-harm guard), a law module of the registry "
+        "(the choices below; docs/laws.md), or the path of your own law's Python file (docs/laws.md, "
+        "'Your own law'). Fixed for a run (docs/laws.md)",
         choices=LAW_NAMES,
         or_file=".py",
     )

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
+import importlib
 import importlib.util
 import math
 import sys
@@ -147,6 +148,19 @@ def load_law_file(path: str) -> LawFile:
         raise refuse(
             path, "its text changed since this process imported it (start again to run the new text)"
         )
+    return loaded
+
+
+def load_law_module(name: str) -> LawFile:
+    """The law of module ``name`` (importable, e.g. ``pac_controller.skyhook``), checked against the
+    same protocol as a file: how a law joins the registry (``pac_controller.laws.law_module``).
+    Its ``path`` is the module's name; its digest that of its source (a packaged law is versioned
+    with the package, so a campaign key holds its name only)."""
+    loaded = _LOADED.get(name)
+    if loaded is None:
+        module = importlib.import_module(name)
+        source = Path(module.__file__ or name).read_bytes() if module.__file__ else name.encode()
+        loaded = _LOADED[name] = _check(name, hashlib.sha256(source).hexdigest(), module)
     return loaded
 
 

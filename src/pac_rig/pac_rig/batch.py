@@ -5,8 +5,10 @@ whole tick loop of each in compiled code, groups of scenarios in parallel thread
 releases the GIL).  The loop calls the same compiled core functions as the classes
 ``Plant``, ``AdaptiveObserver`` and ``BacksteppingController`` do, in the same order,
 so every trace equals the one ``closed_loop.run`` gives, bit for bit
-(``tests/test_batch.py``).  Every law, both lines (lumped and FE), both observers; a scenario
-the compiled loop has no form for (:func:`batchable`) is refused with a ValueError.
+(``tests/test_batch.py``).  Every compiled law (pac's kernel laws by the cached loop; a law
+module's or a user's compiled file by its own loop, :func:`_run_law_block`), every line, every
+observer; a scenario the compiled loop has no form for (:func:`batchable`: a law at Python speed,
+too much delay) is refused with a ValueError.
 """
 
 from __future__ import annotations
@@ -19,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from pac_controller.kernels import LAW_CODES
+from pac_controller.laws import law_entry
 
-from .closed_loop import Scenario, build_cores, divergence_reason
+from .closed_loop import BLOCK, Scenario, build_cores, divergence_reason
 from .loop import MAX_DELAY, TICK, CompiledLoop, compile_loop, loop_tick
 
 #: Per-tick traces, rows of ``BatchResult.traces[name]`` (NaN after a divergence): fields of loop.TICK.
@@ -77,17 +79,39 @@ class BatchResult:
         return float(np.sum(self.ticks * self.sample_period))
 
 
+def _run_law_block(
+    loop: CompiledLoop, ticks: int, noise: np.ndarray, out: np.ndarray
+) -> tuple[int, int, float]:
+    """:func:`_run_one` for a law of the file protocol (a law module or a user's compiled file),
+    whose loop is its own closure (``CompiledLoop.block``, not in the disk cache, so not callable
+    from the cached ``_run_one``): ticks of BLOCK at a time into a TICK array, its TRACES copied out.
+    The same compiled ticks as ``closed_loop.run``'s, so the same numbers."""
+    block = np.empty(max(1, min(ticks, BLOCK)), TICK)
+    for k0 in range(0, ticks, block.size):
+        k1 = min(ticks, k0 + block.size)
+        reached, code, value = loop.run(k0, k1, noise if noise.shape[0] == 1 else noise[k0:k1], block)
+        done = block[: reached - k0]
+        for j, name in enumerate(TRACES):
+            out[j, k0:reached] = done["z"][:, 0] if name == "z1" else done[name]
+        if code:
+            return reached, code, value
+    return ticks, 0, 0.0
+
+
 def prepare(i: int, s: Scenario) -> tuple[CompiledLoop, np.ndarray]:
     """The compiled loop of scenario ``i`` and its sensor noise (one row per tick, or one zero row)."""
     cores = build_cores(s)
     loop = compile_loop(*cores, s.loop.command_delay_ticks)
-    if loop is None or loop.block is not None:  # a user's compiled law runs per point (closed_loop.run)
+    if loop is None:
         raise ValueError(
             f"scenario {i}: the compiled loop has no form for catenary_model {s.plant.catenary_model}, "
             f"observer {s.observer.observer}, law {s.controller.effective_law}, "
             f"command_delay_ticks {s.loop.command_delay_ticks}"
         )
-    return loop, cores[0].noise_rows(0, s.loop.ticks)
+    noise = cores[0].noise_rows(0, s.loop.ticks)
+    if loop.block is not None:  # compiled here, in the building thread: never in two threads at once
+        loop.run(0, 0, noise[:1], np.empty(1, TICK))
+    return loop, noise
 
 
 class BatchFault(RuntimeError):
@@ -125,7 +149,7 @@ def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
     parameters without building the cores: every line, observer, law and sensor suite; the delay
     it holds."""
-    return s.controller.effective_law in LAW_CODES and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
+    return law_entry(s.controller.effective_law).compiled and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
 
 
 def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
@@ -144,6 +168,11 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
     )
 
     def run_loop(i: int, loop: CompiledLoop, noise: np.ndarray) -> None:
+        if loop.block is not None:
+            result_tick[i], result_code[i], result_value[i] = _run_law_block(
+                loop, int(ticks[i]), noise, out[i]
+            )
+            return
         record = np.zeros(1, TICK)
         result_tick[i], result_code[i], result_value[i] = _run_one(
             int(ticks[i]), *loop.args(), noise, out[i], record
