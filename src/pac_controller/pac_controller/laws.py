@@ -171,6 +171,7 @@ LAWS: dict[str, LawEntry] = {
     "lqr": LawEntry(_lqr, fixed_gain=True, fe_line=_lqr_on_fe_line),
     "passive": LawEntry(_passive),
     "line_adaptive": LawEntry(_line_adaptive, frozenset({"contact_force_hat"}), observer="contact_force"),
+    "skyhook": law_module("pac_controller.skyhook"),
 }
 
 
