@@ -11,6 +11,7 @@ commands, and the span the guard trips at is known in advance.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -29,11 +30,13 @@ LAWS = LawParameters()
 PASSIVE = 10.0  # N, the error's amplitude over the passive spans
 
 
-def imposed(amplitudes: list[float], bias: list[float] | None = None) -> tuple[LineAdaptiveLaw, list[str]]:
+def imposed(
+    amplitudes: list[float], bias: list[float] | None = None, laws: LawParameters = LAWS
+) -> tuple[LineAdaptiveLaw, list[str]]:
     """Span j's F_hat = F_r + b_j - a_j cos(w_s t) (b_j = 0 unless ``bias`` is given) while the
     actuator applies what the law asks: the law's mode at the first tick of every span, and one
     more entry: the mode after the last span."""
-    law = LineAdaptiveLaw(TRACK, LAWS, DT)
+    law = LineAdaptiveLaw(TRACK, laws, DT)
     n, w = law.period_ticks, law.omega_span
     f_r = np.array([F_R, 0.0, 0.0, 0.0])
     modes = []
@@ -53,18 +56,25 @@ def first_judged_span() -> int:
     return LAWS.line_runin_spans + max(LAWS.line_guard_spans, GUARD_SPANS) - 1
 
 
-def amplitudes(learning: list[float]) -> list[float]:
+def amplitudes(learning: list[float], passive: float = PASSIVE) -> list[float]:
     """Span 0 (the start transient), the passive spans, then the learning spans' amplitudes."""
-    return [3 * PASSIVE] + [PASSIVE] * (LAWS.line_runin_spans - 1) + learning
+    return [3 * passive] + [passive] * (LAWS.line_runin_spans - 1) + learning
 
 
-def test_mild_harm_trips_the_guard_at_the_end_of_its_first_judged_span_exactly():
+#: (line_guard_ratio, the passive spans' amplitude [N]) for the hard limit: the default, a limit
+#: below and one above 3 (the limit scales with the ratio, not against it), and a passive sigma
+#: below 1 N (any sigma_p > 0 is a scale, however small).
+HARD_LIMIT_CASES = [(1.0, PASSIVE), (0.8, PASSIVE), (1.25, PASSIVE), (1.0, 0.5)]
+
+
+@pytest.mark.parametrize("passive", [PASSIVE, 0.5])  # a passive sigma below 1 N is a scale too
+def test_mild_harm_trips_the_guard_at_the_end_of_its_first_judged_span_exactly(passive):
     """1.5 times passive from the first learning span on: below the hard limit (3x), above the
     ratio (1x); only the judged rule can trip it, at the end of the first judged span."""
     assert 1.5 * LAWS.line_guard_ratio < GUARD_HARD_FACTOR * LAWS.line_guard_ratio
     ratio = 1.5 * LAWS.line_guard_ratio
     learning_spans = first_judged_span() - LAWS.line_runin_spans + 4
-    law, modes = imposed(amplitudes([ratio * PASSIVE] * learning_spans))
+    law, modes = imposed(amplitudes([ratio * passive] * learning_spans, passive))
     judged = first_judged_span()
     assert law.tripped
     assert modes[judged] == "active"  # the span it judges ran active up to its end
@@ -80,24 +90,28 @@ def test_below_the_ratio_the_guard_stays_out():
     assert law.last_sigma_ratio == pytest.approx(0.9 * LAWS.line_guard_ratio, rel=1e-9)
 
 
-def test_one_span_above_the_hard_limit_trips_at_its_own_end():
-    limit = GUARD_HARD_FACTOR * LAWS.line_guard_ratio
+@pytest.mark.parametrize(("ratio", "passive"), HARD_LIMIT_CASES)
+def test_one_span_above_the_hard_limit_trips_at_its_own_end(ratio, passive):
+    laws = dataclasses.replace(LAWS, line_guard_ratio=ratio)
+    limit = GUARD_HARD_FACTOR * ratio
     bad = 2  # the third learning span: long before the guard judges
-    learning = [0.5 * PASSIVE] * 6
-    learning[bad] = 1.05 * limit * PASSIVE
-    law, modes = imposed(amplitudes(learning))
+    learning = [0.5 * ratio * passive] * 6
+    learning[bad] = 1.05 * limit * passive
+    law, modes = imposed(amplitudes(learning, passive), laws=laws)
     span = LAWS.line_runin_spans + bad
-    assert law.tripped
+    assert law.tripped and law.trip_reason == "harm"
     assert modes[span] == "active" and modes[span + 1] == "passive"
 
 
-def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judged_spans():
+@pytest.mark.parametrize(("ratio", "passive"), HARD_LIMIT_CASES)
+def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judged_spans(ratio, passive):
     """The judged RMS covers the last GUARD_SPANS spans only: an early bad span below the hard
     limit is out of it by the time the guard judges."""
-    limit = GUARD_HARD_FACTOR * LAWS.line_guard_ratio
-    learning = [0.5 * PASSIVE] * (first_judged_span() - LAWS.line_runin_spans + 3)
-    learning[1] = 0.95 * limit * PASSIVE
-    law, modes = imposed(amplitudes(learning))
+    laws = dataclasses.replace(LAWS, line_guard_ratio=ratio)
+    limit = GUARD_HARD_FACTOR * ratio
+    learning = [0.5 * ratio * passive] * (first_judged_span() - LAWS.line_runin_spans + 3)
+    learning[1] = 0.95 * limit * passive
+    law, modes = imposed(amplitudes(learning, passive), laws=laws)
     assert not law.tripped and set(modes) == {"active"}
 
 
