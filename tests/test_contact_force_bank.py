@@ -19,6 +19,7 @@ import scipy.linalg
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_observer.contact_force import ContactForceObserver, frame_mass_scales
+from pac_observer.observer import OBSERVER_CONSTS, OBSERVER_STATE
 from pac_observer.parameters import ObserverParameters
 
 pytestmark = pytest.mark.unit
@@ -106,3 +107,49 @@ def test_after_a_mass_change_the_bank_reselects_within_a_few_windows(window):
     assert settled < len(selected)
     delay = (settled - k_change) * DT
     assert 0.0 < delay <= 4.0 * window, delay
+
+
+def synthetic_bank(positions: list[float], energy: list[float]) -> tuple[np.ndarray, ...]:
+    """A bank whose filter f holds x = (p_f, p_f, 0, 0, 0) still (Phi = I, Gamma = 0, no gain): its
+    innovation for y = (0, 0) is -(p_f, p_f), so its new energy is lam E_f + 2 p_f^2 / r^2."""
+    n = len(positions)
+    xs = np.zeros((n, 5))
+    xs[:, 0] = xs[:, 1] = positions
+    phis = np.repeat(np.eye(5)[None], n, axis=0)
+    return phis, np.zeros((n, 5)), np.zeros((n, 5, 2)), xs, np.array(energy, float), np.zeros((n, 2))
+
+
+def bank_step(selected: int, positions: list[float], energy: list[float]) -> tuple[int, np.ndarray]:
+    """contact_force_bank_step run as Python (where a read past an array's end raises) on a synthetic
+    bank with lam = 1, r = 1; (the selection after it, the bank's energies after it)."""
+    from pac_observer.contact_force import contact_force_bank_step
+
+    states = np.zeros(1, OBSERVER_STATE).view(np.recarray)
+    consts = np.zeros(1, OBSERVER_CONSTS).view(np.recarray)
+    consts[0].cf_forget, consts[0].cf_inv_r2 = 1.0, 1.0
+    states[0].cf_selected = selected
+    arrays = synthetic_bank(positions, energy)
+    contact_force_bank_step.py_func(states[0], consts[0], arrays, 0.0, 0.0, 0.0)
+    return int(states[0].cf_selected), arrays[4]
+
+
+def test_the_bank_selects_the_least_energy_of_this_step_with_hysteresis():
+    """Energies before the step (0.2, 0.1, 5); this step adds 0, 1 and 0: the least is filter 0's
+    0.2, not filter 1's 1.1 although filter 1's was the least before the step. From filter 2
+    (energy 5) the bank switches to 0 (0.2 < 0.9 x 5); from filter 1 (1.1) it switches too; it
+    stays on a filter whose energy the best does not undercut by 10 %."""
+    moves = [0.0, math.sqrt(0.5), 0.0]
+    selected, energy = bank_step(2, moves, [0.2, 0.1, 5.0])
+    np.testing.assert_allclose(energy, [0.2, 1.1, 5.0], rtol=1e-15)
+    assert selected == 0
+    assert bank_step(1, moves, [0.2, 0.1, 5.0])[0] == 0
+    assert bank_step(1, [0.0, 0.0], [1.0, 1.05])[0] == 1  # 1.0 is not below 0.9 x 1.05
+    assert bank_step(1, [0.0, 0.0], [0.9, 1.1])[0] == 0  # 0.9 is below 0.9 x 1.1 = 0.99
+    assert bank_step(1, [0.0, 0.0], [0.9, 1.0])[0] == 1  # 0.9 x 1.0 is 0.9 exactly: not below it
+    assert bank_step(2, [0.0, 0.0, 0.0], [0.5, 0.5, 1.0])[0] == 0  # of equal energies, the first
+
+
+def test_a_bank_of_one_filter_reads_nothing_past_it():
+    """frame_mass_range 0: one filter, always selected (run as Python: a read past the bank raises)."""
+    selected, energy = bank_step(0, [0.1], [3.0])
+    assert selected == 0 and energy[0] == pytest.approx(3.02, rel=1e-15)
