@@ -44,3 +44,46 @@ def test_relative_links_in_markdown_point_at_files_that_exist():
             if not (path.parent / target).exists():
                 missing.append(f"{path.relative_to(ROOT)} -> {target}")
     assert missing == []
+
+
+def github_anchor(heading: str) -> str:
+    """The anchor GitHub gives a Markdown heading: its rendered text, lower case, without
+    punctuation other than '-' and '_', spaces as '-' (a link's text stays, its target goes)."""
+    text = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading).replace("`", "")
+    return re.sub(r"[^\w\- ]", "", text.strip().lower()).replace(" ", "-")
+
+
+def anchors(path: Path) -> set[str]:
+    """The anchors of the headings of Markdown file ``path`` (a repeated one: -1, -2, ... as GitHub)."""
+    seen: dict[str, int] = {}
+    out = set()
+    fenced = False
+    for line in path.read_text().splitlines():
+        if line.startswith("```"):
+            fenced = not fenced
+        if fenced or not re.match(r"^#{1,6} ", line):
+            continue
+        anchor = github_anchor(line.lstrip("#"))
+        out.add(anchor if anchor not in seen else f"{anchor}-{seen[anchor]}")
+        seen[anchor] = seen.get(anchor, 0) + 1
+    return out
+
+
+def test_the_anchor_rule_is_githubs():
+    assert github_anchor(" Performance (`make bench`)") == "performance-make-bench"
+    assert github_anchor(" The paper's Section 6 (`make reproduce`)") == "the-papers-section-6-make-reproduce"
+    linked = " Real catenary ([docs/catenary.md](docs/catenary.md))"
+    assert github_anchor(linked) == "real-catenary-docscatenarymd"
+
+
+def test_links_to_a_heading_name_one_that_exists():
+    """A link ``file.md#anchor`` (or ``#anchor`` in the same file) names a heading of that file."""
+    missing = []
+    for path in repository_files("*.md"):
+        for target, anchor in re.findall(r"\]\(([^)#\s]*)#([^)\s]+)\)", path.read_text()):
+            if re.match(r"^[a-z]+:", target) or (target and not target.endswith(".md")):
+                continue
+            linked = (path.parent / target) if target else path
+            if linked.exists() and anchor not in anchors(linked):
+                missing.append(f"{path.relative_to(ROOT)} -> {target}#{anchor}")
+    assert missing == []

@@ -62,10 +62,10 @@ def test_compiled_bag_equals_the_per_record_bag(tmp_path, values):
     assert got == want
 
 
-def test_readme_performance_block_is_the_bench_file():
-    """README.md's generated block says exactly what reports/bench/latest.json says."""
+def test_the_performance_block_is_the_bench_file():
+    """docs/results.md's generated block says exactly what reports/bench/latest.json says."""
     results = json.loads((ROOT / "reports/bench/latest.json").read_text())
-    assert bench_report.readme_section(results) in (ROOT / "README.md").read_text()
+    assert bench_report.readme_section(results) in (ROOT / bench_report.RESULTS_PAGE).read_text()
     for goal in bench_report.GOALS:
         assert goal.key in results["figures"], goal.key
 

@@ -105,7 +105,8 @@ def test_an_unknown_parameter_is_refused_by_name_at_run_time(domain_id):
 
 
 def test_the_by_hand_recipe_ends_by_itself(domain_id, tmp_path):
-    """README recipe: four `ros2 run`, plant 3 s in real time, the others asked to stop after the run.
+    """docs/usage.md's recipe: four `ros2 run`, plant 3 s in real time, the others asked to stop
+    after the run.
 
     Everything exits 0 by itself, and the bag's last command answers the plant's last tick
     (no fallback tail after the run: the controller went idle)."""

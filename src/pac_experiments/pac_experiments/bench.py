@@ -720,13 +720,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--campaign-spec", default="config/campaigns/laws_speeds.yaml")
     parser.add_argument("--out-dir", type=Path, default=Path("reports/bench"), help="where latest.md/json go")
     parser.add_argument(
-        "--readme", action="store_true", help="only regenerate README.md's block from OUT_DIR/latest.json"
+        "--readme",
+        action="store_true",
+        help=f"only regenerate {bench_report.RESULTS_PAGE}'s block from OUT_DIR/latest.json",
     )
     args = parser.parse_args(argv)
     if args.readme:
         results = json.loads((args.out_dir / "latest.json").read_text())
-        bench_report.update_readme(Path("README.md"), results)
-        print("bench: README.md performance block regenerated from", args.out_dir / "latest.json")
+        bench_report.update_readme(Path(bench_report.RESULTS_PAGE), results)
+        page, source = bench_report.RESULTS_PAGE, args.out_dir / "latest.json"
+        print(f"bench: {page} performance block regenerated from {source}")
         return 0
     for name, value, low, high in (
         ("--batch-runs", args.batch_runs, 1, 100000),
@@ -840,7 +843,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("\n" + bench_report.markdown(results))
     js, md = bench_report.write(results, args.out_dir)
-    print(f"wrote {js} and {md} (README.md's block: ros2 run pac_experiments bench --readme)")
+    page = bench_report.RESULTS_PAGE
+    print(f"wrote {js} and {md} ({page}'s block: ros2 run pac_experiments bench --readme)")
     return 0
 
 

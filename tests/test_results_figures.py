@@ -1,7 +1,8 @@
-"""README's result tables are the committed reports' numbers, to the digits printed: every figure
-of the "Results" table equals reports/reproduce/metrics.json (written by `make reproduce`); the
-campaign tables equal reports/campaigns/{laws_speeds,robustness}/results.csv (`make campaigns`);
-the tables of the laws on the FE line are reports/catenary/laws/laws.md's (`make fe-experiment`)."""
+"""The result pages' tables (docs/results.md, docs/campaigns.md) are the committed reports' numbers,
+to the digits printed: every figure of Section 6's table equals reports/reproduce/metrics.json
+(written by `make reproduce`); the campaign tables equal
+reports/campaigns/{laws_speeds,robustness}/results.csv (`make campaigns`); the tables of the laws
+on the FE line are reports/catenary/laws/laws.md's (`make fe-experiment`)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from pac_common import markdown
 pytestmark = pytest.mark.unit
 
 ROOT = Path(__file__).resolve().parents[1]
-#: README row label -> the metrics.json keys its cells show ("a / b": two keys).
+#: Row label -> the metrics.json keys its cells show ("a / b": two keys).
 ROWS = {
     "Fm, mean contact force [N]": ("contact_force_mean",),
     "σ [N]": ("contact_force_std",),
@@ -28,11 +29,19 @@ ROWS = {
     "k̂ relative RMS error [%]": ("stiffness_rel_rms_percent",),
     "max \\|u\\| [N]": ("u_max_abs",),
 }
+#: The pages that quote the reports.
+PAGES = ("docs/results.md", "docs/campaigns.md")
+
+
+def pages() -> str:
+    return "\n\n".join((ROOT / page).read_text() for page in PAGES)
+
+
 NUMBER = re.compile(r"^[−-]?\d+(\.\d+)?$")
 
 
 def results_table() -> list[list[str]]:
-    text = (ROOT / "README.md").read_text().split("\n## Results", 1)[1]
+    text = (ROOT / "docs" / "results.md").read_text().split("\n## The paper's Section 6", 1)[1]
     lines = [line for line in text.split("\n\n")[2].splitlines() if line.startswith("|")]
     return [markdown.split_row(line) for line in lines if not set(line) <= set("|-: ")]
 
@@ -43,7 +52,7 @@ def printed(cell: str) -> float | None:
     return float(text.replace("−", "-")) if NUMBER.match(text) else None
 
 
-def test_readme_results_table_is_the_committed_report():
+def test_section_6_table_is_the_committed_report():
     data = json.loads((ROOT / "reports" / "reproduce" / "metrics.json").read_text())
     header, *rows = results_table()
     runs = header[1:]
@@ -76,9 +85,9 @@ def test_readme_results_table_is_the_committed_report():
 CELL = re.compile(r"^(?P<sigma>[\d.]+)(?: \((?P<loss>[\d.]+) %\))?$")
 
 
-def readme_table(first_header_cell: str) -> list[list[str]]:
-    """The README table whose header row starts with ``first_header_cell``: header, then rows."""
-    lines = (ROOT / "README.md").read_text().splitlines()
+def page_table(first_header_cell: str) -> list[list[str]]:
+    """The pages' table whose header row starts with ``first_header_cell``: header, then rows."""
+    lines = pages().splitlines()
     start = next(i for i, line in enumerate(lines) if markdown.split_row(line)[0] == first_header_cell)
     rows = []
     for line in lines[start:]:
@@ -95,14 +104,14 @@ def results(campaign: str) -> list[dict[str, str]]:
 
 
 def agrees(printed_text: str, value: float) -> bool:
-    """``value`` rounds to ``printed_text`` (the digits the README prints)."""
+    """``value`` rounds to ``printed_text`` (the digits the page prints)."""
     decimals = len(printed_text.partition(".")[2])
     return abs(value - float(printed_text)) <= 0.5 * 10**-decimals + 1e-12
 
 
-def test_readme_laws_table_is_the_committed_campaign():
+def test_laws_table_is_the_committed_campaign():
     """σ [N] (contact loss %, shown when not 0) of each law at each speed, as laws_speeds' results.csv."""
-    header, *rows = readme_table("km/h")
+    header, *rows = page_table("km/h")
     by_point = {(r["law"], float(r["speed_kmh"])): r for r in results("laws_speeds")}
     checked, wrong = 0, []
     for row in rows:
@@ -114,7 +123,7 @@ def test_readme_laws_table_is_the_committed_campaign():
             if not agrees(match["sigma"], sigma) or not (
                 agrees(match["loss"], loss) if match["loss"] else loss == 0
             ):
-                wrong.append(f"{law} at {row[0]} km/h: README {cell}, results.csv {sigma:.4g} ({loss:.3g} %)")
+                wrong.append(f"{law} at {row[0]} km/h: page {cell}, results.csv {sigma:.4g} ({loss:.3g} %)")
             checked += 1
     assert wrong == []
     assert checked >= 30  # the table was read (5 speeds x 6 laws when this was written)
@@ -131,10 +140,10 @@ ROBUSTNESS_DEFAULTS = {
 }
 
 
-def test_readme_robustness_table_is_the_committed_campaign():
+def test_robustness_table_is_the_committed_campaign():
     """σ [N] of each law under each mismatch (``a / b / c`` for the values the row names), as
     robustness's results.csv (noise-free points)."""
-    header, *rows = readme_table("mismatch")
+    header, *rows = page_table("mismatch")
     points = [r for r in results("robustness") if r["noise_std"] == "[0.0, 0.0]"]
     checked, wrong = 0, []
     for row in rows:
@@ -151,7 +160,7 @@ def test_readme_robustness_table_is_the_committed_campaign():
                 assert len(match) == 1, (row[0], law, value)
                 sigma = float(match[0]["contact_force_std"])
                 if not agrees(text, sigma):
-                    wrong.append(f"{law}, {name} = {value:g}: README {text}, results.csv {sigma:.4g}")
+                    wrong.append(f"{law}, {name} = {value:g}: page {text}, results.csv {sigma:.4g}")
                 checked += 1
     assert wrong == []
     assert checked >= 25  # the table was read (7 values x 4 laws when this was written)
@@ -169,10 +178,10 @@ def markdown_tables(text: str) -> list[str]:
     return tables
 
 
-def test_readme_fe_laws_tables_are_the_committed_report():
-    """README's tables of the laws on the FE line are copied from reports/catenary/laws/laws.md
+def test_fe_laws_tables_are_the_committed_report():
+    """docs/results.md's tables of the laws on the FE line are copied from reports/catenary/laws/laws.md
     (written by `make fe-experiment`): each one appears there verbatim."""
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "results.md").read_text()
     section = readme.split("**The control laws on the line**", 1)[1].split("**Reading.**", 1)[0]
     report = markdown_tables((ROOT / "reports" / "catenary" / "laws" / "laws.md").read_text())
     tables = markdown_tables(section)
@@ -181,10 +190,10 @@ def test_readme_fe_laws_tables_are_the_committed_report():
         assert table in report, table.splitlines()[0]
 
 
-def test_readme_lines_speeds_table_is_the_committed_campaign():
+def test_lines_speeds_table_is_the_committed_campaign():
     """EN 50318 σ [N] passive / line_adaptive (contact loss %, shown when not 0) on each line at
     each speed, as lines_speeds' results.csv."""
-    header, *rows = readme_table("speed [km/h]")
+    header, *rows = page_table("speed [km/h]")
     by_point = {(r["law"], r["catenary"], float(r["speed_kmh"])): r for r in results("lines_speeds")}
     checked, wrong = 0, []
     for row in rows:
@@ -199,7 +208,7 @@ def test_readme_lines_speeds_table_is_the_committed_campaign():
                     agrees(match["loss"], loss) if match["loss"] else loss == 0
                 ):
                     wrong.append(
-                        f"{law} on {line} at {row[0]} km/h: README {cell}, csv {sigma:.4g} ({loss:.3g} %)"
+                        f"{law} on {line} at {row[0]} km/h: page {cell}, csv {sigma:.4g} ({loss:.3g} %)"
                     )
                 checked += 1
     assert wrong == []
