@@ -99,6 +99,19 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
         ("_raw_force", "head_balance_start", "head_balance_advance", "_output"),
         ("tests/test_head_balance.py", "tests/test_fixed_gain_on_force.py"),
     ),
+    "fe_step": (
+        "pac_plant.catenary.kernels",
+        ("newmark_rhs", "newmark_update", "band_chol_solve", "hermite_weights", "fe_step"),
+        ("tests/test_catenary.py", "tests/test_line_physics.py"),
+    ),
+    "bag_writer": (
+        "pac_bag.mcap_writer",
+        (
+            "McapWriter.add_message", "McapWriter.add_messages", "McapWriter.flush_chunk",
+            "McapWriter._message_indexes", "McapWriter.close", "message_records",
+        ),
+        ("tests/test_bags.py", "tests/test_bag_damage.py"),
+    ),
     "line": (
         "pac_plant.catenary.line",
         ("Line._assemble", "Line.solve_dropper_lengths", "Line.set_dropper_lengths", "Line._assemble_wires"),
