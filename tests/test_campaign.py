@@ -82,14 +82,14 @@ def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path,
             "window": WINDOW,
         },
     )
-    real_run = campaign_run.run
+    real_run = campaign_run.run_traces
 
     def run_or_raise(scenario):
         if scenario.track.speed_kmh == 300.0:
             raise RuntimeError("injected failure")
         return real_run(scenario)
 
-    monkeypatch.setattr(campaign_run, "run", run_or_raise)
+    monkeypatch.setattr(campaign_run, "run_traces", run_or_raise)
     monkeypatch.setattr(campaign_run, "batchable", lambda scenario: False)  # every run tick by tick
     spec = campaign_spec.load_spec(spec_path)
     points = campaign_spec.expand(spec)

@@ -175,12 +175,11 @@ def runs_in_process(spec: Spec, points: list[Point], bags: bool) -> bool:
     batch runs (its threads use every core, no worker process starts, no second process loads
     the compiled code or builds an FE line again), and no bags are asked for."""
     from pac_rig.batch import batchable
-    from pac_rig.simulate import scenario_from_flat
 
     if bags:
         return False
     try:
-        return all(batchable(scenario_from_flat(p.values)) for p in points)
+        return all(batchable(p.built()) for p in points)
     except Exception:  # noqa: BLE001 - a point that does not build: the cluster path reports it per row
         return False
 

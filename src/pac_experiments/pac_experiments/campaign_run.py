@@ -23,8 +23,9 @@ import numpy as np
 from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
 from pac_common.contact_statistics import ContactStatistics, en50367_criteria, lowpass, statistics
 from pac_rig.batch import batchable, run_batch
-from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, run
-from pac_rig.simulate import scenario_from_flat, scenario_to_flat, simulate_to_bag
+from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run_blocks, run_cores
+from pac_rig.loop import TICK, compile_loop
+from pac_rig.simulate import scenario_to_flat, simulate_to_bag
 
 from .campaign_spec import Point, law_file_sha256
 
@@ -44,22 +45,48 @@ EN50318_COLUMNS = (
 STATUS_OK, STATUS_DIVERGED, STATUS_ERROR = "ok", "diverged", "error"
 
 
-def _series(records: list[TickRecord]) -> RunSeries:
-    n = len(records)
-    every = np.arange(n)
-    time_ = np.array([r.truth.time for r in records])
-    return RunSeries(
-        tick=np.array([r.truth.tick for r in records], dtype=np.int64),
-        time=time_,
-        contact_force=np.array([r.truth.contact_force for r in records]),
-        stiffness=np.array([r.truth.stiffness for r in records]),
-        reference_index=every,
-        force_reference=np.array([r.command.force_reference for r in records]),
-        estimate_index=every,
-        stiffness_hat=np.array([r.estimate.stiffness_hat for r in records]),
-        u_time=time_,
-        u=np.array([r.command.u for r in records]),
-    )
+#: What a row's measures read of a run, per tick: fields of ``pac_rig.loop.TICK`` (and traces of
+#: the batch, ``pac_rig.batch.TRACES``).
+MEASURED = (
+    "contact_force", "stiffness", "force_reference", "stiffness_hat", "u", "contact_force_hat",
+    "contact_uplift",
+)  # fmt: skip
+
+
+def traces_of_records(records: list[TickRecord]) -> dict[str, np.ndarray]:
+    """The measured traces of a run stepped through the core objects, or recorded to a bag (its
+    per-tick records): the same numbers as the compiled loop's TICK fields."""
+    return {
+        "contact_force": np.array([r.truth.contact_force for r in records]),
+        "stiffness": np.array([r.truth.stiffness for r in records]),
+        "force_reference": np.array([r.command.force_reference for r in records]),
+        "stiffness_hat": np.array([r.estimate.stiffness_hat for r in records]),
+        "u": np.array([r.command.u for r in records]),
+        "contact_force_hat": np.array([r.estimate.contact_force_hat for r in records]),
+        "contact_uplift": np.array([r.truth.contact_uplift for r in records]),
+    }
+
+
+def run_traces(scenario: Scenario) -> tuple[dict[str, np.ndarray], str | None]:
+    """The measured traces of ``scenario`` run offline, and why it diverged (None: it finished):
+    the compiled loop's TICK blocks read as arrays (no per-tick objects), or the core objects
+    stepped tick by tick where the loop has no compiled form (a law at Python speed)."""
+    plant, observer, controller = build_cores(scenario)
+    loop = compile_loop(plant, observer, controller, scenario.loop.command_delay_ticks)
+    blocks: list[np.ndarray] = []
+    records: list[TickRecord] = []
+    diverged = None
+    try:
+        if loop is None:
+            records.extend(run_cores(scenario, plant, observer, controller))
+        else:
+            blocks.extend(run_blocks(scenario, plant, loop))
+    except DivergenceError as exc:
+        diverged = str(exc)
+    if loop is None:
+        return traces_of_records(records), diverged
+    ticks = np.concatenate(blocks) if blocks else np.empty(0, TICK)
+    return {name: ticks[name] for name in MEASURED}, diverged
 
 
 def en50318_measures(
@@ -87,71 +114,11 @@ def en50318_measures(
     }
 
 
-def measures(point: Point, records: list[TickRecord], sample_period: float) -> dict[str, Any]:
-    """The row's measures from a finished run's records."""
-    m = metrics_from_series(_series(records), point.window[0], point.window[1])
-    row: dict[str, Any] = {k: getattr(m, k) for k in METRIC_COLUMNS}
-    mean, sigma = m.contact_force_mean, m.contact_force_std
-    if point.statistics == "en50318":
-        row.update(
-            en50318_measures(
-                np.array([r.truth.time for r in records]),
-                np.array([r.truth.contact_force for r in records]),
-                np.array([r.command.u for r in records]),
-                np.array([r.estimate.contact_force_hat for r in records]),
-                np.array([r.truth.contact_uplift for r in records]),
-                point.window,
-                sample_period,
-            )
-        )
-        mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]
-    verdict = en50367_criteria(mean, sigma)
-    row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))
-    return row
-
-
-def run_point(point: Point, bag_dir: str | None = None) -> dict[str, Any]:
-    """Run one scenario; never raises: a divergence or an exception is the row's status and reason."""
-    start = time.perf_counter()
-    row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
-    records: list[TickRecord] = []
-    rate = 0.0
-    try:
-        scenario = scenario_from_flat(point.values)
-        rate = scenario.loop.rate_hz
-        row.update(scenario_to_flat(scenario))
-        if law_file_sha256(scenario) != point.law_file_sha256:  # the key says which text ran
-            raise ValueError(f"the law file {point.values['law']} changed since the campaign was checked")
-        diverged = None
-        if bag_dir is None:
-            try:
-                for rec in run(scenario):
-                    records.append(rec)
-            except DivergenceError as exc:
-                diverged = str(exc)
-        else:
-            bag_path = Path(bag_dir) / point.key
-            shutil.rmtree(bag_path, ignore_errors=True)  # a partial bag of an interrupted run
-            diverged = simulate_to_bag(scenario, bag_path, point.key, on_record=records.append).diverged
-        if diverged:
-            row.update(status=STATUS_DIVERGED, reason=diverged.splitlines()[0])
-        else:
-            row.update(measures(point, records, scenario.loop.sample_period))
-    except Exception as exc:  # noqa: BLE001 - any failure of one run is that run's row, not the campaign's end
-        row.update(status=STATUS_ERROR, reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
-    row["ticks_run"] = len(records)
-    row["simulated_seconds"] = len(records) / rate if rate else 0.0
-    row["wall_seconds"] = time.perf_counter() - start
-    return row
-
-
-def _batch_series(result: Any, i: int) -> RunSeries:
-    """The series of run ``i`` of a compiled batch: the same numbers as :func:`_series` (bit for bit)."""
-    n = int(result.ticks[i])
-    every = np.arange(n)
-    time_ = every * float(result.sample_period[i])
-    traces = {name: result.traces[name][i, :n] for name in result.traces}
-    return RunSeries(
+def measures(point: Point, traces: dict[str, np.ndarray], sample_period: float) -> dict[str, Any]:
+    """The row's measures from a finished run's traces (:data:`MEASURED`, tick 0 on)."""
+    every = np.arange(traces["u"].size)
+    time_ = every * sample_period
+    series = RunSeries(
         tick=every.astype(np.int64),
         time=time_,
         contact_force=traces["contact_force"],
@@ -163,6 +130,53 @@ def _batch_series(result: Any, i: int) -> RunSeries:
         u_time=time_,
         u=traces["u"],
     )
+    m = metrics_from_series(series, point.window[0], point.window[1])
+    row: dict[str, Any] = {k: getattr(m, k) for k in METRIC_COLUMNS}
+    mean, sigma = m.contact_force_mean, m.contact_force_std
+    if point.statistics == "en50318":
+        row.update(
+            en50318_measures(
+                time_, traces["contact_force"], traces["u"], traces["contact_force_hat"],
+                traces["contact_uplift"], point.window, sample_period,
+            )
+        )  # fmt: skip
+        mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]
+    verdict = en50367_criteria(mean, sigma)
+    row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))
+    return row
+
+
+def run_point(point: Point, bag_dir: str | None = None) -> dict[str, Any]:
+    """Run one scenario; never raises: a divergence or an exception is the row's status and reason."""
+    start = time.perf_counter()
+    row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
+    ticks = 0
+    rate = 0.0
+    try:
+        scenario = point.built()
+        rate = scenario.loop.rate_hz
+        row.update(scenario_to_flat(scenario))
+        if law_file_sha256(scenario) != point.law_file_sha256:  # the key says which text ran
+            raise ValueError(f"the law file {point.values['law']} changed since the campaign was checked")
+        if bag_dir is None:
+            traces, diverged = run_traces(scenario)
+        else:
+            bag_path = Path(bag_dir) / point.key
+            shutil.rmtree(bag_path, ignore_errors=True)  # a partial bag of an interrupted run
+            records: list[TickRecord] = []
+            diverged = simulate_to_bag(scenario, bag_path, point.key, on_record=records.append).diverged
+            traces = traces_of_records(records)
+        ticks = traces["u"].size
+        if diverged:
+            row.update(status=STATUS_DIVERGED, reason=diverged.splitlines()[0])
+        else:
+            row.update(measures(point, traces, scenario.loop.sample_period))
+    except Exception as exc:  # noqa: BLE001 - any failure of one run is that run's row, not the campaign's end
+        row.update(status=STATUS_ERROR, reason=f"{type(exc).__name__}: {exc}".splitlines()[0])
+    row["ticks_run"] = ticks
+    row["simulated_seconds"] = ticks / rate if rate else 0.0
+    row["wall_seconds"] = time.perf_counter() - start
+    return row
 
 
 def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, Any]]:
@@ -177,7 +191,7 @@ def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, An
     chosen: list[tuple[Point, Scenario]] = []
     for point in points:
         try:
-            scenario = scenario_from_flat(point.values)
+            scenario = point.built()
         except Exception:  # noqa: BLE001 - run_point reports it as the row's error
             continue
         if batchable(scenario):
@@ -202,25 +216,11 @@ def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, An
                 "wall_seconds": wall,
             }
             continue
-        series = _batch_series(result, i)
-        m = metrics_from_series(series, point.window[0], point.window[1])
+        n = int(result.ticks[i])
         row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
         row.update(scenario_to_flat(scenario))
-        row.update({k: getattr(m, k) for k in METRIC_COLUMNS})
-        mean, sigma = m.contact_force_mean, m.contact_force_std
-        if point.statistics == "en50318":
-            n = int(result.ticks[i])
-            names = ("contact_force", "u", "contact_force_hat")
-            traces = {name: result.traces[name][i, :n] for name in names}
-            row.update(
-                en50318_measures(
-                    series.time, traces["contact_force"], traces["u"], traces["contact_force_hat"],
-                    result.traces["contact_uplift"][i, :n], point.window, scenario.loop.sample_period,
-                )
-            )  # fmt: skip
-            mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]
-        verdict = en50367_criteria(mean, sigma)
-        row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))
+        traces = {name: result.traces[name][i, :n] for name in MEASURED}
+        row.update(measures(point, traces, scenario.loop.sample_period))
         row["ticks_run"] = int(result.ticks[i])
         row["simulated_seconds"] = int(result.ticks[i]) / scenario.loop.rate_hz
         row["wall_seconds"] = wall

@@ -24,12 +24,13 @@ with every error found, one line each (:class:`SpecError`).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import json
 import math
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -142,6 +143,12 @@ class Point:
     statistics: str = "raw"
     #: A user's law file (``law``): the SHA-256 of its text, which the key holds and the run checks
     law_file_sha256: str = ""
+    #: The scenario ``values`` give, as the SPEC's check built it (None: built from ``values`` when run)
+    scenario: Scenario | None = field(default=None, compare=False, repr=False)
+
+    def built(self) -> Scenario:
+        """The point's scenario: the one its check built, else built from its values."""
+        return self.scenario if self.scenario is not None else scenario_from_flat(self.values)
 
 
 def same_value(a: Any, b: Any) -> bool:
@@ -321,7 +328,7 @@ def point_key(scenario: Scenario, window: tuple[float, float], statistics: str =
 def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
     """The point's scenario; SpecError with every refused value of the point (a parameter set
     stops at its first error, so each refused value is dropped and the rest checked again), and
-    (``composed``) for parts that do not fit together (pac_rig.composition)."""
+    (``composed``) for parts that do not fit together (:func:`_check_fit`)."""
     errors: list[str] = []
     rest = dict(values)
     while True:
@@ -337,19 +344,25 @@ def _scenario(values: dict[str, Any], composed: bool = True) -> Scenario:
             break
         else:
             if not errors:
-                try:
-                    if composed:
-                        composition.check_pair(
-                            scenario.controller.effective_law,
-                            scenario.observer.observer,
-                            scenario.laws.force_estimate,
-                            scenario.plant.sensors,
-                        )
-                except ParameterError as exc:  # parts that do not fit; a law file that cannot be loaded
-                    raise SpecError(str(exc)) from None
+                if composed:
+                    _check_fit(scenario)
                 return scenario
             break
     raise SpecError(errors)
+
+
+def _check_fit(scenario: Scenario) -> None:
+    """SpecError for parts that do not fit together (pac_rig.composition) or a law file that
+    cannot be loaded."""
+    try:
+        composition.check_pair(
+            scenario.controller.effective_law,
+            scenario.observer.observer,
+            scenario.laws.force_estimate,
+            scenario.plant.sensors,
+        )
+    except ParameterError as exc:
+        raise SpecError(str(exc)) from None
 
 
 def span_window(scenario: Scenario, spans: tuple[float, float]) -> tuple[float, float]:
@@ -365,13 +378,15 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
     """The point's scenario, its values with what the SPEC derives, and its window [s]."""
     # What the parts imply (pac_rig.composition): the observer a law needs, and on the FE line the
     # span of the line the plant runs (a campaign may vary the file).
+    # The scenario is built once from the SPEC's values (so an error names a value the SPEC gave),
+    # again only if deriving changed them, and the point carries it to its run.
+    given = values
     scenario = _scenario(values, composed=False)  # every value valid before anything is derived
     if spec.force_target == "en50367":  # before deriving: what follows the reference derives from it
         values = {**values, "force_amplitude": target_mean_force(scenario.track.speed_kmh)}
-    derived, _ = composition.derive(values)
-    if derived != values:
-        scenario = _scenario(derived, composed=False)
-    values = derived  # a copy: what follows adds to it, never to the caller's values
+    values, _ = composition.derive(values)  # a copy: what follows adds to it, never to the caller's
+    if values != given:
+        scenario = _scenario(values, composed=False)
     if spec.window_spans is not None:
         fe_span = load_catenary(scenario.plant.catenary).data.span
         if scenario.plant.catenary_model == "fe" and scenario.track.span_length != fe_span:
@@ -382,7 +397,12 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
         if "duration" not in values:
             span_time = scenario.track.span_length / (scenario.track.speed_kmh / 3.6)
             values["duration"] = round((spec.window_spans[1] + TAIL_SPANS) * span_time, 3)
-    scenario = _scenario(values)
+            try:  # checked as a value given
+                loop = dataclasses.replace(scenario.loop, duration=values["duration"])
+            except ParameterError as exc:
+                raise SpecError(str(exc)) from None
+            scenario = dataclasses.replace(scenario, loop=loop)
+    _check_fit(scenario)
     duration = scenario.loop.duration
     if spec.window_spans is not None:
         w_from, w_to = span_window(scenario, spec.window_spans)
@@ -415,7 +435,7 @@ def _grid_points(spec: Spec, errors: list[str] | None = None) -> Iterator[Point]
                 errors += exc.errors
                 continue
             key = point_key(scenario, window, spec.statistics)
-            yield Point(key, values, gi, window, spec.statistics, law_file_sha256(scenario))
+            yield Point(key, values, gi, window, spec.statistics, law_file_sha256(scenario), scenario)
 
 
 def expand(spec: Spec) -> list[Point]:

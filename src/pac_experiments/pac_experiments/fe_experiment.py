@@ -311,11 +311,10 @@ def sigma_figure(rows: list[dict[str, Any]], laws: list[str], path: Path) -> Pat
 def traces(point: Point) -> dict[str, np.ndarray]:
     """Contact force, uplift and u of one point's run, tick by tick (stops early at a divergence)."""
     from pac_rig.closed_loop import DivergenceError, run
-    from pac_rig.simulate import scenario_from_flat
 
     cols: dict[str, list[float]] = {k: [] for k in ("t", "F", "uplift", "u")}
     try:
-        for rec in run(scenario_from_flat(point.values)):
+        for rec in run(point.built()):
             cols["t"].append(rec.truth.time)
             cols["F"].append(rec.truth.contact_force)
             cols["uplift"].append(rec.truth.contact_uplift)
