@@ -50,11 +50,12 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
+from pac_common import divergence
+from pac_common.divergence import CONTACT_FORCE_NOT_FINITE
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
 from .observer import (
-    _DIVERGED_REASONS,
     CONTACT_FORCE,
     OBSERVER_CONSTS,
     OBSERVER_STATE,
@@ -68,8 +69,6 @@ from .parameters import ObserverParameters
 #: State size: (z1, z2, z1', z2', F).
 STATE_SIZE = 5
 _FORCE = 4
-#: ``contact_force_advance``'s status when the selected state is not finite (observer._DIVERGED_REASONS).
-NOT_FINITE = 6
 #: The bank's arrays, the compiled functions' ``bank`` argument: per filter Phi, Gamma, K (constants),
 #: its state x and innovation energy J, and its last innovation (scratch).
 BANK_ARGS = ("phis", "gammas", "gains", "xs", "energy", "innovations")
@@ -165,7 +164,7 @@ def contact_force_start(st, bank, y1: float, y2: float) -> None:
 @njit(cache=True, error_model="numpy")
 def contact_force_advance(st, c, bank, y1: float, y2: float, gap: int, u: float) -> int:
     """``gap`` periods to y_k (lost samples: y interpolated linearly, u held, as the adaptive
-    observer); 0, or NOT_FINITE if the selected filter's state is not finite."""
+    observer); 0, or CONTACT_FORCE_NOT_FINITE if the selected filter's state is not finite."""
     y_start_1, y_start_2 = st.y_prev[0], st.y_prev[1]
     for j in range(1, gap + 1):
         f = j / gap
@@ -175,7 +174,7 @@ def contact_force_advance(st, c, bank, y1: float, y2: float, gap: int, u: float)
     xs = bank[3]
     for i in range(STATE_SIZE):
         if not math.isfinite(xs[st.cf_selected, i]):
-            return NOT_FINITE
+            return CONTACT_FORCE_NOT_FINITE
     st.y_prev[0], st.y_prev[1] = y1, y2
     _output(st, xs)
     return 0
@@ -307,7 +306,7 @@ class ContactForceObserver:
         status = _advance_one(self._st, self.consts, self.bank, y1, y2, gap, float(actuator_force))
         if status:
             self._st[:], self.xs[:], self.energy[:] = saved
-            raise ObserverDivergedError(tick, _DIVERGED_REASONS[status])
+            raise ObserverDivergedError(tick, divergence.reason(status))
         self.tick = tick
         return self._estimate()
 

@@ -42,6 +42,8 @@ import math
 import numpy as np
 from numba import njit
 
+from pac_common import divergence
+from pac_common.divergence import HEAD_BALANCE_NOT_FINITE
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
 from .observer import (
@@ -54,9 +56,6 @@ from .observer import (
     force_estimate,
 )
 from .parameters import ObserverParameters
-
-#: head_balance_advance's status when the estimate is not finite (an accelerometer reading NaN).
-NOT_FINITE = 8
 
 
 @njit(cache=True, inline="always")
@@ -76,14 +75,15 @@ def head_balance_start(st, c, y1: float, y2: float, u: float, a1: float) -> int:
 
 @njit(cache=True, error_model="numpy")
 def head_balance_advance(st, c, y1: float, y2: float, gap: int, u: float, a1: float) -> int:
-    """y_k after ``gap`` periods (velocities over the gap); 0, or NOT_FINITE (state untouched)."""
+    """y_k after ``gap`` periods (velocities over the gap); 0, or HEAD_BALANCE_NOT_FINITE (state
+    untouched)."""
     span = gap * c.dt
     v1, v2 = (y1 - st.y_prev[0]) / span, (y2 - st.y_prev[1]) / span
     raw = _raw_force(c, y1, y2, v1, v2, a1)
     weight = max(1.0 - c.hb_forget**gap, gap / (st.hb_samples + gap))
     offset = st.hb_offset + weight * (u - raw - st.hb_offset)
     if not (math.isfinite(raw) and math.isfinite(offset)):
-        return NOT_FINITE
+        return HEAD_BALANCE_NOT_FINITE
     st.hb_offset = offset
     st.hb_samples += gap
     return _output(st, y1, y2, v1, v2, raw)
@@ -93,7 +93,7 @@ def head_balance_advance(st, c, y1: float, y2: float, gap: int, u: float, a1: fl
 def _output(st, y1: float, y2: float, v1: float, v2: float, raw: float) -> int:
     force = raw + st.hb_offset
     if not math.isfinite(force):
-        return NOT_FINITE
+        return HEAD_BALANCE_NOT_FINITE
     st.z_hat[0], st.z_hat[1], st.z_hat[2], st.z_hat[3] = y1, y2, v1, v2
     st.y_prev[0], st.y_prev[1] = y1, y2
     st.cf_force = force
@@ -169,14 +169,14 @@ class HeadBalanceObserver:
             saved = self._st.copy()
             if _start_one(self._st, self.consts, y1, y2, u, a1):
                 self._st[:] = saved
-                raise ObserverDivergedError(tick, "head-balance estimate not finite")
+                raise ObserverDivergedError(tick, divergence.reason(HEAD_BALANCE_NOT_FINITE))
             self.tick = tick
             return self._estimate()
         gap = tick - self.tick
         if gap < 1:
             raise ValueError(f"observer expects a tick after {self.tick}, got {tick}")
         if _advance_one(self._st, self.consts, y1, y2, gap, u, a1):
-            raise ObserverDivergedError(tick, "head-balance estimate not finite")
+            raise ObserverDivergedError(tick, divergence.reason(HEAD_BALANCE_NOT_FINITE))
         self.tick = tick
         return self._estimate()
 

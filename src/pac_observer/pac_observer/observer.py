@@ -40,21 +40,13 @@ from typing import Protocol
 import numpy as np
 from numba import njit
 
+from pac_common import divergence
+from pac_common.divergence import COVARIANCE_NOT_POSITIVE, OBSERVER_GAIN_NOT_FINITE, THETA_NOT_FINITE
 from pac_common.parameters import ParameterError
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
 from .parameters import ObserverParameters
-
-# Status codes of the compiled step (0: fine); the text is the ObserverDivergedError reason.
-_DIVERGED_REASONS = {
-    1: "xi or Lambda is not finite",
-    2: "S_theta not positive definite (Cholesky failed)",
-    3: "theta_hat is not finite",
-    6: "the contact-force state is not finite",  # pac_observer.contact_force (4, 5, 7: pac_rig.loop's)
-    8: "the head-balance estimate is not finite (a head accelerometer reading NaN)",  # .head_balance
-}
-
 
 #: The observer's state and its scratch space: one named record (a numpy structured scalar), so that
 #: the compiled step allocates nothing.  ``xi`` .. ``y_prev`` are the state (docs/numerics.md), the
@@ -254,7 +246,7 @@ def observer_step(t0: float, st, y1: float, y2: float, u: float, c) -> int:
     """One sample period of the observer from t0 to t0 + dt (docs/numerics.md, steps 1-3), in place.
 
     Returns the status: 0 fine (the state has moved on and ``st.innovation`` is the a priori
-    y - C z_hat), otherwise a key of ``_DIVERGED_REASONS`` and the state is untouched.
+    y - C z_hat), otherwise a code of ``pac_common.divergence`` and the state is untouched.
     """
     dt = c.dt
     gains = st.gains
@@ -294,7 +286,7 @@ def observer_step(t0: float, st, y1: float, y2: float, u: float, c) -> int:
             finite = finite and math.isfinite(v)
     if not finite:
         st.innovation[:] = 0.0
-        return 1
+        return OBSERVER_GAIN_NOT_FINITE
 
     # 3. RLS: implicit Euler of the theta_hat / S_theta equations; Phi = C Lambda = x_new[:2, 1:].
     w, sigma = st.weighted, c.sigma
@@ -324,10 +316,10 @@ def observer_step(t0: float, st, y1: float, y2: float, u: float, c) -> int:
             s += w[i, m] * st.innovation[m]
         st.rhs[i, 0] = dt * s
     if not cholesky_solve_into(st.s_theta_new, st.rhs, st.lo, st.step):
-        return 2
+        return COVARIANCE_NOT_POSITIVE
     for i in range(3):
         if not math.isfinite(th[i] + st.step[i, 0]):
-            return 3
+            return THETA_NOT_FINITE
 
     if not st.settled:
         big, diff = 0.0, 0.0
@@ -576,7 +568,7 @@ class AdaptiveObserver:
         if status:
             if saved is not None:
                 self._st[:] = saved
-            raise ObserverDivergedError(reached, _DIVERGED_REASONS[status])
+            raise ObserverDivergedError(reached, divergence.reason(status))
         self.tick = reached
         return self._estimate(y1)
 

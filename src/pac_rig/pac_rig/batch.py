@@ -21,9 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pac_common import divergence
 from pac_controller.laws import law_entry
 
-from .closed_loop import BLOCK, Scenario, build_cores, divergence_reason
+from .closed_loop import BLOCK, Scenario, build_cores
 from .loop import MAX_DELAY, TICK, CompiledLoop, compile_loop, loop_tick
 
 #: Per-tick traces, rows of ``BatchResult.traces[name]`` (NaN after a divergence): fields of loop.TICK.
@@ -208,7 +209,7 @@ def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:
         traces={name: out[:, j, :] for j, name in enumerate(TRACES)},
         ticks=result_tick,
         diverged=[
-            None if c == 0 else divergence_reason(int(c), float(v))
+            None if c == 0 else divergence.reason(int(c), float(v))
             for c, v in zip(result_code, result_value, strict=True)
         ],
         wall_seconds=wall,

@@ -16,26 +16,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pac_common import divergence
+from pac_common.divergence import DISPLACEMENT, DIVERGENCE_DISPLACEMENT, DIVERGENCE_FORCE, FORCE, OFF_LINE
 from pac_common.parameters import ParameterError
 from pac_controller.controller import Command, Controller
 from pac_controller.kernels import MODES
 from pac_controller.laws import make_controller
 from pac_observer.contact_force import ContactForceObserver, make_observer
-from pac_observer.observer import _DIVERGED_REASONS, AdaptiveObserver, Estimate, ObserverDivergedError
+from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
 from pac_plant.fe_plant import PantographTruth, make_plant, several_pantographs
 from pac_plant.plant import Measurement, Plant, Truth
 
 from . import composition
-from .loop import (
-    DISPLACEMENT,
-    DIVERGENCE_DISPLACEMENT,
-    DIVERGENCE_FORCE,
-    FORCE,
-    OFF_LINE,
-    TICK,
-    CompiledLoop,
-    compile_loop,
-)
+from .loop import TICK, CompiledLoop, compile_loop
 from .scenario import Scenario
 
 
@@ -118,22 +111,13 @@ def run_blocks(s: Scenario, plant: Plant, loop: CompiledLoop) -> Iterator[np.nda
         reached, code, value = loop.run(k0, k1, noise, out)
         yield out[: reached - k0]
         if code == OFF_LINE:  # as FEPlant.advance says it
-            raise ValueError(f"the pantograph ran off the line at x = {value:.2f} m")
+            raise ValueError(divergence.reason(code, value))
         if code:
-            raise DivergenceError(reached, divergence_reason(code, value))
+            raise DivergenceError(reached, divergence.reason(code, value))
 
 
 #: Ticks per compiled call of :func:`run` (one noise block of the plant).
 BLOCK = 4096
-
-
-def divergence_reason(code: int, value: float) -> str:
-    """The DivergenceError reason of a code of :func:`pac_rig.loop.loop_tick`."""
-    if code == DISPLACEMENT:
-        return f"|z| exceeded {DIVERGENCE_DISPLACEMENT} m (z1={value:.3g})"
-    if code == FORCE:
-        return f"|u| demanded by the law exceeded {DIVERGENCE_FORCE:g} N ({value:.3g} N)"
-    return _DIVERGED_REASONS[code]
 
 
 _RECORD_COLUMNS = (
@@ -211,14 +195,14 @@ def run_cores(
         truth = plant.truth()
         pantographs = tuple(several.pantograph_truths()) if several is not None else ()
         if not (abs(y.z1) < DIVERGENCE_DISPLACEMENT and abs(y.z2) < DIVERGENCE_DISPLACEMENT):
-            raise DivergenceError(y.tick, divergence_reason(DISPLACEMENT, y.z1))
+            raise DivergenceError(y.tick, divergence.reason(DISPLACEMENT, y.z1))
         try:
             est = observer.update(y.tick, (y.z1, y.z2), y.actuator_force, y.head_acceleration)
         except ObserverDivergedError as exc:
             raise DivergenceError(y.tick, exc.reason) from exc
         cmd = controller.compute(y.tick, est.z_hat, est.theta_hat, est.contact_force_hat, y.actuator_force)
         if not abs(cmd.u_unsaturated) < DIVERGENCE_FORCE:
-            raise DivergenceError(y.tick, divergence_reason(FORCE, cmd.u_unsaturated))
+            raise DivergenceError(y.tick, divergence.reason(FORCE, cmd.u_unsaturated))
         yield TickRecord(y, truth, est, cmd, pantographs)
         pending.append(cmd.u)
         plant.advance(pending.popleft())

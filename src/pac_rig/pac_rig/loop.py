@@ -37,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from pac_common.divergence import DISPLACEMENT, DIVERGENCE_DISPLACEMENT, DIVERGENCE_FORCE, FORCE, OFF_LINE
 from pac_controller.controller import Controller
 from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLaw, controller_step, new_state
 from pac_controller.user_law import UserLaw
@@ -58,13 +59,6 @@ from pac_plant.hardware.sensors import SENSOR_PARAMS, SENSOR_STATE, sensor_step
 from pac_plant.parameters import MAX_PANTOGRAPHS
 from pac_plant.plant import Plant, plant_advance_inplace, plant_rhs4, quantise
 
-#: |z1|, |z2| beyond this [m] is not a pantograph any more: the run is stopped as diverged.
-DIVERGENCE_DISPLACEMENT = 1.0
-#: A control law asking for more than this [N] has run away (Table 1's uplift is ~100 N).
-DIVERGENCE_FORCE = 1e6
-#: Divergence codes of :func:`loop_tick` besides the observers' (1-3, 6: ``_DIVERGED_REASONS``);
-#: OFF_LINE: the pantograph ran off the FE line (value: the contact point's x).
-DISPLACEMENT, FORCE, OFF_LINE = 4, 5, 7
 #: PLANT_PARAMS.kind
 LUMPED, FE = 0, 1
 #: Most ticks of command delay the compiled loop holds (``command_delay_ticks``' upper bound).

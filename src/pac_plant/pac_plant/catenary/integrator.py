@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import block_diag
 
+from pac_common import divergence
+from pac_common.divergence import OFF_LINE
 from pac_model.parameters import positive_period
 
 from . import kernels as kn
@@ -486,13 +488,13 @@ class ContactSimulation:
         """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time
         (``kernels.fe_step``, compiled: the same algorithm as ``step_reference``)."""
         if self._advance(input_force, 1, self._no_flex, self._no_readings) != kn.STEP_OK:
-            raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
+            raise ValueError(divergence.reason(OFF_LINE, self.x + self.speed * self.dt))
 
     def advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> None:
         """``steps`` x ``step`` and ``kernels.contact_readings`` into ``readings``, in one compiled call
         (``flexibility``: ``Line.element_flexibility()``)."""
         if self._advance(input_force, steps, flexibility, readings) != kn.STEP_OK:
-            raise ValueError(f"the pantograph ran off the line at x = {self.x + self.speed * self.dt:.2f} m")
+            raise ValueError(divergence.reason(OFF_LINE, self.x + self.speed * self.dt))
 
     def _advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> int:
         return kn.fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
@@ -526,7 +528,7 @@ class ContactSimulation:
             d, v, a = self.d, self.v, self.a
             x_new = self.x + self.speed * dt
         if x_new > self.line.length:
-            raise ValueError(f"the pantograph ran off the line at x = {x_new:.2f} m")
+            raise ValueError(divergence.reason(OFF_LINE, x_new))
         # Line right-hand side: M (c0 d + 4/dt v + a) + C (c1 d + v), C = alpha M + beta K.
         y_l = self._b
         newmark_rhs(self._m, self._k, d, v, a, dt, self.alpha, self.beta, self._x1, self._x2, y_l)
