@@ -42,8 +42,8 @@ test-portable: setup
 	NUMBA_CPU_NAME=generic bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 
 # Mutation testing (scripts/mutation.py): defects planted one at a time in the safety chain, the
-# guard, the observers, the line law and the line's assembly; each scope's fast tests run on each;
-# the report in reports/mutation/. Not part of `make test` (tens of minutes per scope).
+# guard, the observers, the line law, the line's assembly, the FE step and the MCAP writer; each
+# scope's fast tests run on each; the report in reports/mutation/. Not part of `make test` (tens of minutes per scope).
 # ARGS="--modules kernels guard" narrows it, ARGS="--list" lists the mutants.
 mutation: setup
 	scripts/with_env.sh python scripts/mutation.py $(ARGS)
