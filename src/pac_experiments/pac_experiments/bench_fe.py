@@ -139,13 +139,14 @@ def fe_tick_figures(steps: int = 2000, batches: int = 10) -> dict[str, float]:
 
     tail = x2[: len(d)]
     put("rhs_new", lambda: kn.newmark_rhs_mass(c.m_pad, d, v, a, dt, sim.alpha, sim.beta, x1, tail, y))
-    put("rhs_old", lambda: kn.newmark_rhs(sim._m, sim._k, d, v, a, dt, sim.alpha, sim.beta, x1, x2, y))
+    m_band, k_band, _ = sim.bands
+    put("rhs_old", lambda: kn.newmark_rhs(m_band, k_band, d, v, a, dt, sim.alpha, sim.beta, x1, x2, y))
     put("solve_new", solve)
     put("solve_old", solve_old)
     put("copy_vector", lambda: np.copyto(y, rhs))
     put("update", lambda: kn.newmark_update(d, v, a, rhs, dt))
     readings = np.zeros(5)
-    put("call_and_readings", lambda: sim.advance(FORCE, 0, plant._flex, readings))
+    put("call_and_readings", lambda: sim.advance(FORCE, 0, plant.flexibility, readings))
     put("measurement_truth", lambda: (plant.measurement(), plant.truth()))
     out["fe_plant_realtime_factor"] = 1e3 / out["fe_plant_tick_us"]
     out["step_compiled_realtime_factor"] = 1e3 / out["step_compiled_us"]

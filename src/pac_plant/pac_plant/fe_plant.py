@@ -210,6 +210,16 @@ class FEPlant(Plant):
         return (p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate)
 
     @property
+    def flexibility(self) -> np.ndarray:
+        """The line's flexibility at the contact points (kernels.contact_readings reads it)."""
+        return self._flex
+
+    @property
+    def readings(self) -> np.ndarray:
+        """kernels.contact_readings at the present contact point (a copy)."""
+        return self._readings.copy()
+
+    @property
     def run_length(self) -> float:
         """How far [m] the pantograph can travel from where it starts: the rest of a whole line (it
         ends there), any distance on the endless window of a periodic one."""

@@ -244,6 +244,37 @@ class Plant:
             raise ValueError(f"actuator force must be finite, got {u!r}")
         return float(u) if self.actuator.ideal else self.actuator.apply(u)
 
+    # What the compiled loop copies into its plant record (pac_rig.loop.compile_loop), read-only.
+    @property
+    def state_matrix(self) -> np.ndarray:
+        """A of the nominal 2-DOF dynamics, eq. (5)."""
+        return self._a
+
+    @property
+    def catenary_theta(self) -> np.ndarray:
+        """theta of the lumped line's stiffness k(t) = v(t)^T theta, eq. (8)."""
+        return self._theta
+
+    @property
+    def span_frequency(self) -> float:
+        """omega of the lumped line's stiffness variation [rad/s]."""
+        return self._omega
+
+    @property
+    def unilateral(self) -> bool:
+        """Whether the wire can only push (contact_model unilateral)."""
+        return self._unilateral
+
+    @property
+    def noisy(self) -> bool:
+        """Whether the measurement adds the ground's sensor noise."""
+        return self._noisy
+
+    @property
+    def roof_attachment(self) -> tuple[float, float]:
+        """(k, c) of the pantograph's attachment to the roof (0, 0 on a fixed base)."""
+        return self._roof_k, self._roof_c
+
     @property
     def time(self) -> float:
         return self.tick * self.sample_period

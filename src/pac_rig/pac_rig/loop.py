@@ -527,13 +527,13 @@ def compile_loop(
     p = pp[0]
     p["dt"] = plant.sample_period
     p["m1"], p["m2"] = plant.pantograph.m1, plant.pantograph.m2
-    p["quantisation"], p["noisy"] = plant.options.quantisation, plant._noisy
+    p["quantisation"], p["noisy"] = plant.options.quantisation, plant.noisy
     p["substeps"], p["delay"], p["uplift"] = plant.options.substeps, delay, plant.uplift
     ps = np.zeros(1, PLANT_STATE)
     ps[0]["z"], ps[0]["u_applied"] = plant.z, plant.u_applied
     p["actuator"], ps[0]["actuator"] = plant.actuator.params[0], plant.actuator.state[0]  # copies
     if plant.roof is not None:
-        p["roof"], p["roof_k"], p["roof_c"] = True, plant._roof_k, plant._roof_c
+        p["roof"], (p["roof_k"], p["roof_c"]) = True, plant.roof_attachment
         p["roof_amplitude"], p["roof_frequency"] = plant.roof.amplitude, plant.roof.frequency
         p["roof_phase"] = plant.roof.phase
     if plant.gusts is not None:
@@ -547,13 +547,12 @@ def compile_loop(
         p["static_wire"], p["datum"] = plant.options.fe_datum == "static_wire", plant.datum
         contacts = plant.contact_of if several_pantographs(plant) else []  # pantograph_truth's
         p["pantographs"], p["contact_of"][: len(contacts)] = len(contacts), contacts
-        fe_args = (
-            sim._cf, sim._ci, sim._cl, sim._sf.copy(), sim._si.copy(), sim._sl,
-            np.ascontiguousarray(plant._flex, dtype=np.float64), plant._readings.copy(),
-        )  # fmt: skip
+        cf, ci, cl, sf, si, sl = sim.packed
+        flexibility = np.ascontiguousarray(plant.flexibility, dtype=np.float64)
+        fe_args = (cf, ci, cl, sf.copy(), si.copy(), sl, flexibility, plant.readings)
     else:
-        p["kind"], p["omega"], p["unilateral"] = LUMPED, plant._omega, plant._unilateral
-        p["a"], p["theta"] = plant._a, plant._theta
+        p["kind"], p["omega"], p["unilateral"] = LUMPED, plant.span_frequency, plant.unilateral
+        p["a"], p["theta"] = plant.state_matrix, plant.catenary_theta
         fe_args = NO_FE
     cp = controller.record.copy()  # the law's design and the safety chain's fields
     cs = np.zeros(1, CONTROLLER_STATE)

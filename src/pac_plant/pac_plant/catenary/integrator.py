@@ -443,6 +443,17 @@ class ContactSimulation:
 
     # -- observables ---------------------------------------------------------------------------
     @property
+    def packed(self) -> tuple[np.ndarray, ...]:
+        """The step's constants and state packed for the compiled step (kernels.pack): (floats,
+        integers, layout) of the constants, then of the state; the state's arrays are live."""
+        return self._packed
+
+    @property
+    def bands(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(M, K, the Cholesky factor of the step's matrix), banded, as the compiled step reads them."""
+        return self._m, self._k, self._chol
+
+    @property
     def time(self) -> float:
         return self.steps * self.dt
 
