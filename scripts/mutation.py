@@ -110,7 +110,7 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
             "McapWriter.add_message", "McapWriter.add_messages", "McapWriter.flush_chunk",
             "McapWriter._message_indexes", "McapWriter.close", "message_records",
         ),
-        ("tests/test_bags.py", "tests/test_bag_damage.py"),
+        ("tests/test_mcap_layout.py", "tests/test_bags.py", "tests/test_bag_damage.py"),
     ),
     "line": (
         "pac_plant.catenary.line",

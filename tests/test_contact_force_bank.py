@@ -153,3 +153,14 @@ def test_a_bank_of_one_filter_reads_nothing_past_it():
     """frame_mass_range 0: one filter, always selected (run as Python: a read past the bank raises)."""
     selected, energy = bank_step(0, [0.1], [3.0])
     assert selected == 0 and energy[0] == pytest.approx(3.02, rel=1e-15)
+
+
+@pytest.mark.parametrize(("mass_range", "step"), [(0.3, 0.025), (0.2, 0.1), (0.0, 0.025)])
+def test_the_bank_starts_on_the_nominal_frame_mass(mass_range, step):
+    """Before any sample, and after a reset, the selected filter is the nominal pantograph's
+    (scale 1), wherever it sits in the bank."""
+    observer = bank(frame_mass_range=mass_range, frame_mass_step=step)
+    assert observer.frame_mass_scale == 1.0
+    run(observer, [(0.0, 1.0 + mass_range), (0.5, 1.0 + mass_range)])
+    observer.reset()
+    assert observer.frame_mass_scale == 1.0
