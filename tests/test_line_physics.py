@@ -11,6 +11,8 @@ far below any modelling change (one dropper's clamp mass is ~4e-4 of the line's 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -88,3 +90,25 @@ def test_the_static_line_rests_on_its_supports_and_anchors(line):
 def test_every_dropper_pulls_in_the_static_state(line):
     """The static state the dynamics start from has no slack dropper: every one pulls."""
     assert np.all(line.droppers.static_tension > 0.0)
+
+
+def test_the_supports_add_their_springs_and_masses_at_the_support_nodes_only():
+    """The steady arm (on the contact wire) and the messenger support (on the messenger) at each
+    support node: a line with supports differs from one without by exactly their stiffnesses and
+    masses on those two DOFs of the support nodes (the anchored ones stay constrained)."""
+    data = dataclasses.replace(DATA, steady_arm_mass=2.5, messenger_support_mass=1.5)
+    held, bare = Line(data, droppers=False), Line(data, droppers=False, supports=False)
+    want_k, want_m = np.zeros(held.n_dof), np.zeros(held.n_dof)
+    for n in held.support_nodes:
+        for dof, k, m in (
+            (DOFS_PER_NODE * n + WC, data.steady_arm_stiffness, data.steady_arm_mass),
+            (DOFS_PER_NODE * n + WM, data.messenger_support_stiffness, data.messenger_support_mass),
+        ):
+            if dof not in held.fixed:
+                want_k[dof], want_m[dof] = k, m
+    assert np.count_nonzero(want_k) == 2 * len(held.support_nodes) > 0
+    scale_k, scale_m = np.abs(bare.K.ab).max(), np.abs(bare.M.ab).max()
+    np.testing.assert_allclose(held.K.ab[0] - bare.K.ab[0], want_k, rtol=0, atol=1e-12 * scale_k)
+    np.testing.assert_allclose(held.M.ab[0] - bare.M.ab[0], want_m, rtol=0, atol=1e-12 * scale_m)
+    np.testing.assert_allclose(held.K.ab[1:], bare.K.ab[1:], rtol=0, atol=1e-12 * scale_k)
+    np.testing.assert_allclose(held.M.ab[1:], bare.M.ab[1:], rtol=0, atol=1e-12 * scale_m)
