@@ -675,7 +675,7 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
     return {"figures": figures, "today": today, "notes": notes}
 
 
-def main(argv: list[str] | None = None) -> int:
+def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="bench", description=__doc__)
     parser.add_argument(
         "--realtime-seconds", type=float, default=10.0, help="each real-time run (0: no real-time rigs)"
@@ -724,13 +724,11 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help=f"only regenerate {bench_report.RESULTS_PAGE}'s block from OUT_DIR/latest.json",
     )
-    args = parser.parse_args(argv)
-    if args.readme:
-        results = json.loads((args.out_dir / "latest.json").read_text())
-        bench_report.update_readme(Path(bench_report.RESULTS_PAGE), results)
-        page, source = bench_report.RESULTS_PAGE, args.out_dir / "latest.json"
-        print(f"bench: {page} performance block regenerated from {source}")
-        return 0
+    return parser
+
+
+def _argument_error(args: argparse.Namespace) -> str | None:
+    """The one line refusing ``args``, or None."""
     for name, value, low, high in (
         ("--batch-runs", args.batch_runs, 1, 100000),
         ("--batch-threads", args.batch_threads, 1, 64),
@@ -739,64 +737,138 @@ def main(argv: list[str] | None = None) -> int:
         ("--live-repeats", args.live_repeats, 1, 100),
     ):
         if not low <= value <= high:
-            print(f"bench: invalid {name} {value!r}: allowed {low}..{high}", file=sys.stderr)
-            return 2
+            return f"bench: invalid {name} {value!r}: allowed {low}..{high}"
     if args.load < 0:
-        print(f"bench: invalid --load {args.load}: allowed an integer >= 0", file=sys.stderr)
+        return f"bench: invalid --load {args.load}: allowed an integer >= 0"
+    return None
+
+
+#: A live configuration: (column, timing mode, seconds, composed, busy loops).
+LivePlan = list[tuple[str, str, float, bool, int]]
+
+
+def live_plan(args: argparse.Namespace) -> LivePlan:
+    """The live configurations ``args`` ask for; each is run as pac, then as its floor."""
+    if args.offline_only:
+        return []
+    plan: LivePlan = []
+    if args.realtime_seconds:
+        plan.append(("realtime", "realtime", args.realtime_seconds, False, 0))
+    if args.load and args.realtime_seconds:
+        plan.append((f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load))
+    plan.append(("lockstep", "lockstep", args.lockstep_seconds, False, 0))
+    if args.composed:
+        if args.realtime_seconds:
+            plan.append(("composed realtime", "realtime", args.realtime_seconds, True, 0))
+        plan.append(("composed lockstep", "lockstep", args.lockstep_seconds, True, 0))
+    return plan
+
+
+def live_runs(
+    args: argparse.Namespace, plan: LivePlan, workdir: Path
+) -> tuple[dict[str, Any], dict[str, dict[str, float]], dict[str, Any]]:
+    """Every live configuration of ``plan``, pac and its floor in turn, ``args.live_repeats``
+    times: (timing, CPU per node, run quality) by column, each figure the median of its runs."""
+    runs: dict[str, Any] = {}
+    cpus: dict[str, dict[str, float]] = {}
+    quality: dict[str, Any] = {}
+    for name, mode, seconds, composed, load in plan:
+        timings: dict[str, list] = {name: [], f"{name} floor": []}
+        used: dict[str, list[dict[str, float]]] = {name: [], f"{name} floor": []}
+        for repeat in range(args.live_repeats):
+            for relay, column in ((False, name), (True, f"{name} floor")):
+                turn = f"{repeat + 1}/{args.live_repeats}"
+                print(f"bench: {column} rig, {seconds:g} s ({turn}) ...", flush=True)
+                with busy_loops(load):
+                    timing, cpu, quality[column] = live_run(
+                        mode,
+                        seconds,
+                        workdir,
+                        args.realtime_priority,
+                        relay=relay,
+                        composed=composed,
+                        label=f"{column.replace(' ', '_')}_{repeat}",
+                    )
+                timings[column].append(timing)
+                used[column].append(cpu)
+        for column in timings:
+            runs[column] = median_timing(timings[column])
+            cpus[column] = {n: statistics.median(c[n] for c in used[column]) for n in used[column][0]}
+    return runs, cpus, quality
+
+
+@dataclasses.dataclass(frozen=True)
+class OfflineFigures:
+    """What the bench measures without a live rig."""
+
+    speed_core: float  # x real time, cores only
+    speed_bag: float  # x real time, with bag writing
+    writing: list[tuple[str, float, float, int]]  # bag writing: name, wall and CPU ms per s, size
+    speed_batch: float  # scenario-s per wall-s
+    batch_wall: float  # s
+    startup: dict[str, list[float]]  # node -> seconds to its first message
+
+
+def offline_figures(args: argparse.Namespace, workdir: Path) -> OfflineFigures:
+    """The offline simulator's speed, bag writing, the batch and node start-up."""
+    print("bench: offline simulator ...", flush=True)
+    speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
+    print("bench: bag writing ...", flush=True)
+    writing = bag_writing(workdir)
+    print("bench: batch ...", flush=True)
+    run_batch([Scenario()])  # loads the compiled kernel: not part of the measurement
+    speed_batch, batch_wall = batch_speed(args.batch_runs, args.batch_threads)
+    print("bench: node start-up ...", flush=True)
+    startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
+    return OfflineFigures(speed_core, speed_bag, writing, speed_batch, batch_wall, startup)
+
+
+def print_offline(args: argparse.Namespace, f: OfflineFigures) -> None:
+    print(
+        f"\nOffline simulator, 10 s scenario: {f.speed_core:.1f}x real time (cores only), "
+        f"{f.speed_bag:.1f}x with bag writing"
+    )
+    header = [
+        "bag writing, 10 s offline run",
+        "wall ms per simulated s",
+        "CPU ms per simulated s",
+        "bag size [MB]",
+    ]
+    cells = [[name, f"{wall:.1f}", f"{cpu:.1f}", f"{size / 1e6:.2f}"] for name, wall, cpu, size in f.writing]
+    print("\n" + markdown.table(header, cells))
+    print(
+        f"\nBatch (compiled closed loop): {args.batch_runs} x 10 s scenarios in {f.batch_wall:.2f} s = "
+        f"{f.speed_batch:.0f} scenario-s per wall-s ({args.batch_threads} threads)"
+    )
+    for name, times in f.startup.items():
+        shown = ", ".join(f"{t:.2f}" for t in times) or "no message"
+        print(f"Start-up {name}_node (process start -> first published message): {shown} s")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.readme:
+        results = json.loads((args.out_dir / "latest.json").read_text())
+        bench_report.update_readme(Path(bench_report.RESULTS_PAGE), results)
+        page, source = bench_report.RESULTS_PAGE, args.out_dir / "latest.json"
+        print(f"bench: {page} performance block regenerated from {source}")
+        return 0
+    error = _argument_error(args)
+    if error:
+        print(error, file=sys.stderr)
         return 2
     workdir = Path(tempfile.mkdtemp(prefix="pac_bench_"))
     load_before = load_average()
     try:
-        runs, cpus, quality = {}, {}, {}
-        # (column, timing mode, seconds, composed, busy loops): each is run as pac, then as its floor.
-        plan = [("realtime", "realtime", args.realtime_seconds, False, 0)] if args.realtime_seconds else []
-        if args.offline_only:
-            plan = []
-        elif args.load and args.realtime_seconds:
-            plan.append((f"realtime load {args.load}", "realtime", args.realtime_seconds, False, args.load))
-        if not args.offline_only:
-            plan.append(("lockstep", "lockstep", args.lockstep_seconds, False, 0))
-        if args.composed and not args.offline_only:
-            if args.realtime_seconds:
-                plan.append(("composed realtime", "realtime", args.realtime_seconds, True, 0))
-            plan.append(("composed lockstep", "lockstep", args.lockstep_seconds, True, 0))
+        plan = live_plan(args)
         pairs = [(name, f"{name} floor") for name, *_ in plan]  # (pac, its floor)
-        for name, mode, seconds, composed, load in plan:
-            timings: dict[str, list] = {name: [], f"{name} floor": []}
-            used: dict[str, list[dict[str, float]]] = {name: [], f"{name} floor": []}
-            for repeat in range(args.live_repeats):
-                for relay, column in ((False, name), (True, f"{name} floor")):
-                    turn = f"{repeat + 1}/{args.live_repeats}"
-                    print(f"bench: {column} rig, {seconds:g} s ({turn}) ...", flush=True)
-                    with busy_loops(load):
-                        timing, cpu, quality[column] = live_run(
-                            mode,
-                            seconds,
-                            workdir,
-                            args.realtime_priority,
-                            relay=relay,
-                            composed=composed,
-                            label=f"{column.replace(' ', '_')}_{repeat}",
-                        )
-                    timings[column].append(timing)
-                    used[column].append(cpu)
-            for column in timings:
-                runs[column] = median_timing(timings[column])
-                cpus[column] = {n: statistics.median(c[n] for c in used[column]) for n in used[column][0]}
+        runs, cpus, quality = live_runs(args, plan, workdir)
         if args.live_only:
             if runs:
                 print(live_table(runs, cpus, quality, pairs), end="")
             return 0
-        print("bench: offline simulator ...", flush=True)
-        speed_core, speed_bag = offline_speed(False, workdir), offline_speed(True, workdir)
-        print("bench: bag writing ...", flush=True)
-        writing = bag_writing(workdir)
-        print("bench: batch ...", flush=True)
-        run_batch([Scenario()])  # loads the compiled kernel: not part of the measurement
-        speed_batch, batch_wall = batch_speed(args.batch_runs, args.batch_threads)
-        print("bench: node start-up ...", flush=True)
-        startup = node_startup(workdir, args.startup_repeats) if args.startup_repeats else {}
-        results = goal_figures(args, workdir, runs, startup)
+        offline = offline_figures(args, workdir)
+        results = goal_figures(args, workdir, runs, offline.startup)
         if runs:
             results["notes"].append(
                 f"live loop: each configuration run {args.live_repeats} times, pac and its floor in turn "
@@ -814,25 +886,7 @@ def main(argv: list[str] | None = None) -> int:
     if runs:
         live_tables = live_table(runs, cpus, quality, pairs)
         print(live_tables, end="")
-    print(
-        f"\nOffline simulator, 10 s scenario: {speed_core:.1f}x real time (cores only), "
-        f"{speed_bag:.1f}x with bag writing"
-    )
-    header = [
-        "bag writing, 10 s offline run",
-        "wall ms per simulated s",
-        "CPU ms per simulated s",
-        "bag size [MB]",
-    ]
-    cells = [[name, f"{wall:.1f}", f"{cpu:.1f}", f"{size / 1e6:.2f}"] for name, wall, cpu, size in writing]
-    print("\n" + markdown.table(header, cells))
-    print(
-        f"\nBatch (compiled closed loop): {args.batch_runs} x 10 s scenarios in {batch_wall:.2f} s = "
-        f"{speed_batch:.0f} scenario-s per wall-s ({args.batch_threads} threads)"
-    )
-    for name, times in startup.items():
-        shown = ", ".join(f"{t:.2f}" for t in times) or "no message"
-        print(f"Start-up {name}_node (process start -> first published message): {shown} s")
+    print_offline(args, offline)
     results.update(
         date=f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
         machine=f"{platform.node()}, {platform.machine()}, {os.cpu_count()} cores",
