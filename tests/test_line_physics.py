@@ -112,3 +112,12 @@ def test_the_supports_add_their_springs_and_masses_at_the_support_nodes_only():
     np.testing.assert_allclose(held.M.ab[0] - bare.M.ab[0], want_m, rtol=0, atol=1e-12 * scale_m)
     np.testing.assert_allclose(held.K.ab[1:], bare.K.ab[1:], rtol=0, atol=1e-12 * scale_k)
     np.testing.assert_allclose(held.M.ab[1:], bare.M.ab[1:], rtol=0, atol=1e-12 * scale_m)
+
+
+def test_the_static_contact_wire_sits_at_its_design_presag_at_every_dropper(line):
+    """The dropper lengths are solved for the contact wire's pre-sag at every dropper (the solve
+    stops when the lengths move less than 1e-9 m): the static state meets it, and each dropper's
+    stiffness is EA over its own length."""
+    dr = line.droppers
+    np.testing.assert_allclose(-line.w_static[dr.wc], dr.target_sag, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(dr.stiffness, DATA.dropper_ea / dr.length0, rtol=1e-12)
