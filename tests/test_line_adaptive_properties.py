@@ -116,12 +116,12 @@ def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judge
 
 
 def strikes_after_a_span_with_lost_ticks(
-    lost: int, bias: float = 0.0, lost_passive: int = 0, start_bias: float = 0.0
+    lost: int, bias: float = 0.0, lost_passive: int = 0, start_bias: float = 0.0, level: float = 0.0
 ) -> int:
     """The back-offs counted after the first learning span, in which ``lost`` ticks had F_hat =
-    ``bias`` (a loss, read through an estimate whose mean is ``bias`` off in every span) and the
-    rest the passive spans' error; the last passive span lost ``lost_passive`` ticks likewise;
-    span 0 (the start's transient) has ``start_bias`` added."""
+    ``bias`` + ``level`` (a loss, or a near loss, read through an estimate whose mean is ``bias``
+    off in every span) and the rest the passive spans' error; the last passive span lost
+    ``lost_passive`` ticks likewise; span 0 (the start's transient) has ``start_bias`` added."""
     law = LineAdaptiveLaw(TRACK, LAWS, DT)
     n, w = law.period_ticks, law.omega_span
     f_r = np.array([F_R, 0.0, 0.0, 0.0])
@@ -130,7 +130,7 @@ def strikes_after_a_span_with_lost_ticks(
         span, i = divmod(k, n)
         f_hat = F_R + bias + (start_bias if span == 0 else 0.0) - PASSIVE * math.cos(w * k * DT)
         if (span == learning and i < lost) or (span == learning - 1 and i < lost_passive):
-            f_hat = bias
+            f_hat = bias + level
         u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), f_hat)
         law.commit(k, u)
     return law.strikes
@@ -142,6 +142,16 @@ def test_a_span_backs_off_when_its_share_of_lost_ticks_exceeds_line_guard_loss()
     allowed = LAWS.line_guard_loss * n
     assert strikes_after_a_span_with_lost_ticks(math.floor(allowed) - 1) == 0
     assert strikes_after_a_span_with_lost_ticks(math.ceil(allowed) + 1) == 1
+
+
+def test_a_tick_counts_as_nearly_lost_below_the_margin_times_the_reference():
+    """line_guard_loss_margin is a share of F_r: an estimate just under margin x F_r counts as a
+    near loss, one just above it does not (F_hat misses the millisecond dips of a real loss)."""
+    n = LineAdaptiveLaw(TRACK, LAWS, DT).period_ticks
+    lost = math.ceil(LAWS.line_guard_loss * n) + 1
+    near = LAWS.line_guard_loss_margin * F_R
+    assert strikes_after_a_span_with_lost_ticks(lost, level=0.9 * near) == 1
+    assert strikes_after_a_span_with_lost_ticks(lost, level=1.1 * near) == 0
 
 
 def test_lost_ticks_are_counted_on_the_estimate_less_its_mean_bias():
