@@ -120,6 +120,18 @@ def test_shipped_parameter_files_are_the_declared_defaults(node):
     assert installed_config_path(node).read_text() == expected
 
 
+def test_a_law_joining_the_registry_leaves_the_shipped_files_as_they_are(monkeypatch):
+    """A law is one module and one registry line: the shipped files do not list the registry's
+    names (``--help`` does), so a new law needs no third edit."""
+    from pac_controller import laws, parameters
+
+    before = {node: defaults_yaml(node) for node in NODES}
+    monkeypatch.setitem(laws.LAWS, "another_law", laws.LAWS["skyhook"])
+    monkeypatch.setattr(parameters.LAW_NAMES, "_names", None)  # read the registry again
+    assert "another_law" in parameters.LAW_NAMES
+    assert {node: defaults_yaml(node) for node in NODES} == before
+
+
 def test_shipped_parameter_file_is_installed_and_accepted(domain_id, tmp_path):
     """The installed share/<pkg>/config YAML starts a node (which then waits for its loop)."""
     path = str(installed_config_path("plant"))

@@ -64,7 +64,7 @@ class ControllerParameters(ParameterSet):
         "(eq. (43) given the true theta: an oracle, needs k0, alpha, beta), 'pid' (PID on F_hat), "
         "'lqr' (LQ servo at design_stiffness), 'passive' (u = F_r), 'line_adaptive' (span-periodic "
         "learning on F_hat for a distributed line, with a do-no-harm guard), a law module of the registry "
-        "(the choices below; docs/laws.md), or the path of your own law's Python file (docs/laws.md, "
+        "(--help lists every law; docs/laws.md), or the path of your own law's Python file (docs/laws.md, "
         "'Your own law'). Fixed for a run (docs/laws.md)",
         choices=LAW_NAMES,
         or_file=".py",
