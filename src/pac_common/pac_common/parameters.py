@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from .files import excerpt
+from .registry import RegistryNames
 
 
 class ParameterError(ValueError):
@@ -72,10 +73,14 @@ class ParameterSpec:
             return tuple
         return type(self.default)
 
-    def allowed(self) -> str:
-        """Human-readable allowed range, e.g. ``(0, inf) kg`` or ``one of linear, unilateral``."""
+    def allowed(self, registry_names: bool = True) -> str:
+        """Human-readable allowed range, e.g. ``(0, inf) kg`` or ``one of linear, unilateral``.
+        ``registry_names`` False: choices that are a registry's names (pac_common.registry) are
+        not listed (a shipped file, which a variant joining its registry must not change)."""
         if self.choices is not None:
             files = f", or the path of a {self.or_file} file" if self.or_file else ""
+            if not registry_names and isinstance(self.choices, RegistryNames):
+                return "a name of its registry (--help lists them)" + files
             return "one of " + ", ".join(self.choices) + files
         if self.kind is bool:
             return "true or false"

@@ -159,7 +159,7 @@ def load_law_module(name: str) -> LawFile:
     loaded = _LOADED.get(name)
     if loaded is None:
         module = importlib.import_module(name)
-        source = Path(module.__file__ or name).read_bytes() if module.__file__ else name.encode()
+        source = Path(module.__file__).read_bytes() if module.__file__ else name.encode()
         loaded = _LOADED[name] = _check(name, hashlib.sha256(source).hexdigest(), module)
     return loaded
 

@@ -216,13 +216,12 @@ def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, An
                 "wall_seconds": wall,
             }
             continue
-        n = int(result.ticks[i])
         row: dict[str, Any] = {"key": point.key, "status": STATUS_OK, "reason": ""}
         row.update(scenario_to_flat(scenario))
-        traces = {name: result.traces[name][i, :n] for name in MEASURED}
+        traces = {name: result.traces[name][i, :reached] for name in MEASURED}
         row.update(measures(point, traces, scenario.loop.sample_period))
-        row["ticks_run"] = int(result.ticks[i])
-        row["simulated_seconds"] = int(result.ticks[i]) / scenario.loop.rate_hz
+        row["ticks_run"] = reached
+        row["simulated_seconds"] = reached / scenario.loop.rate_hz
         row["wall_seconds"] = wall
         rows[point.key] = row
     return rows

@@ -12,9 +12,6 @@ from pathlib import Path
 
 import yaml
 
-from pac_common.parameters import ParameterSpec
-from pac_common.registry import RegistryNames
-
 from .nodes import NODES
 
 
@@ -41,19 +38,9 @@ def defaults_yaml(node: str) -> str:
             text = yaml.safe_dump(value, default_flow_style=True).strip().removesuffix("\n...").strip()
             unit = f" [{spec.unit}]" if spec.unit else ""
             when = "; may change at run time" if spec.runtime else ""
-            comment = f"{spec.description}{unit}; allowed {allowed(spec)}{when}"
+            comment = f"{spec.description}{unit}; allowed {spec.allowed(registry_names=False)}{when}"
             lines.append(f"    {spec.name}: {text}  # {comment}")
     return "\n".join(lines) + "\n"
-
-
-def allowed(spec: ParameterSpec) -> str:
-    """What a shipped file says a parameter allows: the spec's rule, except that a registry's
-    names are not listed (a variant joins its registry by its own line, and the shipped files
-    stay as they are; ``--help`` and every refusal list the names)."""
-    if isinstance(spec.choices, RegistryNames):
-        files = f", or the path of a {spec.or_file} file" if spec.or_file else ""
-        return f"a name of its registry (--help lists them){files}"
-    return spec.allowed()
 
 
 def config_path(node: str, src: Path) -> Path:
