@@ -107,6 +107,14 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_supports", "i8"),  # supports of the design layout in the table (< 2: the period N)
         ("line_position_start", "f8"),  # the law's x at tick 0 (with the position error)
         ("line_step_distance", "f8"),  # v dt
+        # a map learned on an earlier pass (line_adaptive_kernels: the map's rows of ``memory``)
+        ("line_map", "b1"),  # each span starts from its own harmonics; the responses are frozen
+        ("line_map_passive_var", "f8"),  # the earlier pass's passive sigma_b^2 (the guard's bar)
+        ("line_map_passive_loss", "f8"),  # and its worst passive span's nearly-lost share
+        ("line_map_stiffness", "f8"),  # its fitted line impedance k_s, c and whether it is valid
+        ("line_map_damping", "f8"),
+        ("line_map_model_valid", "b1"),
+        ("line_map_u_mean", "f8"),  # its U_0 at the end
     ]
 )
 
@@ -170,6 +178,7 @@ CONTROLLER_STATE = np.dtype(
         ("line_cursor", "i8"),  # the layout's span the last position fell in
         ("line_first_span", "i8"),  # the layout's span of the run's first command (its span 0)
         ("line_backoff_from", "i8"),  # the tick a back-off's ramp started (-1: none)
+        ("line_map_scale", "f8"),  # the share of the map's harmonics applied (back-offs halve it)
     ]
 )
 
@@ -220,7 +229,7 @@ def _fed_back_force(p, t: float, z_hat, theta_hat, f_hat: float) -> float:
 def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
     """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
     if p.law == _LINE:
-        line_adaptive_kernels.line_restart(s, memory, has_u)
+        line_adaptive_kernels.line_restart(p, s, memory, has_u)
         return
     s.has_bumpless, s.bumpless_from = has_u, u_applied
     s.started = False

@@ -127,6 +127,9 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     GUARD_BACKOFF,
     GUARD_HARD_FACTOR,
     GUARD_SPANS,
+    MAP_GIVEN,
+    MAP_S,
+    MAP_Z,
     MEMORY_ROWS,
     MIN_INFORMATIVE_STEP,
     SCRATCH,
@@ -138,9 +141,13 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     line_commit,
     line_feedforward,
     line_forget,
+    line_next_map,
     line_output,
     line_restart,
+    map_spans,
+    memory_rows,
 )
+from .line_map import LineMap, LineMapError, read_line_map
 from .parameters import LawParameters
 
 #: ``LineAdaptiveLaw.trip_reason`` by ``line_trip_reason`` (line_adaptive_kernels.TRIP_*).
@@ -200,9 +207,12 @@ class LineAdaptiveLaw(KernelLaw):
         )
         table[n + TABLE_EXTRA_ROWS :].real.flat[: len(supports)] = supports
         self.table = table
-        self.memory = np.zeros((MEMORY_ROWS, h), dtype=np.complex128)
+        self.memory = np.zeros((memory_rows(len(supports)), h), dtype=np.complex128)
         super().__init__("line_adaptive", dt)
         p = self.params[0]
+        self.map_passes = 0  # passes the map this run starts from was learned over (0: none)
+        if laws.line_map:
+            self._load(read_line_map(laws.line_map), supports, n, h, laws.line_map)
         p["line_period"], p["line_harmonics"], p["line_delay"] = n, h, laws.design_delay_ticks
         p["line_gain"], p["line_step_max"] = laws.line_learning_gain, laws.line_step_max
         p["line_probe_step"] = min(laws.line_probe_step, laws.line_step_max)
@@ -260,7 +270,49 @@ class LineAdaptiveLaw(KernelLaw):
 
     def forget(self) -> None:
         """Forget everything learned: the next span starts a new run-in (u = F_r, bumpless from rest)."""
-        _forget_one(self.state, self.memory)
+        _forget_one(self.params, self.state, self.memory)
+
+    def _load(self, learned: LineMap, supports: np.ndarray, n: int, h: int, source: str) -> None:
+        """Start from a map learned on an earlier pass (``line_map``), checked against this run."""
+        learned.check_fits(supports, n, h, source)
+        p = self.params[0]
+        spans = map_spans(len(supports))
+        first = MEMORY_ROWS + 2 + MAP_GIVEN * spans
+        self.memory[first : first + spans] = learned.harmonics
+        self.memory[MAP_Z] = learned.response_z
+        self.memory[MAP_S] = learned.response_s
+        p["line_map"] = True
+        self.map_passes = learned.passes
+        p["line_map_passive_var"] = learned.passive_sigma**2
+        p["line_map_passive_loss"] = learned.passive_loss
+        p["line_map_stiffness"], p["line_map_damping"] = learned.line_stiffness, learned.line_damping
+        p["line_map_model_valid"], p["line_map_u_mean"] = learned.model_valid, learned.u_mean
+
+    def next_map(self, memory: np.ndarray | None = None, state: np.ndarray | None = None) -> LineMap:
+        """The map for the next pass over this line (``line_next_map``), from this pass as it ended:
+        the law's own arrays, or a compiled loop's (``memory``, ``state``: ``CompiledLoop.memory``,
+        ``controller_state``), which ran on copies of them."""
+        memory = self.memory if memory is None else memory
+        state = self.state if state is None else state
+        p, s = self.params[0], state[0]
+        spans = map_spans(int(p["line_supports"]))
+        if not spans:
+            raise LineMapError(
+                "line_adaptive", "line_supports", int(p["line_supports"]),
+                "a design layout of at least two supports: a map is learned per span of it",
+            )  # fmt: skip
+        out = np.zeros((spans, self.harmonics), dtype=np.complex128)
+        _next_map_one(self.params, state, self.table, memory, out)
+        n = self.period_ticks
+        supports = self.table[n + TABLE_EXTRA_ROWS :].real.ravel()[: int(p["line_supports"])].copy()
+        passive_var = s["line_passive_var"] / s["line_passive_spans"] if s["line_passive_spans"] else 0.0
+        return LineMap(
+            supports=supports, period_ticks=n, harmonics=out, response_z=memory[Z].copy(),
+            response_s=memory[S].real.copy(), passive_sigma=math.sqrt(passive_var),
+            passive_loss=float(s["line_passive_loss"]), line_stiffness=float(s["line_stiffness"]),
+            line_damping=float(s["line_damping"]), model_valid=bool(s["line_model_valid"]),
+            u_mean=float(s["line_u_mean"]), passes=self.map_passes + 1,
+        )  # fmt: skip
 
     def feedforward(self, tick: int) -> float:
         """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
@@ -273,5 +325,10 @@ def _feedforward_one(params, states, table, memory, tick):
 
 
 @njit(cache=True, error_model="numpy")
-def _forget_one(states, memory) -> None:
-    line_forget(states[0], memory)
+def _forget_one(params, states, memory) -> None:
+    line_forget(params[0], states[0], memory)
+
+
+@njit(cache=True, error_model="numpy")
+def _next_map_one(params, states, table, memory, out) -> None:
+    line_next_map(params[0], states[0], table, memory, out)

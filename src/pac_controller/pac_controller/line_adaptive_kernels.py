@@ -30,6 +30,27 @@ TRIP_NONE, TRIP_HARM, TRIP_BIAS, TRIP_LOSS, TRIP_SATURATION = range(5)
 #: REAL: the span's applied harmonics; FIT_W, FIT_Z: the line model fit's weights and samples.
 U_FF, U_PREV, E_ACC, A_ACC, E_PREV, Z, S, SCRATCH, REAL, FIT_W, FIT_Z = range(11)
 MEMORY_ROWS = 11
+#: A map learned on an earlier pass over the same line (``line_map``; ``line_map.py``) lives in the
+#: rows after these, on a design layout of S = line_supports - 1 spans (none without a layout): the
+#: responses the map was learned with (Z_h, S_h: rows MAP_Z, MAP_S), then blocks of S rows each, one
+#: row per span m of the layout: the map given (W_m, the harmonics span m starts from), what this
+#: pass applied over span m (on the feedforward's phase, the hold's advance taken off) and its force
+#: error E_m, and whether span m was recorded (MAP_SEEN: the real part of column 0).
+MAP_Z, MAP_S = MEMORY_ROWS, MEMORY_ROWS + 1
+MAP_GIVEN, MAP_APPLIED, MAP_ERROR, MAP_SEEN = range(4)
+
+
+def map_spans(supports: int) -> int:
+    """The spans a map covers on a design layout of ``supports`` supports (0: no layout, no map)."""
+    return supports - 1 if supports >= 2 else 0
+
+
+def memory_rows(supports: int) -> int:
+    """Rows of line_adaptive's ``memory`` on a design layout of ``supports`` supports."""
+    spans = map_spans(supports)
+    return MEMORY_ROWS + (2 + 4 * spans if spans else 0)
+
+
 #: Rows of the ``table`` after the span's N phases (row N: the hold's advance): the nominal
 #: pantograph's dynamic stiffnesses at each harmonic (line_adaptive.line_model_rows), the hold's
 #: gain and the harmonic's angular frequency.
@@ -76,8 +97,14 @@ def _sum_real(row: np.ndarray, n: int) -> float:
 
 
 # -- the law, compiled: the class below and pac_controller.kernels call these --------------------
+@njit(cache=True, inline="always")
+def _map_row(p, block: int, m: int) -> int:
+    """The row of span m of the layout in ``block`` (MAP_GIVEN, MAP_APPLIED, ...) of the map's rows."""
+    return MEMORY_ROWS + 2 + block * (p.line_supports - 1) + m
+
+
 @njit(cache=True, error_model="numpy")
-def line_restart(s, memory, has_u: bool) -> None:
+def line_restart(p, s, memory, has_u: bool) -> None:
     """Before the first command, or after commands that were not the law's (a fallback episode).
 
     What was learned is the line's, not the episode's: after a fallback the law resumes with it
@@ -85,15 +112,19 @@ def line_restart(s, memory, has_u: bool) -> None:
     (they start again): then it forgets everything and runs in again from u = F_r.
     """
     if not has_u or s.line_last_commit < 0:
-        line_forget(s, memory)
+        line_forget(p, s, memory)
     else:
         s.line_restart_pending = True
 
 
 @njit(cache=True, error_model="numpy")
-def line_forget(s, memory) -> None:
-    """Forget everything learned: the next span starts a new run-in (u = F_r)."""
-    memory[:, :] = 0.0
+def line_forget(p, s, memory) -> None:
+    """Forget everything learned: the next span starts a new run-in (u = F_r), or, on a learned map
+    (``line_map``), starts from the map: its identified responses, the guard's passive bar and U_0
+    of the pass that learned it (the map itself is the line's, and stays)."""
+    memory[:MEMORY_ROWS, :] = 0.0
+    if p.line_supports >= 2:
+        memory[_map_row(p, MAP_APPLIED, 0) :, :] = 0.0  # this pass's records (MAP_APPLIED on)
     s.line_open_span, s.line_last_commit, s.line_restart_pending, s.line_tainted_span = -1, -1, False, -1
     s.line_u_mean, s.line_clip_offset, s.line_a_mean, s.line_e_mean = 0.0, 0.0, 0.0, 0.0
     s.line_has_prev, s.line_start_tick = False, -1
@@ -107,7 +138,32 @@ def line_forget(s, memory) -> None:
     s.line_trip_reason, s.line_fade_from = TRIP_NONE, -1
     s.line_cursor, s.line_first_span = 0, 0
     s.line_backoff_from = -1
+    s.line_map_scale = 1.0
+    if p.line_map:
+        memory[Z, :] = memory[MAP_Z, :]
+        memory[S, :] = memory[MAP_S, :]
+        s.line_passive_var, s.line_passive_spans = p.line_map_passive_var, 1
+        s.line_passive_loss = p.line_map_passive_loss
+        s.line_stiffness, s.line_damping = p.line_map_stiffness, p.line_map_damping
+        s.line_model_valid, s.line_u_mean = p.line_map_model_valid, p.line_map_u_mean
     _clear_sums(s, memory)
+
+
+@njit(cache=True, inline="always")
+def _runin(p) -> int:
+    """The spans before the guard judges: ``line_runin_spans`` (the first passive), or on a learned map
+    2 (spans 0 and 1 run on the map; the start's transient reaches into span 1, which a first pass
+    runs passive: judged, it backed a map off for the whole pass)."""
+    return 2 if p.line_map else p.line_runin_spans
+
+
+@njit(cache=True, error_model="numpy")
+def _load_map(p, s, memory, m: int) -> None:
+    """U_h := the map's harmonics of span m of the layout (times the back-offs' scale; 0 off the map)."""
+    inside = 0 <= m < p.line_supports - 1
+    for j in range(p.line_harmonics):
+        w = memory[_map_row(p, MAP_GIVEN, m), j] if inside else 0.0
+        memory[U_FF, j] = complex(s.line_map_scale * w.real, s.line_map_scale * w.imag)
 
 
 # -- where the train is: the period (tick mod N) or the design layout's spans (line_supports > 0) ---
@@ -207,7 +263,7 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     if s.line_restart_pending:
         s.line_restart_pending = False
         if s.line_last_commit >= 0 and tick <= s.line_last_commit:
-            line_forget(s, memory)  # a new run
+            line_forget(p, s, memory)  # a new run
         elif s.line_start_tick >= 0:  # resume: the episode's spans teach nothing
             _clear_sums(s, memory)
             s.line_open_span = -1
@@ -217,6 +273,8 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
         s.line_start_tick = tick
         s.line_cursor, _ = locate(p, table, tick, s.line_cursor)
         s.line_first_span = s.line_cursor
+        if p.line_map:
+            _load_map(p, s, memory, s.line_first_span)
     span = _span_of(p, s, table, tick)
     if s.line_open_span >= 0 and span != s.line_open_span:
         # The open span's last tick never came (no estimate for it, live): close it now, or its
@@ -287,6 +345,8 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
             memory[A_ACC, j] = complex(scale * memory[A_ACC, j].real, scale * memory[A_ACC, j].imag)
         s.line_a_mean *= scale
         s.line_e_mean *= scale
+    if p.line_supports >= 2:
+        _record_span(p, s, table, memory, s.line_first_span + span, span >= 1)
     # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
     # E_h), what the law acts on and the EN 50318 statistics keep. The raw variance of F_hat
     # is blind under sensor noise: 10 um on z1, z2 gave sigma(F_hat) ~210 N for sigma(F) ~35 N.
@@ -306,14 +366,15 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         _trip(s, TRIP_BIAS)  # span 0 holds the start transient
     s.line_last_bias = bias if span >= 1 else 0.0
     back_off = False
-    if 1 <= span < p.line_runin_spans:
+    runin = _runin(p)
+    if 1 <= span < runin and not p.line_map:  # a map brings the passive spans' bar
         s.line_passive_var += var
         s.line_passive_spans += 1
         s.line_passive_loss = max(s.line_passive_loss, loss)
-    elif span >= p.line_runin_spans and s.line_passive_spans and not s.line_tripped:
+    elif span >= runin and s.line_passive_spans and not s.line_tripped:
         sigma_p = math.sqrt(s.line_passive_var / s.line_passive_spans)
         s.line_recent_var[span % GUARD_SPANS] = var
-        learned = span - p.line_runin_spans + 1  # learning spans so far
+        learned = span - runin + 1  # learning spans so far
         m = min(learned, GUARD_SPANS)
         total = -0.0
         for i in range(m):
@@ -329,11 +390,15 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         # This span ramped a back-off down: its feedforward is now GUARD_BACKOFF U_h, and what it
         # applied (a ramp's mixture) teaches nothing; the next span steps on from there.
         s.line_backoff_from = -1
-        for j in range(p.line_harmonics):
-            u = memory[U_FF, j]
-            memory[U_FF, j] = complex(GUARD_BACKOFF * u.real, GUARD_BACKOFF * u.imag)
-    elif span >= p.line_runin_spans - 1 and not s.line_tripped:
-        _learn(p, s, table, memory)
+        if p.line_map:  # every later span's map at the scale backed off to
+            s.line_map_scale *= GUARD_BACKOFF
+            _load_map(p, s, memory, s.line_first_span + span + 1)
+        else:
+            for j in range(p.line_harmonics):
+                u = memory[U_FF, j]
+                memory[U_FF, j] = complex(GUARD_BACKOFF * u.real, GUARD_BACKOFF * u.imag)
+    elif (p.line_map or span >= runin - 1) and not s.line_tripped:
+        _learn(p, s, table, memory, span)
         if back_off:  # the step as learned, ramped down to GUARD_BACKOFF of it over the next span
             s.line_backoff_from = s.line_last_commit + 1
     _clear_sums(s, memory)
@@ -365,9 +430,57 @@ def _trip(s, reason: int) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def _learn(p, s, table, memory) -> None:
+def _record_span(p, s, table, memory, m: int, learned_from: bool) -> None:
+    """Span m of the layout as this pass saw it: the harmonics applied (the hold's advance taken off,
+    as ``_learn`` steps from them) and the force error, for the next pass's map (``line_next_map``).
+    ``learned_from`` False (span 0, the start's transient): recorded as not seen."""
+    if not 0 <= m < p.line_supports - 1:
+        return
+    n = p.line_period
+    for j in range(p.line_harmonics):
+        a_r, a_i = _cdiv(memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag)
+        memory[_map_row(p, MAP_APPLIED, m), j] = complex(a_r, a_i)
+        memory[_map_row(p, MAP_ERROR, m), j] = memory[E_ACC, j]
+    memory[_map_row(p, MAP_SEEN, m), 0] = 1.0 if learned_from else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def line_next_map(p, s, table, memory, out) -> None:
+    """The map for the next pass over the line, into ``out`` (S rows of H harmonics): each span
+    recorded this pass takes the law's step on its own error, from what was applied over it,
+
+        W_m = A_m - gamma (conj(D_h) E_m + mu A_m) / (|D_h|^2 + mu),   clipped to line_step_max,
+
+    with D_h as identified at the end of this pass (a pass on a map keeps the map's); a span not
+    recorded keeps the map this pass was given (0 on a first pass). Iterative learning over passes:
+    the within-pass law's step (``_step``), on each span's own error instead of the last span's."""
+    if p.line_supports < 2:
+        return
+    work = memory.copy()  # _step's rows (REAL, E_ACC, U_FF) are overwritten
+    for m in range(p.line_supports - 1):
+        if not work[_map_row(p, MAP_SEEN, m), 0].real > 0.0:
+            out[m, :] = work[_map_row(p, MAP_GIVEN, m), :]
+            continue
+        for j in range(p.line_harmonics):
+            work[REAL, j] = work[_map_row(p, MAP_APPLIED, m), j]
+            work[E_ACC, j] = work[_map_row(p, MAP_ERROR, m), j]
+        for j in range(p.line_harmonics):
+            _step(p, s, table, work, j)
+        out[m, :] = work[U_FF, :]
+
+
+@njit(cache=True, error_model="numpy")
+def _learn(p, s, table, memory, span: int) -> None:
     """The secant update of every harmonic, the line model's fit, then one step per harmonic
-    (module docstring)."""
+    (module docstring). On a learned map: the next span's harmonics from the map, the responses
+    frozen (a span's own shape differs from the next one's, so the change between spans says nothing
+    of the response), the mean learned as on a first pass."""
+    if p.line_map:
+        if span >= 1:  # span 0's mean holds the start's transient
+            s.line_u_mean += p.line_gain * s.line_e_mean
+        s.line_clip_offset = -s.line_a_mean
+        _load_map(p, s, memory, s.line_first_span + span + 1)
+        return
     n, h, lam = p.line_period, p.line_harmonics, p.line_forgetting
     for j in range(h):
         # Anti-windup: step from, and identify on, the harmonics applied (module docstring).

@@ -385,3 +385,10 @@ class LawParameters(ParameterSet):
         low=-100.0,
         high=100.0,
     )
+    line_map: str = parameter(
+        "",
+        "line_adaptive: a map learned on an earlier pass of this train over this line (a JSON file, "
+        "pac_controller.line_map): every span starts from its own learned harmonics, the responses "
+        "frozen at the map's; it must fit this run's layout, speed and rate; '' none (docs/laws.md, "
+        "'A map learned over passes')",
+    )
