@@ -51,7 +51,9 @@ def test_derive_sees_the_files_parts():
     assert values["actuator_static_force"] == 157.3
     assert values["observer"] == "head_balance"
     assert 50.0 <= values["span_length"] <= 60.0  # the drawn line's mean span (50-60 m rule)
-    assert len(values["line_supports"]) > 50 and values["line_effort_weight"] == 0.05
+    assert len(values["line_supports"]) > 50
+    design = composition.LINE_DESIGN_FOR_ACTUATOR
+    assert {k: values[k] for k in design} == design
 
 
 @pytest.mark.unit

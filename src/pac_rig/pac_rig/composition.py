@@ -160,10 +160,13 @@ def _fe_line_design(
     return notes
 
 
-#: line_adaptive's design for an actuator as hardware (docs/laws.md, "The law on the realistic
-#: line"): the command's harmonics weighted more (mu) and fewer of them (up to 8 Hz), chosen on the
-#: design lines of the realistic scenario (line seeds 0-9), not on the lines reported.
-LINE_DESIGN_FOR_ACTUATOR = {"line_effort_weight": 0.05, "line_max_frequency": 8.0}
+#: line_adaptive's design for an actuator as hardware, which the rig's realistic scenarios pair with
+#: a whole drawn line (docs/laws.md, "On the realistic line"): the command's harmonics weighted more
+#: (mu) and fewer of them (up to 8 Hz), for the actuator's range; and every harmonic the line model
+#: calls weak (response below 1) on the model, because on spans that differ the secant identifies a
+#: weak harmonic on the span-to-span differences, not on its own step. Chosen on the design lines of
+#: the realistic scenario (line seeds 0-9), not on the lines reported.
+LINE_DESIGN_FOR_ACTUATOR = {"line_effort_weight": 0.05, "line_max_frequency": 8.0, "line_model_below": 1.0}
 
 
 def _line_design_for_actuator(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
