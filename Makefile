@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-pair line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-pair realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -132,6 +132,11 @@ realistic-experiment: setup
 # (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic_pair.py).
 realistic-pair: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair $(ARGS)
+
+# line_adaptive on a map learned on an earlier pass, against its first pass, on the realistic line
+# (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic_passes.py).
+realistic-passes: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_passes $(ARGS)
 
 campaigns: setup
 	set -e; for c in $(CAMPAIGNS); do \

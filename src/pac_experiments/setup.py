@@ -36,6 +36,7 @@ setup(
             "fe_live = pac_experiments.fe_live:main",
             "two_pantographs = pac_experiments.two_pantographs:main",
             "realistic_pair = pac_experiments.realistic_pair:main",
+            "realistic_passes = pac_experiments.realistic_passes:main",
             "realistic_laws_figures = pac_experiments.realistic_laws_figures:main",
             "line_response = pac_experiments.line_response:main",
         ],
