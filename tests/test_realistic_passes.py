@@ -1,0 +1,44 @@
+"""realistic_passes' report: each run of pass B against pass B's passive run on the same line, and a
+map run against the first pass B on the same line (per line, not the change of the means)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pac_experiments.realistic_passes import RUNS, write_report
+
+pytestmark = pytest.mark.unit
+
+SIGMA = {
+    "passive B": 50.0,
+    "first pass B": 35.0,
+    "map, position 1 m off": 40.0,
+    "map, position as pass A": 30.0,
+}
+
+
+def test_each_run_is_compared_with_its_own_lines_passive_and_first_pass(tmp_path):
+    rows = []
+    for seed in range(4):
+        for name, *_ in RUNS:
+            sigma = SIGMA.get(name, 33.0) + (seed if name == "passive B" else 0.0)
+            lost = name == "map, position 1 m off" and seed > 0
+            rows.append(
+                {
+                    "scenario": "realistic_electromechanical", "speed_kmh": 300.0, "line_seed": seed,
+                    "run": name, "sigma": sigma, "mean": 155.0, "loss_percent": 0.1 if lost else 0.0,
+                    "u_max_abs": 100.0, "trip": "harm" if name.startswith("map") and seed == 3 else "",
+                    "map_scale": "",
+                }
+            )  # fmt: skip
+    text = write_report(rows, tmp_path)
+    lines = {row.split(" | ")[2]: row for row in text.splitlines() if row.startswith("| realistic")}
+    against_passive = np.mean([100.0 * (30.0 / (50.0 + s) - 1.0) for s in range(4)])
+    aligned = lines["map, position as pass A"]
+    assert f"| {against_passive:+.1f} [" in aligned
+    assert aligned.rstrip(" |").endswith(f"{100.0 * (30.0 / 35.0 - 1.0):+.1f} [-14.3, -14.3]")
+    off = lines["map, position 1 m off"].split(" | ")
+    assert off[7:9] == ["3", "1"]  # 3 lines lose more contact than passive B; the guard fell back on 1
+    assert "first pass A" not in lines  # pass A's own result is the realistic experiment's row
+    assert (tmp_path / "results.csv").read_text().count("\n") == 1 + 4 * len(RUNS)
