@@ -90,6 +90,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "line_supports": (0.0,),
     "line_position_start": 0.0,
     "line_position_error": 0.0,
+    "line_map": "",
     "head_balance_window": 2.0,
 }
 #: The prefix of one law's own parameters: a run of another law does not read them, so they hash at
