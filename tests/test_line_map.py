@@ -150,6 +150,7 @@ def _valid(tmp_path: Path) -> dict:
         (lambda d: d["harmonics"].pop(), "harmonics"),
         (lambda d: d.update(period_ticks=1.5), "period_ticks"),
         (lambda d: d.update(passive_sigma=-1.0), "passive_sigma"),
+        (lambda d: d.update(passive_sigma=0.0), "passive_sigma"),  # a guard that never judges
         (lambda d: d.update(response_s=[1.0]), "response_s"),
         (lambda d: d.update(model_valid="yes"), "model_valid"),
         (lambda d: d.update(passes=0), "passes"),

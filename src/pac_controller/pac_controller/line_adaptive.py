@@ -305,7 +305,12 @@ class LineAdaptiveLaw(KernelLaw):
         _next_map_one(self.params, state, self.table, memory, out)
         n = self.period_ticks
         supports = self.table[n + TABLE_EXTRA_ROWS :].real.ravel()[: int(p["line_supports"])].copy()
-        passive_var = s["line_passive_var"] / s["line_passive_spans"] if s["line_passive_spans"] else 0.0
+        if not s["line_passive_spans"] or not s["line_passive_var"] > 0.0:
+            raise LineMapError(
+                "line_adaptive", "line_runin_spans", int(p["line_runin_spans"]),
+                "a pass with passive spans that saw the line: the map carries their sigma as the guard's bar",
+            )  # fmt: skip
+        passive_var = s["line_passive_var"] / s["line_passive_spans"]
         return LineMap(
             supports=supports, period_ticks=n, harmonics=out, response_z=memory[Z].copy(),
             response_s=memory[S].real.copy(), passive_sigma=math.sqrt(passive_var),

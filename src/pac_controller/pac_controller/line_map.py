@@ -113,16 +113,11 @@ def write_line_map(learned: LineMap, path: str | Path) -> None:
     tmp.replace(path)
 
 
-def _number(source: str, key: str, value: Any, low: float = -math.inf) -> float:
-    if (
-        isinstance(value, bool)
-        or not isinstance(value, int | float)
-        or not math.isfinite(value)
-        or value < low
-    ):
-        raise LineMapError(
-            source, key, value, f"a finite number >= {low:g}" if low > -math.inf else "a finite number"
-        )
+def _number(source: str, key: str, value: Any, low: float = -math.inf, positive: bool = False) -> float:
+    bad = isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value)
+    if bad or value < low or (positive and value <= 0):
+        allowed = "a finite number" + (" > 0" if positive else f" >= {low:g}" if low > -math.inf else "")
+        raise LineMapError(source, key, value, allowed)
     return float(value)
 
 
@@ -187,7 +182,8 @@ def read_line_map(path: str | Path) -> LineMap:
         harmonics=harmonics,
         response_z=_complex(source, "response_z", raw.get("response_z"), (width,)),
         response_s=response_s,
-        passive_sigma=_number(source, "passive_sigma", raw.get("passive_sigma"), 0.0),
+        # the guard's bar: at 0 it would never judge the map's spans
+        passive_sigma=_number(source, "passive_sigma", raw.get("passive_sigma"), positive=True),
         passive_loss=_number(source, "passive_loss", raw.get("passive_loss"), 0.0),
         line_stiffness=_number(source, "line_stiffness", raw.get("line_stiffness"), 0.0),
         line_damping=_number(source, "line_damping", raw.get("line_damping"), 0.0),
