@@ -144,6 +144,7 @@ from .line_adaptive_kernels import (  # noqa: F401 - re-exported: the law's cons
     line_next_map,
     line_output,
     line_restart,
+    map_row,
     map_spans,
     memory_rows,
 )
@@ -207,6 +208,7 @@ class LineAdaptiveLaw(KernelLaw):
         )
         table[n + TABLE_EXTRA_ROWS :].real.flat[: len(supports)] = supports
         self.table = table
+        self.supports = supports  # the design layout (line_supports; empty: none)
         self.memory = np.zeros((memory_rows(len(supports)), h), dtype=np.complex128)
         super().__init__("line_adaptive", dt)
         p = self.params[0]
@@ -277,7 +279,7 @@ class LineAdaptiveLaw(KernelLaw):
         learned.check_fits(supports, n, h, source)
         p = self.params[0]
         spans = map_spans(len(supports))
-        first = MEMORY_ROWS + 2 + MAP_GIVEN * spans
+        first = map_row(spans, MAP_GIVEN, 0)
         self.memory[first : first + spans] = learned.harmonics
         self.memory[MAP_Z] = learned.response_z
         self.memory[MAP_S] = learned.response_s
@@ -301,18 +303,17 @@ class LineAdaptiveLaw(KernelLaw):
                 "line_adaptive", "line_supports", int(p["line_supports"]),
                 "a design layout of at least two supports: a map is learned per span of it",
             )  # fmt: skip
-        out = np.zeros((spans, self.harmonics), dtype=np.complex128)
-        _next_map_one(self.params, state, self.table, memory, out)
-        n = self.period_ticks
-        supports = self.table[n + TABLE_EXTRA_ROWS :].real.ravel()[: int(p["line_supports"])].copy()
         if not s["line_passive_spans"] or not s["line_passive_var"] > 0.0:
             raise LineMapError(
                 "line_adaptive", "line_runin_spans", int(p["line_runin_spans"]),
                 "a pass with passive spans that saw the line: the map carries their sigma as the guard's bar",
             )  # fmt: skip
+        out = np.zeros((spans, self.harmonics), dtype=np.complex128)
+        _next_map_one(self.params, state, self.table, memory, out)
         passive_var = s["line_passive_var"] / s["line_passive_spans"]
         return LineMap(
-            supports=supports, period_ticks=n, harmonics=out, response_z=memory[Z].copy(),
+            supports=self.supports.copy(), period_ticks=self.period_ticks, harmonics=out,
+            response_z=memory[Z].copy(),
             response_s=memory[S].real.copy(), passive_sigma=math.sqrt(passive_var),
             passive_loss=float(s["line_passive_loss"]), line_stiffness=float(s["line_stiffness"]),
             line_damping=float(s["line_damping"]), model_valid=bool(s["line_model_valid"]),

@@ -45,10 +45,16 @@ def map_spans(supports: int) -> int:
     return supports - 1 if supports >= 2 else 0
 
 
+@njit(cache=True, inline="always")
+def map_row(spans: int, block: int, m: int) -> int:
+    """The row of span m in ``block`` (MAP_GIVEN, MAP_APPLIED, ...) of a map of ``spans`` spans."""
+    return MEMORY_ROWS + 2 + block * spans + m
+
+
 def memory_rows(supports: int) -> int:
     """Rows of line_adaptive's ``memory`` on a design layout of ``supports`` supports."""
     spans = map_spans(supports)
-    return MEMORY_ROWS + (2 + 4 * spans if spans else 0)
+    return map_row(spans, MAP_SEEN + 1, 0) if spans else MEMORY_ROWS
 
 
 #: Rows of the ``table`` after the span's N phases (row N: the hold's advance): the nominal
@@ -100,7 +106,7 @@ def _sum_real(row: np.ndarray, n: int) -> float:
 @njit(cache=True, inline="always")
 def _map_row(p, block: int, m: int) -> int:
     """The row of span m of the layout in ``block`` (MAP_GIVEN, MAP_APPLIED, ...) of the map's rows."""
-    return MEMORY_ROWS + 2 + block * (p.line_supports - 1) + m
+    return map_row(p.line_supports - 1, block, m)
 
 
 @njit(cache=True, error_model="numpy")
