@@ -12,12 +12,15 @@ far below any modelling change (one dropper's clamp mass is ~4e-4 of the line's 
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pac_plant.catenary.data import CatenaryData
-from pac_plant.catenary.line import DOFS_PER_NODE, WC, WM, Line, beam_matrices, gravity_load
+from pac_plant.catenary.catenary_file import load_catenary
+from pac_plant.catenary.data import CatenaryData, WireData
+from pac_plant.catenary.layout import WS
+from pac_plant.catenary.line import DOFS_PER_NODE, WC, WM, Line, beam_matrices, gravity_load, string_matrices
 
 pytestmark = pytest.mark.unit
 
@@ -121,3 +124,84 @@ def test_the_static_contact_wire_sits_at_its_design_presag_at_every_dropper(line
     dr = line.droppers
     np.testing.assert_allclose(-line.w_static[dr.wc], dr.target_sag, rtol=0, atol=1e-6)
     np.testing.assert_allclose(dr.stiffness, DATA.dropper_ea / dr.length0, rtol=1e-12)
+
+
+# -- a stitched line: the messenger a string, a stitch wire at an anchor and one in the line -----------
+STITCHED_FILE = Path(__file__).parent / "data" / "catenary_unequal_stitched.yaml"
+
+
+@pytest.fixture(scope="module")
+def stitched() -> Line:
+    """Four spans of the unequal stitched test line (period of three): a stitch wire at support 0
+    (an anchor: half of it, anchored there) and at support 3 (inside the line, both ends clamped
+    to the messenger)."""
+    f = load_catenary(str(STITCHED_FILE))
+    return Line(dataclasses.replace(f.data, n_spans=4), f.numerics)
+
+
+def stitch_wires(line: Line) -> list[tuple[float, float, float, float]]:
+    """Each stitch wire as (start, end, rho, tension) from the data alone: half its length either
+    side of its support, cut at the line's ends (where it is anchored)."""
+    spans, out, x0 = line.data.spans, [], 0.0
+    for s in range(line.n_spans + 1):
+        st = spans[s % len(spans)].stitch
+        if st is not None:
+            a, b = max(0.0, x0 - st.length / 2), min(line.length, x0 + st.length / 2)
+            out.append((a, b, st.rho, st.tension))
+        if s < line.n_spans:
+            x0 += spans[s % len(spans)].length
+    return out
+
+
+def stitched_weight(line: Line) -> float:
+    d, dr = line.data, line.droppers
+    mass = (d.contact.rho + d.messenger.rho) * line.length
+    mass += sum(rho * (b - a) for a, b, rho, _ in stitch_wires(line))
+    mass += len(dr.node) * (d.clamp_mass_contact + d.clamp_mass_messenger) + d.dropper_rho * dr.length0.sum()
+    return d.gravity * mass
+
+
+def test_the_stitched_test_line_has_a_stitch_wire_at_an_anchor_and_one_inside(stitched):
+    wires = stitch_wires(stitched)
+    assert [a == 0.0 for a, *_ in wires] == [True, False]
+    assert len(stitched.layout.stitches) == 2
+    # Stitch droppers hang from the stitch wires: more droppers than the spans' own.
+    own = sum(len(stitched.data.spans[s % 3].dropper_positions) for s in range(4))
+    assert len(stitched.droppers.node) > own
+
+
+def test_the_stitched_lines_load_is_its_weight(stitched):
+    """As for the plain line: the translational loads of the free DOFs (contact wire, messenger,
+    stitch wires) sum to the line's weight less the half elements at the anchors: both wires' end
+    elements and the anchored stitch wire's first element."""
+    line, d = stitched, stitched.data
+    carried = stitched_weight(line) / d.gravity
+    carried -= 0.5 * (d.contact.rho + d.messenger.rho) * (line.h[0] + line.h[-1])
+    carried -= sum(0.5 * rho * line.h[0] for a, _, rho, _ in stitch_wires(line) if a == 0.0)
+    slopes = DOFS_PER_NODE * np.arange(line.n_nodes) + WC + 1  # the contact wire's slope: no weight
+    free = np.setdiff1d(np.arange(line.n_dof), np.concatenate([slopes, line.fixed]))
+    assert line.f_static[free].sum() == pytest.approx(-d.gravity * carried, rel=1e-9)
+
+
+def test_the_static_stitched_line_rests_on_its_supports_and_anchors(stitched):
+    """Vertical equilibrium of the stitched line in its static state: supports, the contact wire's
+    beam ends, the messenger's string ends and the anchored stitch wire's end carry its weight
+    (stitch wires included), computed from the data."""
+    line, d, w = stitched, stitched.data, stitched.w_static
+    supports = np.asarray(line.support_nodes)
+    reaction = -d.steady_arm_stiffness * w[DOFS_PER_NODE * supports + WC].sum()
+    reaction -= d.messenger_support_stiffness * w[DOFS_PER_NODE * supports + WM].sum()
+    last = line.n_nodes - 1
+    for e, end in ((0, 0), (last - 1, 2)):
+        ke, _ = beam_matrices(d.contact, line.h[e])
+        dofs = [4 * e + WC, 4 * e + WC + 1, 4 * (e + 1) + WC, 4 * (e + 1) + WC + 1]
+        reaction += (ke @ w[dofs] - gravity_load(d.contact, line.h[e], d.gravity))[end]
+    ends = ((0, 0), (last - 1, 1))  # (element, its anchored end)
+    strings = [(d.messenger, [4 * e + WM, 4 * (e + 1) + WM], e, end) for e, end in ends]
+    for a, _, rho, tension in stitch_wires(line):
+        if a == 0.0:  # anchored at node 0; its first element's far end is node 1's stitch height
+            strings.append((WireData(rho, tension, 0.0), [WS, 4 + WS], 0, 0))
+    for wire, dofs, e, end in strings:
+        ks, _ = string_matrices(wire, line.h[e])
+        reaction += (ks @ w[dofs])[end] + 0.5 * wire.rho * d.gravity * line.h[e]
+    assert reaction == pytest.approx(stitched_weight(line), rel=1e-9)
