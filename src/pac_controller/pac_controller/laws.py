@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 
+from pac_common.parameters import ParameterError
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
 from .backstepping import BacksteppingController, KnownThetaBackstepping
@@ -31,7 +33,7 @@ from .lqr import LqrLaw, design_lqr
 from .parameters import FORCE_ESTIMATES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
 from .pid import PidLaw, design_pid, least_derivative_filter
-from .user_law import LawFile, LawSetup, UserLaw, load_law_file, load_law_module
+from .user_law import LawFile, LawSetup, UserLaw, load_law_file, load_law_module, refuse
 
 #: Laws that need the catenary parameters (k0, alpha, beta): the controller is told them.
 NEEDS_CATENARY = frozenset({"backstepping_known"})
@@ -173,6 +175,42 @@ LAWS: dict[str, LawEntry] = {
     "line_adaptive": LawEntry(_line_adaptive, frozenset({"contact_force_hat"}), observer="contact_force"),
     "skyhook": law_module("pac_controller.skyhook"),
 }
+
+
+#: The entry-point group by which an installed distribution adds laws: ``name = module``, the
+#: module written to the law-file protocol (docs/laws.md, "A law from another package").
+ENTRY_POINT_GROUP = "pac.laws"
+
+
+def _refused(message: ParameterError) -> Callable[..., Law]:
+    def build(*_: object) -> Law:
+        raise message
+
+    return build
+
+
+def installed_laws(registered: Mapping[str, LawEntry]) -> dict[str, LawEntry]:
+    """The laws other installed distributions add (entry points of :data:`ENTRY_POINT_GROUP`), by
+    name. A name already ``registered`` stays pac's (the entry point is not read). An entry point
+    that cannot be loaded (no such module, a module off the protocol) is still a name: choosing it
+    is refused in one line, and every other law runs as before."""
+    out: dict[str, LawEntry] = {}
+    for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda ep: ep.name):
+        if point.name in registered or point.name in out:
+            continue
+        try:
+            if ":" in point.value:
+                raise refuse(point.value, "an entry point of pac.laws names a module, not an attribute")
+            out[point.name] = law_module(point.value)
+        except ParameterError as exc:
+            out[point.name] = LawEntry(_refused(exc), compiled=False, source=point.value)
+        except Exception as exc:  # noqa: BLE001 - whatever importing the module raises is its refusal
+            why = f"importing it raised {type(exc).__name__}: {exc}"
+            out[point.name] = LawEntry(_refused(refuse(point.value, why)), compiled=False, source=point.value)
+    return out
+
+
+LAWS.update(installed_laws(LAWS))
 
 
 def law_entry(name: str) -> LawEntry:
