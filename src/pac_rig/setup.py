@@ -30,6 +30,7 @@ setup(
             "recorder = pac_rig.recorder:main",
             "composed = pac_rig.composed:main",
             "simulate = pac_rig.simulate:main",
+            "rig_params = pac_rig.rig_params:main",
             "replay = pac_rig.replay:main",
             "live_view = pac_rig.live_view:main",
         ],

@@ -34,6 +34,13 @@ class ParameterError(ValueError):
         super().__init__(f"invalid parameter '{name}' = {excerpt(value)}: allowed {allowed}")
 
 
+#: Names the rig takes as a whole but no node alone, and where they go instead.
+RIG_ONLY = {
+    "scenario": "a scenario is composed for the whole rig: `ros2 run pac_rig rig_params -p scenario:=NAME "
+    "... -o rig.yaml`, then every node with --ros-args --params-file rig.yaml",
+}
+
+
 class UnknownParameterError(ParameterError):
     """A parameter name the program does not have (a typo): refused, never ignored."""
 
@@ -41,10 +48,9 @@ class UnknownParameterError(ParameterError):
         self.name = name
         self.value = value
         self.allowed = f"a parameter of {program}"
+        where = f"; {RIG_ONLY[name]}" if name in RIG_ONLY else " (--help lists them)"
         ValueError.__init__(
-            self,
-            f"unknown parameter '{name}' = {excerpt(value)}: {program} has no such parameter "
-            "(--help lists them)",
+            self, f"unknown parameter '{name}' = {excerpt(value)}: {program} has no such parameter{where}"
         )
 
 

@@ -44,6 +44,16 @@ def ros_args(params: dict[str, Any]) -> list[str]:
     return out
 
 
+def params_file_sections(params: dict[str, dict[str, Any]]) -> dict[str, dict[str, dict[str, Any]]]:
+    """A ROS 2 parameter file's sections of each node's values (``params``: by role): one section
+    per node, named as the node is (its executable's name; the relays keep it)."""
+
+    def values(role: str) -> dict[str, Any]:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in params[role].items()}
+
+    return {NODES[role].executable: {"ros__parameters": values(role)} for role in params}
+
+
 def node_env(domain_id: int | None = None) -> dict[str, str]:
     env = dict(os.environ)
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -194,12 +204,8 @@ class Rig:
         """``composed`` with a params file holding one section per node (by node name)."""
         import yaml
 
-        def values(name: str) -> dict[str, Any]:
-            return {k: list(v) if isinstance(v, tuple) else v for k, v in self.params[name].items()}
-
-        # The node name is the real node's executable name (the relays keep it).
-        sections = {NODES[name].executable: {"ros__parameters": values(name)} for name in LOOP_NODES}
         path = self.log_dir / "composed_params.yaml"
+        sections = params_file_sections({name: self.params[name] for name in LOOP_NODES})
         path.write_text(yaml.safe_dump(sections))
         return [
             "pac_rig",
