@@ -241,3 +241,108 @@ def test_the_line_model_is_the_pantograph_on_an_impedance_and_its_fit_recovers_t
         assert law.state[0]["line_damping"] == pytest.approx(damping, rel=1e-9, abs=1e-6)
         assert bool(law.state[0]["line_model_valid"]) is valid
         assert h == len(w)
+
+
+def _fit_case(samples, information, last_fit, model_below=None):
+    """``_fit_line`` on secant data made from per-harmonic impedance samples ``samples`` (complex,
+    one per harmonic; NaN: a harmonic whose response gives no impedance), with information
+    ``information`` and the previous fit ``last_fit`` = (k_s, c); returns the law's state after it."""
+    from numba import njit
+
+    from pac_controller import line_adaptive_kernels as kern
+
+    @njit
+    def fit(params, states, table, memory):
+        kern._fit_line(params[0], states[0], table, memory)
+
+    laws = LawParameters() if model_below is None else LawParameters(line_model_below=model_below)
+    law = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), laws, 1e-3)
+    n, prior = law.period_ticks, law.params[0]["line_prior_weight"]
+    rows = law.table[n + kern.MODEL_C : n + kern.MODEL_OMEGA + 1]
+    c, b, det, hold = rows[0], rows[1], rows[2], rows[3].real
+    with np.errstate(invalid="ignore"):  # a NaN sample stays NaN
+        force = samples * c / (samples * b + det)  # the force's response on each sample's line
+    law.memory[kern.S] = information
+    law.memory[kern.Z] = -force * hold * (information + prior) + prior
+    law.state[0]["line_stiffness"], law.state[0]["line_damping"] = last_fit
+    fit(law.params, law.state, law.table, law.memory)
+    return law, (c, b, det, rows[4].real)
+
+
+#: The previous fit the cases below start from (k_s [N/m], c [N s/m]).
+LAST_FIT = (1200.0, 300.0)
+
+
+def _disagreeing_samples(seed: int):
+    """Per-harmonic impedance samples that disagree (each harmonic its own line, k_s and c drawn
+    about 1500 N/m and 270 N s/m), their information (1e2..1e5) and the model's rows (C, B, det, w)."""
+    rng = np.random.default_rng(seed)
+    h = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), LawParameters(), 1e-3).harmonics
+    _, rows = _fit_case(np.full(h, 1000.0 + 0j), np.ones(h), (0.0, 0.0))
+    w = rows[3]
+    samples = (1500.0 + 600.0 * rng.standard_normal(h)) + 1j * w * (270.0 + 120.0 * rng.standard_normal(h))
+    return samples, 10.0 ** rng.uniform(2.0, 5.0, h), rows
+
+
+def test_the_line_fit_weighs_each_harmonic_by_its_information_and_its_sensitivity_to_the_line():
+    """Samples that disagree (each harmonic its own impedance): the fit is the weighted least-squares
+    line Z = k_s + i c w, each harmonic weighted by its information S_h times |dD/dZ|^2 at the last
+    fit, dD/dZ taken here by a central difference of D(Z) = Z C / (Z B + det) (module docstring)."""
+    samples, information, (c, b, det, w) = _disagreeing_samples(5)
+    h, last = samples.size, LAST_FIT
+    law, _ = _fit_case(samples, information, last)
+
+    def response(z):
+        return z * c / (z * b + det)
+
+    z_last = last[0] + 1j * last[1] * w
+    step = 1e-4 * np.abs(z_last)
+    slope = (response(z_last + step) - response(z_last - step)) / (2 * step)
+    weight = information * np.abs(slope) ** 2
+    # Weighted least squares, as a linear system: rows sqrt(w) [1, 0; 0, w] (k_s, c) = sqrt(w) (Re, Im).
+    a = np.zeros((2 * h, 2))
+    a[:h, 0], a[h:, 1] = np.sqrt(weight), np.sqrt(weight) * w
+    rhs = np.concatenate([np.sqrt(weight) * samples.real, np.sqrt(weight) * samples.imag])
+    (k_s, damping), *_ = np.linalg.lstsq(a, rhs, rcond=None)
+    # The central difference's error is O(step^2) relative (1e-8 here), far below rel 1e-6.
+    assert law.state[0]["line_stiffness"] == pytest.approx(k_s, rel=1e-6)
+    assert law.state[0]["line_damping"] == pytest.approx(damping, rel=1e-6)
+    unweighted = np.mean(samples.real)
+    assert abs(k_s - unweighted) > 20.0  # the weighting matters in this case
+
+
+def test_a_harmonic_without_an_impedance_drops_out_of_the_fit_and_none_keeps_the_last_fit():
+    """A harmonic whose sample is not finite weighs nothing (the fit is that of the others); when
+    no harmonic gives one the fit keeps its last values."""
+    samples, information, _ = _disagreeing_samples(6)
+    h, last = samples.size, LAST_FIT
+    broken = samples.copy()
+    broken[2] = complex(math.nan, 0.0)
+    law, _ = _fit_case(broken, information, last)
+    without = information.copy()
+    without[2] = 0.0
+    reference, _ = _fit_case(samples, without, last)
+    for name in ("line_stiffness", "line_damping"):
+        assert math.isfinite(law.state[0][name])
+        assert law.state[0][name] == pytest.approx(reference.state[0][name], rel=1e-12)
+    with_all, _ = _fit_case(samples, information, last)
+    assert abs(law.state[0]["line_stiffness"] - with_all.state[0]["line_stiffness"]) > 1.0  # it did weigh
+    none, _ = _fit_case(np.full(h, complex(math.nan, 0.0)), information, last)
+    assert (none.state[0]["line_stiffness"], none.state[0]["line_damping"]) == last
+
+
+def test_the_line_model_is_valid_when_its_first_harmonic_is_not_weak():
+    """line_model_valid judges the first harmonic's response on the fitted model: a limit between
+    the first and the second harmonic's |M| gives valid or not as the first one's side says."""
+    from pac_controller import line_adaptive_kernels as kern
+
+    h = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), LawParameters(), 1e-3).harmonics
+    _, (c, b, det, w) = _fit_case(np.full(h, 1000.0 + 0j), np.ones(h), (0.0, 0.0))
+    samples, information = 1500.0 + 1j * 270.0 * w, np.full(h, 1e4)
+    law, _ = _fit_case(samples, information, (0.0, 0.0))
+    z = law.state[0]["line_stiffness"] + 1j * law.state[0]["line_damping"] * w
+    m = np.abs(z * c / (z * b + det) * law.table[law.period_ticks + kern.MODEL_HOLD].real)
+    assert abs(m[0] - m[1]) > 1e-3 * m[0]
+    between = 0.5 * (m[0] + m[1])
+    judged, _ = _fit_case(samples, information, (0.0, 0.0), between)
+    assert bool(judged.state[0]["line_model_valid"]) is bool(m[0] >= between)
