@@ -12,6 +12,11 @@ apart); survived: every test passed.  The report (``reports/mutation/<module>.md
 ``summary.md``) lists every mutant, and every survivor with the argument in ``notes.json`` (why it
 is equivalent, or what test is missing).
 
+Results are kept between runs (``<scope>.json``) by each mutant's key: its function's name and a
+digest of that function's source, the change, and which occurrence of it. Lines may move; a
+function whose source changed has its mutants run again. ``--survivors`` runs the survivors again
+(after a test was added for them).
+
 Why not mutmut or cosmic-ray: numba's on-disk cache keys a compiled function by its own file only.
 A function compiled in another module that inlines a mutated one (``pac_rig.loop.loop_tick``
 inlines the controller's ``controller_step``) is loaded from the cache unchanged, so a mutant would
@@ -26,6 +31,7 @@ from __future__ import annotations
 import argparse
 import ast
 import copy
+import hashlib
 import importlib.util
 import json
 import os
@@ -160,6 +166,10 @@ class Mutant:
     status: str = "not run"  # killed, survived, timeout, not run
     seconds: float = 0.0
     failing: str = ""
+    #: What the mutant is, independent of where its function sits in the file: the function's name
+    #: and a digest of its source, the change, and which occurrence of that change in the function.
+    #: A result is kept while its key is the same (the function unchanged); lines may move.
+    key: str = ""
 
 
 def _functions(tree: ast.Module, names: tuple[str, ...]) -> list[tuple[str, ast.AST]]:
@@ -213,11 +223,17 @@ def _variants(node: ast.AST) -> list[ast.AST]:
     return out
 
 
+def function_digest(source: str, fn: ast.AST) -> str:
+    """A digest of a function's (or class's) source text: the same wherever it sits in the file."""
+    return hashlib.sha256((ast.get_source_segment(source, fn) or "").encode()).hexdigest()[:12]
+
+
 def mutants(module: str, functions: tuple[str, ...], source: str) -> list[Mutant]:
     """Every mutant of the listed functions, in source order; docstrings and annotations are skipped."""
     tree = ast.parse(source)
     out: list[Mutant] = []
     for name, fn in _functions(tree, functions):
+        digest = function_digest(source, fn)
         skip: set[int] = set()
         for node in ast.walk(fn):
             if isinstance(node, ast.FunctionDef | ast.ClassDef):  # @njit(cache=True): not behaviour
@@ -247,6 +263,10 @@ def mutants(module: str, functions: tuple[str, ...], source: str) -> list[Mutant
                 if "\n" in segment:
                     continue
                 index = sum(1 for m in out if m.line == node.lineno)
+                change = f"{segment} -> ({text})"
+                occurrence = sum(
+                    1 for m in out if m.function == name and f"{m.original} -> {m.mutated}" == change
+                )
                 out.append(
                     Mutant(
                         ident=f"{module.rsplit('.', 1)[-1]}:{node.lineno}:{index}",
@@ -257,6 +277,7 @@ def mutants(module: str, functions: tuple[str, ...], source: str) -> list[Mutant
                         mutated=f"({text})",
                         start=(node.lineno, node.col_offset),
                         end=(node.end_lineno or node.lineno, node.end_col_offset or 0),
+                        key=f"{name}@{digest}: {change} #{occurrence}",
                     )
                 )
     return out
@@ -265,7 +286,9 @@ def mutants(module: str, functions: tuple[str, ...], source: str) -> list[Mutant
 def hand_planted(name: str, module: str, functions: tuple[str, ...], source: str) -> list[Mutant]:
     """The :data:`HAND_PLANTED` mutants of scope ``name``, located in ``source``."""
     tree = ast.parse(source)
-    spans = {n: (f.lineno, f.end_lineno or f.lineno) for n, f in _functions(tree, functions)}
+    found = _functions(tree, functions)
+    spans = {n: (f.lineno, f.end_lineno or f.lineno) for n, f in found}
+    digests = {n: function_digest(source, f) for n, f in found}
     lines = source.splitlines()
     out = []
     for function, original, replacement in HAND_PLANTED.get(name, ()):
@@ -279,6 +302,7 @@ def hand_planted(name: str, module: str, functions: tuple[str, ...], source: str
                     Mutant(
                         f"{module.rsplit('.', 1)[-1]}:{i + 1}:hand", module, function, i + 1,
                         original, replacement, (i + 1, start), (i + 1, end),
+                        key=f"{function}@{digests[function]}: {original} -> {replacement} #hand",
                     )
                 )  # fmt: skip
                 break
@@ -478,6 +502,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--list", action="store_true", help="list the mutants only")
     ap.add_argument("--only", nargs="*", default=None, help="mutant ids to run (default: all of the scopes)")
+    ap.add_argument(
+        "--survivors",
+        action="store_true",
+        help="run the survivors again (after tests were added), and what was not run",
+    )
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "mutation")
     args = ap.parse_args(argv)
     # A terminated run still restores the installed file (Planted.restore in a finally).
@@ -502,9 +531,13 @@ def main(argv: list[str] | None = None) -> int:
                     print(f"{m.ident:28} {m.function:28} {m.original!r} -> {m.mutated!r}")
                 continue
             results = args.out / f"{name}.json"
-            previous = {m["ident"]: m for m in json.loads(results.read_text())} if results.exists() else {}
-            for m in ms:  # keep the results of mutants not run this time
-                old = previous.get(m.ident)
+            previous = (
+                {m.get("key") or m["ident"]: m for m in json.loads(results.read_text())}
+                if results.exists()
+                else {}
+            )
+            for m in ms:  # keep the results of mutants not run this time, while their function is unchanged
+                old = previous.get(m.key)
                 if old and old["original"] == m.original and old["mutated"] == m.mutated:
                     m.status, m.seconds, m.failing = old["status"], old["seconds"], old["failing"]
             stale = dependents(module)
@@ -513,7 +546,11 @@ def main(argv: list[str] | None = None) -> int:
                 for serial, m in enumerate(ms):
                     if args.only is not None and m.ident not in args.only:
                         continue
-                    if args.only is None and m.status != "not run":
+                    if (
+                        args.only is None
+                        and m.status != "not run"
+                        and not (args.survivors and m.status == "survived")
+                    ):
                         continue
                     planted.plant(apply(source, m), serial)
                     cache = Path(tmp) / "numba_cache"
