@@ -322,6 +322,40 @@ def test_a_new_run_after_a_restart_forgets_and_runs_in_again():
     assert np.abs(law.u_ff).max() == 0.0 and law.start_tick == 0
 
 
+def test_an_episode_right_after_the_first_command_is_a_resume_not_a_new_run():
+    """The law's first command at tick 0, the fallback from tick 1 (a stale estimate at start-up,
+    live): the ticks did not start again, so the run keeps its start (its spans count from tick 0)
+    and it learns as it would have without the episode."""
+    whole, _ = synthetic_loop(+1.0, spans=10)
+    resumed, _ = synthetic_loop(+1.0, spans=10, fallback=frozenset(range(1, 31)))
+    assert resumed.start_tick == whole.start_tick == 0
+    assert not resumed.tripped
+    assert np.max(np.abs(resumed.u_ff - whole.u_ff)) < 3.0
+
+
+def test_a_new_run_after_a_run_of_one_tick_is_a_fresh_law():
+    """A run of one command, then the ticks start again: the law forgets that tick entirely, so
+    the new run is, record for record, a law that never saw it."""
+    track = TrackParameters(speed_kmh=300.0, span_length=SPAN)
+    fresh, again = (LineAdaptiveLaw(track, LawParameters(), 1e-3) for _ in range(2))
+    f_r = np.array([150.0, 0, 0, 0, 0])
+    w = 2 * math.pi / (fresh.period_ticks * 1e-3)
+
+    def drive(law: LineAdaptiveLaw, ticks: range) -> None:
+        for k in ticks:
+            f_hat = 150.0 + 40 * math.cos(w * k * 1e-3) + 7.0  # an error the first tick would leave
+            u, _ = law.output(k, k * 1e-3, f_r, np.zeros(4), np.zeros(3), f_hat, math.nan)
+            law.commit(k, u)
+
+    drive(again, range(1))
+    again.restart(150.0)  # the controller saw the ticks start again
+    for law in (fresh, again):
+        drive(law, range(4 * fresh.period_ticks))
+    assert again.state.tobytes() == fresh.state.tobytes()  # the same machine: bit for bit
+    assert again.memory.tobytes() == fresh.memory.tobytes()
+    assert np.abs(fresh.u_ff).max() > 1.0  # it did learn something in those spans
+
+
 def test_guard_falls_back_to_passive_when_forced_to_harm():
     law, out = synthetic_loop(-1.0)
     assert law.tripped and law.trip_reason == "harm"
