@@ -356,6 +356,17 @@ def test_a_new_run_after_a_run_of_one_tick_is_a_fresh_law():
     assert np.abs(fresh.u_ff).max() > 1.0  # it did learn something in those spans
 
 
+def test_span_0_whose_last_estimate_never_came_is_closed_when_span_1_begins():
+    """Live, the estimate of span 0's last tick may never come: span 0 (the start transient) must
+    still be closed when span 1's first command comes, or its sums run into span 1, a passive span
+    whose variance is the guard's bar."""
+    whole, _ = synthetic_loop(+1.0, spans=3)
+    lost, _ = synthetic_loop(+1.0, spans=3, lost=frozenset({whole.period_ticks - 1}))
+    assert int(whole.state[0]["line_passive_spans"]) == 2
+    for name in ("line_passive_var", "line_passive_loss", "line_passive_spans"):
+        assert lost.state[0][name] == whole.state[0][name], name  # the same machine: bit for bit
+
+
 def test_guard_falls_back_to_passive_when_forced_to_harm():
     law, out = synthetic_loop(-1.0)
     assert law.tripped and law.trip_reason == "harm"
