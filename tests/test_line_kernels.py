@@ -269,6 +269,27 @@ def _fit_case(samples, information, last_fit, model_below=None):
     return law, (c, b, det, rows[4].real)
 
 
+def test_the_model_response_is_the_pantograph_on_the_fitted_spring_with_the_hold():
+    """_model_response with a fitted spring line (c = 0) equals an independent solve of eqs. (3)-(4)
+    on that spring, times the hold's gain (test_line_response.spring_response)."""
+    from numba import njit
+    from test_line_response import spring_response
+
+    from pac_controller import line_adaptive_kernels as kern
+    from pac_model.parameters import PantographParameters
+
+    @njit
+    def response(states, table, n, j):
+        return kern._model_response(states[0], table, n, j)
+
+    law = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), LawParameters(), 1e-3)
+    law.state[0]["line_stiffness"], law.state[0]["line_damping"] = 3000.0, 0.0
+    n = law.period_ticks
+    w, hold = law.table[n + kern.MODEL_OMEGA].real, law.table[n + kern.MODEL_HOLD].real
+    got = np.array([complex(*response(law.state, law.table, n, j)) for j in range(law.harmonics)])
+    np.testing.assert_allclose(got, spring_response(PantographParameters(), 3000.0, w) * hold, rtol=1e-10)
+
+
 #: The previous fit the cases below start from (k_s [N/m], c [N s/m]).
 LAST_FIT = (1200.0, 300.0)
 
