@@ -52,6 +52,7 @@ LINE_LAW_TESTS = (
     "tests/test_line_control.py",
     "tests/test_line_kernels.py",
     "tests/test_line_layout.py",
+    "tests/test_line_map.py",
 )
 #: name -> (module, functions (qualified names), tests). The tests are those of the module's
 #: behaviour that ``make test-fast`` runs; a mutant they all pass survives.
