@@ -290,6 +290,50 @@ def test_the_model_response_is_the_pantograph_on_the_fitted_spring_with_the_hold
     np.testing.assert_allclose(got, spring_response(PantographParameters(), 3000.0, w) * hold, rtol=1e-10)
 
 
+def test_a_harmonic_the_line_model_calls_weak_steps_on_the_models_response_the_others_on_their_own():
+    """_step with a valid line model (a fitted spring): where the model's response |M_h| is below
+    line_model_below the step takes D_h = -M_h (M_h here from an independent solve of eqs. (3)-(4),
+    times the hold), elsewhere the harmonic's own identified D_h; the step itself is the module
+    docstring's U_h <- A_h - gamma (conj(D_h) E_h + mu A_h) / (|D_h|^2 + mu), written here in numpy
+    (no step here reaches the clip, line_step_max)."""
+    from numba import njit
+    from test_line_response import spring_response
+
+    from pac_controller import line_adaptive_kernels as kern
+    from pac_model.parameters import PantographParameters
+
+    @njit
+    def step(params, states, table, memory, j):
+        kern._step(params[0], states[0], table, memory, j)
+
+    track = TrackParameters(speed_kmh=300.0, span_length=SPAN)
+    probe = LineAdaptiveLaw(track, LawParameters(), 1e-3)
+    n, h = probe.period_ticks, probe.harmonics
+    w, hold = probe.table[n + kern.MODEL_OMEGA].real, probe.table[n + kern.MODEL_HOLD].real
+    model = spring_response(PantographParameters(), 3000.0, w) * hold
+    below = float(np.sort(np.abs(model))[h // 2])  # the weaker half of the harmonics under it
+    weak = np.abs(model) < below
+    assert 0 < weak.sum() < h
+    law = LineAdaptiveLaw(track, LawParameters(line_model_below=below, line_step_max=1000.0), 1e-3)
+    law.state[0]["line_stiffness"], law.state[0]["line_damping"] = 3000.0, 0.0
+    law.state[0]["line_model_valid"] = True
+    rng = np.random.default_rng(9)
+    own = -1.3 * np.exp(1j * rng.uniform(-1.0, 1.0, h))  # identified dE/dU, off the model's
+    prior = law.params[0]["line_prior_weight"]
+    law.memory[kern.S] = 1e4
+    law.memory[kern.Z] = own * (1e4 + prior) + prior
+    errors = 20.0 * np.exp(1j * rng.uniform(-math.pi, math.pi, h))
+    applied = 30.0 * np.exp(1j * rng.uniform(-math.pi, math.pi, h))
+    law.memory[kern.E_ACC], law.memory[kern.REAL] = errors, applied
+    for j in range(h):
+        step(law.params, law.state, law.table, law.memory, j)
+    d = np.where(weak, -model, own)
+    gain, mu = law.params[0]["line_gain"], law.params[0]["line_effort_weight"]
+    expected = applied - gain * (np.conj(d) * errors + mu * applied) / (np.abs(d) ** 2 + mu)
+    assert np.abs(expected - applied).max() < 1000.0  # no step clipped
+    np.testing.assert_allclose(law.memory[kern.U_FF], expected, rtol=1e-10)
+
+
 #: The previous fit the cases below start from (k_s [N/m], c [N s/m]).
 LAST_FIT = (1200.0, 300.0)
 
