@@ -243,10 +243,11 @@ def test_the_line_model_is_the_pantograph_on_an_impedance_and_its_fit_recovers_t
         assert h == len(w)
 
 
-def _fit_case(samples, information, last_fit, model_below=None):
+def _fit_case(samples, information, last_fit, model_below=None, learn=False):
     """``_fit_line`` on secant data made from per-harmonic impedance samples ``samples`` (complex,
     one per harmonic; NaN: a harmonic whose response gives no impedance), with information
-    ``information`` and the previous fit ``last_fit`` = (k_s, c); returns the law's state after it."""
+    ``information`` and the previous fit ``last_fit`` = (k_s, c); returns the law's state after it.
+    ``learn``: a whole learning step (``_learn``, its first: no secant update) instead of the fit."""
     from numba import njit
 
     from pac_controller import line_adaptive_kernels as kern
@@ -254,6 +255,10 @@ def _fit_case(samples, information, last_fit, model_below=None):
     @njit
     def fit(params, states, table, memory):
         kern._fit_line(params[0], states[0], table, memory)
+
+    @njit
+    def learn_span(params, states, table, memory):
+        kern._learn(params[0], states[0], table, memory, 5)
 
     laws = LawParameters() if model_below is None else LawParameters(line_model_below=model_below)
     law = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), laws, 1e-3)
@@ -265,7 +270,7 @@ def _fit_case(samples, information, last_fit, model_below=None):
     law.memory[kern.S] = information
     law.memory[kern.Z] = -force * hold * (information + prior) + prior
     law.state[0]["line_stiffness"], law.state[0]["line_damping"] = last_fit
-    fit(law.params, law.state, law.table, law.memory)
+    (learn_span if learn else fit)(law.params, law.state, law.table, law.memory)
     return law, (c, b, det, rows[4].real)
 
 
@@ -394,6 +399,17 @@ def test_a_harmonic_without_an_impedance_drops_out_of_the_fit_and_none_keeps_the
     assert abs(law.state[0]["line_stiffness"] - with_all.state[0]["line_stiffness"]) > 1.0  # it did weigh
     none, _ = _fit_case(np.full(h, complex(math.nan, 0.0)), information, last)
     assert (none.state[0]["line_stiffness"], none.state[0]["line_damping"]) == last
+
+
+def test_every_learning_step_fits_the_line_model_unless_there_is_none():
+    """_learn fits the line model to the identified responses when line_model_below > 0 (here a
+    spring-and-damper line it recovers); with 0 there is no model and the fit is not made."""
+    _, _, (_, _, _, w) = _disagreeing_samples(0)  # the harmonics' frequencies
+    line = 1500.0 + 1j * 270.0 * w
+    for below, want in ((0.1, (1500.0, 270.0)), (1.0, (1500.0, 270.0)), (0.0, (0.0, 0.0))):
+        law, _ = _fit_case(line, np.full(w.size, 1e4), (0.0, 0.0), below, learn=True)
+        got = (law.state[0]["line_stiffness"], law.state[0]["line_damping"])
+        assert got == pytest.approx(want, rel=1e-9, abs=1e-9), below
 
 
 def test_the_line_model_is_valid_when_its_first_harmonic_is_not_weak():
