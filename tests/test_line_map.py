@@ -81,6 +81,29 @@ def test_a_pass_on_a_map_starts_every_span_from_its_own_harmonics(tmp_path):
 
 
 @pytest.mark.unit
+def test_a_pass_on_a_map_learns_the_mean_from_span_1_on_and_gives_back_what_the_limits_took(tmp_path):
+    """On a map the mean is learned as on a first pass: an estimate 3 N under F_r in every tick adds
+    gamma 3 N to U_0 at the end of each span from span 1 on (span 0 holds the start's transient);
+    and what the limits took off span 0's commands (2 N each tick) is given back from span 1 on
+    (C = -mean of what was taken)."""
+    learned = _map(_harmonics(), np.random.default_rng(3))
+    write_line_map(learned, tmp_path / "map.json")
+    law = _law(tmp_path / "map.json")
+    gamma, f_r = LawParameters().line_learning_gain, np.array([F_R, 0.0, 0.0, 0.0])
+    means, offsets = [], []
+    for k in range(4 * N):
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R - 3.0)
+        law.commit(k, u - 2.0 if k < N else u)
+        if k % N == N - 1:  # the span's last tick: it has just ended
+            means.append(float(law.state[0]["line_u_mean"]))
+            offsets.append(float(law.state[0]["line_clip_offset"]))
+    expected = [learned.u_mean + 3.0 * gamma * m for m in range(4)]
+    np.testing.assert_allclose(means, expected, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(offsets, [2.0, 0.0, 0.0, 0.0], rtol=0, atol=1e-9)
+    assert not law.tripped
+
+
+@pytest.mark.unit
 def test_the_next_map_is_the_laws_step_on_each_spans_own_error(tmp_path):
     """An error of 10 N on harmonic 2 in every span (imposed): each span the pass recorded takes
     W_m - gamma (conj(D) E_m + mu W_m) / (|D|^2 + mu) with the map's D; span 0 (the start) and the
