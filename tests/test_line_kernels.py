@@ -339,6 +339,33 @@ def test_a_harmonic_the_line_model_calls_weak_steps_on_the_models_response_the_o
     np.testing.assert_allclose(law.memory[kern.U_FF], expected, rtol=1e-10)
 
 
+def test_a_harmonic_with_any_information_steps_up_to_step_max_one_with_none_probes():
+    """The step's clip: line_probe_step for a harmonic never identified (S_h = 0), line_step_max
+    once it has any information (here S_h = 0.5 N^2, one informative update of 0.7 N)."""
+    from numba import njit
+
+    from pac_controller import line_adaptive_kernels as kern
+
+    @njit
+    def step(params, states, table, memory, j):
+        kern._step(params[0], states[0], table, memory, j)
+
+    laws = LawParameters(line_model_below=0.0, line_probe_step=5.0, line_step_max=50.0)
+    law = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), laws, 1e-3)
+    prior = law.params[0]["line_prior_weight"]
+    information = np.array([0.0, 0.5])
+    law.memory[kern.S, :2] = information
+    law.memory[kern.Z, :2] = -1.0 * (information + prior) + prior  # D_h = -1 for both
+    law.memory[kern.E_ACC, :2], law.memory[kern.REAL, :2] = 40.0, 0.0
+    for j in range(2):
+        step(law.params, law.state, law.table, law.memory, j)
+    gain, mu = law.params[0]["line_gain"], law.params[0]["line_effort_weight"]
+    free = gain * 40.0 / (1.0 + mu)  # |-gamma conj(D) E / (|D|^2 + mu)| with D = -1, A = 0
+    assert 5.0 < free < 50.0
+    assert abs(law.memory[kern.U_FF, 0]) == pytest.approx(5.0, rel=1e-12)
+    assert abs(law.memory[kern.U_FF, 1]) == pytest.approx(free, rel=1e-12)
+
+
 #: The previous fit the cases below start from (k_s [N/m], c [N s/m]).
 LAST_FIT = (1200.0, 300.0)
 
