@@ -198,15 +198,17 @@ def installed_laws(registered: Mapping[str, LawEntry]) -> dict[str, LawEntry]:
     for point in sorted(entry_points(group=ENTRY_POINT_GROUP), key=lambda ep: ep.name):
         if point.name in registered or point.name in out:
             continue
-        try:
-            if ":" in point.value:
-                raise refuse(point.value, "an entry point of pac.laws names a module, not an attribute")
-            out[point.name] = law_module(point.value)
-        except ParameterError as exc:
-            out[point.name] = LawEntry(_refused(exc), compiled=False, source=point.value)
-        except Exception as exc:  # noqa: BLE001 - whatever importing the module raises is its refusal
-            why = f"importing it raised {type(exc).__name__}: {exc}"
-            out[point.name] = LawEntry(_refused(refuse(point.value, why)), compiled=False, source=point.value)
+        if ":" in point.value:
+            error = refuse(point.value, "an entry point of pac.laws names a module, not an attribute")
+        else:
+            try:
+                out[point.name] = law_module(point.value)
+                continue
+            except ParameterError as exc:  # a module off the protocol: its own one line
+                error = exc
+            except Exception as exc:  # noqa: BLE001 - whatever importing the module raises is its refusal
+                error = refuse(point.value, f"importing it raised {type(exc).__name__}: {exc}")
+        out[point.name] = LawEntry(_refused(error), compiled=False, source=point.value)
     return out
 
 
