@@ -129,12 +129,12 @@ realistic-experiment: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/laws
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair
-# (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic_pair.py).
+# (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py).
 realistic-pair: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair $(ARGS)
 
 # line_adaptive on a map learned on an earlier pass, against its first pass, on the realistic line
-# (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic_passes.py).
+# (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic/passes.py).
 realistic-passes: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_passes $(ARGS)
 

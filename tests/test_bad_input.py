@@ -28,7 +28,10 @@ from pac_common.files import (
     write_atomic,
 )
 from pac_common.parameters import ParameterError, check_output_folder
-from pac_experiments import campaign, campaign_dask, campaign_results, campaign_spec
+from pac_experiments.campaign import cli as campaign
+from pac_experiments.campaign import dask_runner as campaign_dask
+from pac_experiments.campaign import results as campaign_results
+from pac_experiments.campaign import spec as campaign_spec
 from pac_model.pantograph_file import load_pantograph_file
 from pac_plant.catenary.catenary_file import load_catenary
 from pac_rig import simulate

@@ -21,7 +21,10 @@ import yaml
 from pac_analysis.metrics import compute_metrics
 from pac_bag.reader import read_bag
 from pac_controller.parameters import COMPILED_LAW_NAMES
-from pac_experiments import campaign_dask, campaign_results, campaign_run, campaign_spec
+from pac_experiments.campaign import dask_runner as campaign_dask
+from pac_experiments.campaign import results as campaign_results
+from pac_experiments.campaign import run as campaign_run
+from pac_experiments.campaign import spec as campaign_spec
 from pac_rig import closed_loop
 from pac_rig.closed_loop import build_cores
 from pac_rig.simulate import scenario_from_flat
@@ -104,7 +107,7 @@ def test_diverging_and_raising_runs_are_rows_and_the_campaign_finishes(tmp_path,
     ok = rows[("360.0", "40.0")]
     assert ok["status"] == "ok" and ok["reason"] == ""
     assert float(ok["contact_force_std"]) > 0.0 and float(ok["ticks_run"]) == 500
-    from pac_experiments.campaign_report import write_report
+    from pac_experiments.campaign.report import write_report
 
     report = write_report(
         spec,
@@ -238,7 +241,7 @@ def test_plant_mass_mismatch_scales_only_the_plant():
 
 def _cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "pac_experiments.campaign", *args],
+        [sys.executable, "-m", "pac_experiments.campaign.cli", *args],
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -246,9 +249,9 @@ def _cli(*args: str, timeout: float = 300.0) -> subprocess.CompletedProcess:
 
 
 def _main(capsys, *args: str) -> tuple[int, str, str]:
-    """campaign's ``main`` in this process (what ``python -m pac_experiments.campaign`` runs, without
+    """campaign's ``main`` in this process (what ``python -m pac_experiments.campaign.cli`` runs, without
     a new interpreter): (exit status, stdout, stderr)."""
-    from pac_experiments.campaign import main
+    from pac_experiments.campaign.cli import main
 
     code = main(list(args))
     captured = capsys.readouterr()
@@ -457,7 +460,7 @@ def campaign_running(spec: Path, out: Path, *extra: str):
     args = [
         sys.executable,
         "-m",
-        "pac_experiments.campaign",
+        "pac_experiments.campaign.cli",
         str(spec),
         "--out",
         str(out),

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pac_experiments.campaign_summary import Interval, main, summarise
+from pac_experiments.campaign.summary import Interval, main, summarise
 
 pytestmark = pytest.mark.unit
 
@@ -71,7 +71,7 @@ def test_against_pairs_each_run_with_the_reference_run_of_its_line():
     """pid's runs are 10 N below passive's on the same seed (50+s against 40+s): the change is
     -10/(50+s) per pair, not the change of the means; a run without its passive run is counted as
     unpaired; more contact loss than its own passive run is counted."""
-    from pac_experiments.campaign_summary import compare
+    from pac_experiments.campaign.summary import compare
 
     data = [dict(r, en50318_contact_loss_percent="0") for r in rows() if r["law"] != "ideal"]
     data[5 + 2]["en50318_contact_loss_percent"] = "0.1"  # pid on seed 2 loses contact, passive not

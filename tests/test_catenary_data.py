@@ -542,7 +542,7 @@ def test_span_data_defaults_are_the_benchmark_span():
 def test_a_campaign_may_vary_the_line_and_keeps_its_old_keys_on_the_default_line(tmp_path):
     """Each point on the FE line is told its file's span (whole-span windows per line), and points on
     the default line keep the keys they had before the line became a parameter."""
-    from pac_experiments.campaign_spec import expand, load_spec
+    from pac_experiments.campaign.spec import expand, load_spec
 
     spec_path = tmp_path / "lines.yaml"
     spec_path.write_text(

@@ -8,7 +8,7 @@ import pytest
 
 from pac_controller.parameters import LAW_NAMES, ReferenceParameters
 from pac_controller.reference import ForceReference
-from pac_experiments.bench import allocations_per_tick, loop_allocations
+from pac_experiments.bench.rig import allocations_per_tick, loop_allocations
 from pac_experiments.reproduce import COMMON
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 from pac_observer.contact_force import BANK_ARGS

@@ -156,7 +156,7 @@ def test_simulate_refuses_a_pair_that_cannot_work_in_one_line(tmp_path, law, nam
 
 @pytest.mark.offline
 def test_a_campaign_refuses_a_pair_that_cannot_work_before_any_run(tmp_path):
-    from pac_experiments.campaign_spec import SpecError, load_points
+    from pac_experiments.campaign.spec import SpecError, load_points
 
     spec = tmp_path / "spec.yaml"
     spec.write_text(

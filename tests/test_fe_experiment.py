@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from pac_experiments import fe_experiment
+from pac_experiments.catenary import experiment as fe_experiment
 
 pytestmark = pytest.mark.unit
 
@@ -84,8 +84,8 @@ def test_a_row_is_compared_with_the_passive_run_of_its_own_pantograph():
 def test_the_live_run_gives_the_loop_nodes_the_points_values():
     """fe_live passes the campaign point to the three loop nodes: every value a node declares
     (the law, the observer, the FE line options), nothing the nodes do not know (duration)."""
-    from pac_experiments.campaign_spec import Point
-    from pac_experiments.fe_live import loop_parameters
+    from pac_experiments.campaign.spec import Point
+    from pac_experiments.catenary.live import loop_parameters
 
     values = {
         "law": "line_adaptive",

@@ -7,8 +7,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from pac_experiments.fe_line_report import lines_reference_section, reference_figure_name
-from pac_experiments.fe_line_runs import EN50318_BANDS, reference_lines
+from pac_experiments.catenary.line_report import lines_reference_section, reference_figure_name
+from pac_experiments.catenary.line_runs import EN50318_BANDS, reference_lines
 from pac_plant.catenary.catenary_file import DEFAULT, presets
 
 
@@ -97,7 +97,7 @@ def test_reference_figure_of_a_line_with_its_own_supports(tmp_path):
     """A line's figure is drawn over its own window (its supports, not the default line's 55 m)."""
     import matplotlib.image
 
-    from pac_experiments.fe_line_report import reference_figure
+    from pac_experiments.catenary.line_report import reference_figure
 
     x = np.linspace(0.0, 400.0, 4001)
     run = {

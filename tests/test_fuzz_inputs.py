@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 from pac_common.command_line import ParamsFile, UsageError
 from pac_common.files import FileInputError, load_yaml
 from pac_common.parameters import ParameterError
-from pac_experiments import campaign_results, campaign_spec
+from pac_experiments.campaign import results as campaign_results
+from pac_experiments.campaign import spec as campaign_spec
 from pac_rig.cli import OverrideError, load_params_file, parse_overrides
 from pac_rig.closed_loop import Scenario
 from pac_rig.simulate import scenario_from_flat, scenario_sets

@@ -1,4 +1,4 @@
-"""The response-matrix tool (pac_experiments.line_response) against the analytic answer of a
+"""The response-matrix tool (pac_experiments.catenary.line_response) against the analytic answer of a
 time-invariant line: the paper's 2-DOF pantograph on a spring of constant stiffness."""
 
 from __future__ import annotations
@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_experiments.line_response import LineResponse, coupling, diagonal, regularised
+from pac_experiments.catenary.line_response import LineResponse, coupling, diagonal, regularised
 from pac_rig.closed_loop import build_cores
 
 pytestmark = pytest.mark.offline

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from pac_experiments import bench_report
+from pac_experiments.bench import report as bench_report
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
 pytestmark = pytest.mark.offline

@@ -126,7 +126,7 @@ def experiment_series(applied: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     pantographs relaxed under ``target_mean_force``), the trailing one pressed by ``applied`` (the
     force the rig's plant applied at each tick), the leading one by the target; tick 0 the initial
     state, as a bag starts."""
-    from pac_experiments.two_pantographs import DT, _Runs
+    from pac_experiments.catenary.two_pantographs import DT, _Runs
     from pac_plant.catenary.integrator import ContactSimulation, PassivePantograph
     from pac_plant.catenary.pantographs import three_mass_pantograph
 

@@ -25,7 +25,8 @@ from pac_controller.controller import Controller
 from pac_controller.laws import make_controller
 from pac_controller.parameters import ControllerParameters, ReferenceParameters
 from pac_controller.user_law import load_law_file
-from pac_experiments import campaign_run, campaign_spec
+from pac_experiments.campaign import run as campaign_run
+from pac_experiments.campaign import spec as campaign_spec
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_rig import simulate
 from pac_rig.closed_loop import build_cores, run, run_cores
@@ -218,7 +219,7 @@ def test_a_campaign_point_key_holds_the_law_file_text(tmp_path, monkeypatch):
 def test_the_example_runs_in_a_campaign_from_its_file(tmp_path, capsys):
     """A campaign of the example and passive (Dask: a law file is not the batch's): the example's row
     holds the measures of the example's own run (simulate's bag, its report)."""
-    from pac_experiments.campaign import main
+    from pac_experiments.campaign.cli import main
 
     window = [0.5, 1.5]
     spec = tmp_path / "spec.yaml"
@@ -312,7 +313,7 @@ def test_a_law_that_is_neither_a_name_nor_a_python_file_is_refused(tmp_path, cap
 
 
 def test_a_campaign_refuses_a_bad_law_file_before_any_run(tmp_path, capsys):
-    from pac_experiments.campaign import main
+    from pac_experiments.campaign.cli import main
 
     spec = tmp_path / "spec.yaml"
     missing = tmp_path / "missing.py"

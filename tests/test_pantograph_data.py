@@ -466,7 +466,7 @@ def test_a_pantograph_commanded_with_its_own_uplift_presses_the_wire_with_it_on_
 def test_the_reference_run_with_the_preset_is_the_committed_one():
     import json
 
-    from pac_experiments.fe_line_runs import passive_reference
+    from pac_experiments.catenary.line_runs import passive_reference
 
     committed = json.loads((ROOT / "reports" / "catenary" / "metrics.json").read_text())["reference_runs"][
         "250"

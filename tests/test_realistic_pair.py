@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_experiments.realistic_pair import write_report
+from pac_experiments.realistic.pair import write_report
 
 pytestmark = pytest.mark.unit
 

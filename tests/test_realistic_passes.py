@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_experiments.realistic_passes import RUNS, write_report
+from pac_experiments.realistic.passes import RUNS, write_report
 
 pytestmark = pytest.mark.unit
 

@@ -73,7 +73,7 @@ def test_the_rig_gives_each_node_the_files_values(tmp_path):
 
 @pytest.mark.unit
 def test_a_campaign_point_expands_its_scenario_and_centres_the_actuator_on_the_target(tmp_path):
-    from pac_experiments.campaign_spec import load_points
+    from pac_experiments.campaign.spec import load_points
 
     spec = tmp_path / "spec.yaml"
     spec.write_text(
@@ -134,8 +134,8 @@ def test_a_campaigns_results_name_the_scenario_of_each_row(tmp_path):
     SPEC names from the point, so rows of two scenarios stay apart in the table and the summary."""
     import csv
 
-    from pac_experiments.campaign_results import write_results
-    from pac_experiments.campaign_spec import load_points
+    from pac_experiments.campaign.results import write_results
+    from pac_experiments.campaign.spec import load_points
 
     spec_path = tmp_path / "spec.yaml"
     spec_path.write_text(

@@ -1,11 +1,11 @@
-from setuptools import setup
+from setuptools import find_packages, setup
 
 package_name = "pac_experiments"
 
 setup(
     name=package_name,
     version="0.1.0",
-    packages=[package_name],
+    packages=find_packages(include=[package_name, package_name + ".*"]),
     data_files=[
         ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
         ("share/" + package_name, ["package.xml"]),
@@ -23,22 +23,22 @@ setup(
     entry_points={
         "console_scripts": [
             "demo = pac_experiments.demo:main",
-            "bench = pac_experiments.bench:main",
-            "soak = pac_experiments.soak:main",
+            "bench = pac_experiments.bench.rig:main",
+            "soak = pac_experiments.bench.soak:main",
             "sweep = pac_experiments.sweep:main",
             "reproduce = pac_experiments.reproduce:main",
-            "campaign = pac_experiments.campaign:main",
-            "campaign_bench = pac_experiments.campaign_bench:main",
-            "catenary = pac_experiments.fe_line:main",
-            "fe_experiment = pac_experiments.fe_experiment:main",
-            "campaign_summary = pac_experiments.campaign_summary:main",
-            "realistic_figure = pac_experiments.realistic_figure:main",
-            "fe_live = pac_experiments.fe_live:main",
-            "two_pantographs = pac_experiments.two_pantographs:main",
-            "realistic_pair = pac_experiments.realistic_pair:main",
-            "realistic_passes = pac_experiments.realistic_passes:main",
-            "realistic_laws_figures = pac_experiments.realistic_laws_figures:main",
-            "line_response = pac_experiments.line_response:main",
+            "campaign = pac_experiments.campaign.cli:main",
+            "campaign_bench = pac_experiments.bench.campaign:main",
+            "catenary = pac_experiments.catenary.line:main",
+            "fe_experiment = pac_experiments.catenary.experiment:main",
+            "campaign_summary = pac_experiments.campaign.summary:main",
+            "realistic_figure = pac_experiments.realistic.figure:main",
+            "fe_live = pac_experiments.catenary.live:main",
+            "two_pantographs = pac_experiments.catenary.two_pantographs:main",
+            "realistic_pair = pac_experiments.realistic.pair:main",
+            "realistic_passes = pac_experiments.realistic.passes:main",
+            "realistic_laws_figures = pac_experiments.realistic.laws_figures:main",
+            "line_response = pac_experiments.catenary.line_response:main",
         ],
     },
 )

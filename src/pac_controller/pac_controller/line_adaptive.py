@@ -34,7 +34,7 @@ skipped.)  The step is a damped Gauss-Newton step on |E_h|^2 + mu |U_h|^2, whose
 leaves a harmonic's error where cancelling it would cost more than mu per unit: with mu = 0
 (E_h = 0 on every harmonic, the law before) the feedforward at 280 km/h was +92 % worse than
 passive with the line's true responses, and with mu = 0.01 -77 % (docs/laws.md, measured with
-``pac_experiments.line_response``).  Where |D_h|^2 >> mu it is the secant (Newton) step
+``pac_experiments.catenary.line_response``).  Where |D_h|^2 >> mu it is the secant (Newton) step
 -gamma E_h / D_h.
 
 The line model: the secant identifies a harmonic by what its own step did to its own error,

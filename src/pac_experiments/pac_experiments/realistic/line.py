@@ -1,6 +1,6 @@
 """A passive pantograph over a whole drawn line against the ideal periodic line: cost and statistics.
 
-``python -m pac_experiments.realistic_line`` builds ``FEPlant`` on a line with a layout rule and a
+``python -m pac_experiments.realistic.line`` builds ``FEPlant`` on a line with a layout rule and a
 deviation model (default ``realistic_3km``) and on the ideal line (``benchmark_55m``, the endless
 10-span window), runs the passive 3-mass pantograph (its file's uplift at the speed, no actuator
 force) over the same distance on both and prints, per line: set-up CPU time and resident memory it

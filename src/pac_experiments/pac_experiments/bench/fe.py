@@ -1,6 +1,6 @@
 """The FE line's cost per 1 kHz step: old (numpy) and new (compiled) path side by side, by part.
 
-``python -m pac_experiments.bench_fe`` prints a table; ``fe_tick_figures()`` returns the
+``python -m pac_experiments.bench.fe`` prints a table; ``fe_tick_figures()`` returns the
 figures (``make bench`` calls it). CPU time (``time.process_time``) per step, median and
 minimum over batches, on the 10-span moving window the rig runs (``FEPlant``: paper's
 pantograph, 300 km/h, warmed past the first span so that every contact column is cached).

@@ -38,14 +38,13 @@ import numpy as np
 from pac_common import markdown
 from pac_controller.line_adaptive import LineAdaptiveLaw
 from pac_controller.line_adaptive_kernels import U_FF
+from pac_experiments.campaign.run import en50318_measures
+from pac_experiments.campaign.spec import expand, load_spec
+from pac_experiments.catenary.experiment import SPEC
 from pac_rig.batch import prepare
 from pac_rig.closed_loop import build_cores
 from pac_rig.loop import TICK
 from pac_rig.simulate import scenario_from_flat
-
-from .campaign_run import en50318_measures
-from .campaign_spec import expand, load_spec
-from .fe_experiment import SPEC
 
 OUT = Path("reports/catenary/laws/response")
 #: Spans run per measurement: the statistics (and E) over spans MEASURED of the periodic steady state.

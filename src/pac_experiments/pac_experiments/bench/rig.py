@@ -39,12 +39,11 @@ import numpy as np
 from pac_analysis.metrics import compute_metrics, loop_timing, timing_table
 from pac_bag.reader import read_bag
 from pac_common import markdown, messages
+from pac_experiments.bench import report as bench_report
 from pac_rig.batch import run_batch
 from pac_rig.closed_loop import Scenario, run
 from pac_rig.launcher import Rig
 from pac_rig.simulate import simulate_to_bag
-
-from . import bench_report
 
 #: Node -> (topic it answers on, topic it needs an input on, input message type).
 _STARTUP = {
@@ -384,7 +383,7 @@ def lumped_tick(repeats: int) -> tuple[float, float]:
     return median(compiled), median(today)
 
 
-ALLOCATION_SCRIPT = "from pac_experiments.bench import count_allocations; count_allocations()"
+ALLOCATION_SCRIPT = "from pac_experiments.bench.rig import count_allocations; count_allocations()"
 
 
 def count_allocations() -> None:
@@ -636,7 +635,9 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
             f"{floor_wall:.2f} s wall, {floor_cpu:.2f} s CPU"
         )
     print("bench: FE tick ...", flush=True)
-    from .bench_fe import fe_tick_figures  # the FE line's own timing (by part, old and new step)
+    from pac_experiments.bench.fe import (
+        fe_tick_figures,  # the FE line's own timing (by part, old and new step)
+    )
 
     fe = fe_tick_figures()
     figures["fe_tick_x"] = fe["fe_plant_realtime_factor"]
@@ -644,7 +645,7 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
     notes.append(
         f"FE plant tick {fe['fe_plant_tick_us']:.0f} µs CPU (advance + measurement + truth; compiled step "
         f"{fe['step_new_us']:.0f} µs, numpy step {fe['step_old_us']:.0f} µs): "
-        "`python -m pac_experiments.bench_fe` for the parts"
+        "`python -m pac_experiments.bench.fe` for the parts"
     )
     if startup:
         medians = {name: median(times) for name, times in startup.items()}

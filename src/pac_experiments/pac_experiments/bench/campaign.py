@@ -14,10 +14,9 @@ import time
 from pathlib import Path
 
 from pac_common import markdown
-
-from .campaign_dask import auto_chunk_size, embedded_cluster, execute
-from .campaign_run import run_chunk
-from .campaign_spec import Spec, expand
+from pac_experiments.campaign.dask_runner import auto_chunk_size, embedded_cluster, execute
+from pac_experiments.campaign.run import run_chunk
+from pac_experiments.campaign.spec import Spec, expand
 
 
 def main(argv: list[str] | None = None) -> int:

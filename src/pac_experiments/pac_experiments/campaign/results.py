@@ -12,9 +12,8 @@ from typing import Any
 
 from pac_common import jsonio
 from pac_common.files import read_bytes, write_atomic
-
-from .campaign_run import EN50318_COLUMNS, EN50367_COLUMNS, METRIC_COLUMNS
-from .campaign_spec import Point, Spec
+from pac_experiments.campaign.run import EN50318_COLUMNS, EN50367_COLUMNS, METRIC_COLUMNS
+from pac_experiments.campaign.spec import Point, Spec
 
 #: Always in results.csv, whether varied or not.
 ALWAYS = ("law", "speed_kmh")

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .campaign_results import RUNS_FILE, read_done, runs_line, write_results
-from .campaign_run import STATUS_OK, run_chunk
-from .campaign_spec import Point, Spec
+from pac_experiments.campaign.results import RUNS_FILE, read_done, runs_line, write_results
+from pac_experiments.campaign.run import STATUS_OK, run_chunk
+from pac_experiments.campaign.spec import Point, Spec
 
 
 @dataclass

@@ -19,9 +19,8 @@ import sys
 from pathlib import Path
 
 from pac_common.contact_statistics import target_mean_force
-
-from .campaign_summary import compare, read_results
-from .realistic_figure import force_series
+from pac_experiments.campaign.summary import compare, read_results
+from pac_experiments.realistic.figure import force_series
 
 #: The issue's goals for the recommended law: mean sigma change at 300 km/h and at every speed.
 GOAL_300, GOAL_EVERY = -30.0, -20.0

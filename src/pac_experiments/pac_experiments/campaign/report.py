@@ -23,10 +23,9 @@ from matplotlib.colors import LogNorm
 
 from pac_common import markdown
 from pac_common.contact_statistics import SIGMA_LIMIT_RATIO, en50367_criteria
-
-from .campaign_run import STATUS_OK
-from .campaign_spec import Spec, grid_keys
-from .campaign_spec import same_value as _same
+from pac_experiments.campaign.run import STATUS_OK
+from pac_experiments.campaign.spec import Spec, grid_keys
+from pac_experiments.campaign.spec import same_value as _same
 
 SPEED = "speed_kmh"
 #: (mean, sigma, Fm - 3 sigma, contact loss) columns of the rows, by the SPEC's ``statistics``.

@@ -22,12 +22,11 @@ import numpy as np
 
 from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
 from pac_common.contact_statistics import ContactStatistics, en50367_criteria, lowpass, statistics
+from pac_experiments.campaign.spec import Point, law_file_sha256
 from pac_rig.batch import batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run_blocks, run_cores
 from pac_rig.loop import TICK, compile_loop
 from pac_rig.simulate import scenario_to_flat, simulate_to_bag
-
-from .campaign_spec import Point, law_file_sha256
 
 #: The measures of a run, named as in ``pac_analysis.metrics.Metrics`` (and its reports).
 METRIC_COLUMNS = tuple(
@@ -229,7 +228,7 @@ def run_batched(points: list[Point], threads: int = 1) -> dict[str, dict[str, An
 
 def run_chunk(points: list[Point], bag_dir: str | None = None, threads: int = 1) -> list[dict]:
     """The Dask task: several runs in one task, so the per-task overhead is paid once per chunk
-    (and, with ``threads`` > 1, the in-process campaign's step: ``campaign_dask.execute_in_process``).
+    (and, with ``threads`` > 1, the in-process campaign's step: ``dask_runner.execute_in_process``).
 
     Without bags, the points the compiled batch can run go through it in one call; the rest
     (other laws, the FE line, divergences) run tick by tick. If the batch itself fails, its

@@ -33,10 +33,15 @@ from pathlib import Path
 
 from pac_common.files import FileInputError
 from pac_common.parameters import ParameterError, check_output_folder
-
-from .campaign_dask import Outcome, embedded_cluster, execute, execute_in_process, runs_in_process
-from .campaign_results import RESULTS_FILE, RUNS_FILE, read_done, write_results
-from .campaign_spec import Point, Spec, SpecError, grid_size, load_points
+from pac_experiments.campaign.dask_runner import (
+    Outcome,
+    embedded_cluster,
+    execute,
+    execute_in_process,
+    runs_in_process,
+)
+from pac_experiments.campaign.results import RESULTS_FILE, RUNS_FILE, read_done, write_results
+from pac_experiments.campaign.spec import Point, Spec, SpecError, grid_size, load_points
 
 INTERRUPTED = "campaign: interrupted; re-run the same command to resume"
 
@@ -174,7 +179,7 @@ def _finish(
     rows = write_results(spec, points, read_done(args.out), args.out)
     print(f"wrote {args.out / RESULTS_FILE}")
     if not args.no_report:
-        from .campaign_report import write_report  # matplotlib: only when a report is written
+        from pac_experiments.campaign.report import write_report  # matplotlib: only when a report is written
 
         print(f"wrote {write_report(spec, rows, args.out)}")
     return 1 if outcome.lost else 0

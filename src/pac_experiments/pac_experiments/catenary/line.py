@@ -22,9 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from pac_common import jsonio
-
-from .fe_line_report import write_report
-from .fe_line_runs import (
+from pac_experiments.catenary.line_report import write_report
+from pac_experiments.catenary.line_runs import (
     EXPERIMENT_RUNS,
     EXPERIMENT_SPEEDS,
     NUMERICS_VARIANTS,
