@@ -107,8 +107,18 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
         ("tests/test_head_balance.py", "tests/test_fixed_gain_on_force.py"),
     ),
     "fe_step": (
-        "pac_plant.catenary.kernels",
-        ("newmark_rhs", "newmark_update", "band_chol_solve", "hermite_weights", "fe_step"),
+        "pac_plant.catenary.step",
+        ("hermite_weights", "fe_step"),
+        ("tests/test_catenary.py", "tests/test_line_physics.py"),
+    ),
+    "newmark": (
+        "pac_plant.catenary.newmark",
+        ("newmark_rhs", "newmark_update"),
+        ("tests/test_catenary.py", "tests/test_line_physics.py"),
+    ),
+    "banded": (
+        "pac_plant.catenary.banded",
+        ("band_chol_solve",),
         ("tests/test_catenary.py", "tests/test_line_physics.py"),
     ),
     "bag_writer": (

@@ -269,7 +269,7 @@ def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path
     assert np.max(offline["plant_truth"]["contact_force"]) > 10.0  # the run pressed on the wire
 
 
-# -- the compiled step (kernels.fe_step) against the numpy step it replaced (step_reference) -------
+# -- the compiled step (step.fe_step) against the numpy step it replaced (step_reference) -------
 #: Largest difference allowed between the two paths, relative to the largest value of each
 #: quantity: rounding (sums in another order, the two-chunk solve, the M-only right-hand side).
 COMPILED_TOLERANCE = 1e-9
@@ -328,7 +328,9 @@ def test_fast_kernels_equal_the_banded_reference():
     """Chunked solve (8 LDL^T chains in vector lanes) = one banded Cholesky solve; the M-only
     right-hand side = M x1 + beta K w; a stored contact-column or slack-dropper patch = the full
     column A^-1 e_i or A^-1 g_j (outside the patch: < 1e-19 and < 1e-18 of the peak)."""
-    from pac_plant.catenary import kernels as kn
+    from pac_plant.catenary.banded import KD, band_chol_solve, chunk_solve
+    from pac_plant.catenary.newmark import newmark_rhs, newmark_rhs_mass
+    from pac_plant.catenary.step import _unit_patches, unit_start
 
     line = Line(n_spans=4)
     sim, _ = _twin_simulations(line)
@@ -340,24 +342,24 @@ def test_fast_kernels_equal_the_banded_reference():
             q[line.fixed] = 0.0
         rhs = np.empty(line.n_dof)
         scratch = np.empty((2, line.n_dof))
-        kn.newmark_rhs(sim._m, sim._k, d, v, a, sim.dt, sim.alpha, sim.beta, scratch[0], scratch[1], rhs)
+        newmark_rhs(sim._m, sim._k, d, v, a, sim.dt, sim.alpha, sim.beta, scratch[0], scratch[1], rhs)
         want = rhs.copy()
-        kn.band_chol_solve(sim._chol, want)
+        band_chol_solve(sim._chol, want)
         got, tail = np.empty_like(d), np.empty_like(d)
-        z = np.zeros(line.n_dof + 2 * kn.KD)
-        kn.newmark_rhs_mass(c.m_pad, d, v, a, sim.dt, sim.alpha, sim.beta, z, tail, got)
+        z = np.zeros(line.n_dof + 2 * KD)
+        newmark_rhs_mass(c.m_pad, d, v, a, sim.dt, sim.alpha, sim.beta, z, tail, got)
         work = np.zeros_like(sim.state.chunk_work)
-        kn.chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, got, work, tail)
+        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, got, work, tail)
         assert np.max(np.abs(got - want)) < 1e-12 * np.max(np.abs(want))
         plain = rhs.copy()
-        kn.chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, plain, work, tail[:0])
+        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, plain, work, tail[:0])
         assert np.max(np.abs(plain - want)) < 1e-13 * np.max(np.abs(want))
     # Slack-dropper patches against the full columns A^-1 g_j: outside the patch < 1e-18 of the
     # column's peak (measured 5.8e-19; a dropper column is the difference of two unit columns,
     # so its peak is smaller than theirs), 200x below the rounding of the peak itself.
     width = c.ydrop_patches.shape[1]
     for j, node in enumerate(line.droppers.node):
-        lo = kn.unit_start(line.n_dof, width, int(node))
+        lo = unit_start(line.n_dof, width, int(node))
         col = c.ydrop[:, j]
         peak = np.max(np.abs(col))
         np.testing.assert_array_equal(c.ydrop_patches[j], col[lo : lo + width])
@@ -367,13 +369,13 @@ def test_fast_kernels_equal_the_banded_reference():
     for i in (node, node + 9, node + 50):
         sim.state.unit_ready[i] = 0
         sim.state.work[0, :] = 0.0
-        kn._unit_patches(c, sim.state, i)
+        _unit_patches(c, sim.state, i)
         width = sim.state.unit_patches.shape[2]
-        lo = kn.unit_start(line.n_dof, width, i)
+        lo = unit_start(line.n_dof, width, i)
         for r in range(2):
             col = np.zeros(line.n_dof)
             col[4 * i + r] = 1.0
-            kn.band_chol_solve(sim._chol, col)
+            band_chol_solve(sim._chol, col)
             peak = np.max(np.abs(col))
             assert np.max(np.abs(sim.state.unit_patches[i, r] - col[lo : lo + width])) < 1e-13 * peak
             outside = np.concatenate([col[:lo], col[lo + width :]])

@@ -37,13 +37,20 @@ import numpy as np
 from pac_model.pantograph_file import load_pantograph_file
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
-from .catenary import kernels
 from .catenary.catenary_file import load_catenary
 from .catenary.data import CatenaryData, NumericalOptions
 from .catenary.imperfections import apply_imperfections
 from .catenary.integrator import ContactSimulation, PassivePantograph, rear_periods
 from .catenary.line import Line
 from .catenary.pantographs import LumpedPantograph, head_first, lumped, plant_chain
+from .catenary.step import (
+    CONTACT_UPLIFT,
+    STATIC_HEIGHT,
+    STATIC_SLOPE,
+    STATIC_STIFFNESS,
+    SUPPORT_UPLIFT,
+    pantograph_contact,
+)
 from .parameters import PlantOptions
 from .plant import Plant, Truth
 
@@ -181,7 +188,7 @@ class FEPlant(Plant):
         ahead = float(self.line.layout.support_x[start + 2]) if data.whole_line else self.sim.shift_at
         self.sim.prepare_contact_columns(start_x, ahead)
         self.datum = self.line.static_height(self.sim.x - self.sim.lags[0])
-        self._readings = np.zeros(5)  # kernels.contact_readings at the present contact point
+        self._readings = np.zeros(5)  # contact_readings at the present contact point
         self.sim.readings(self._flex, self._readings)
         self.tick = 0
         self.u_applied = 0.0
@@ -204,19 +211,19 @@ class FEPlant(Plant):
         if self.options.fe_datum == "static_wire":
             # The datum moves with the contact point along the pre-sagged static wire.
             r = self._readings
-            datum, rate = float(r[kernels.STATIC_HEIGHT]), self.sim.speed * float(r[kernels.STATIC_SLOPE])
+            datum, rate = float(r[STATIC_HEIGHT]), self.sim.speed * float(r[STATIC_SLOPE])
         else:
             datum, rate = float(self.datum), 0.0
         return (p[0] - datum, p[1] - datum, vp[0] - rate, vp[1] - rate)
 
     @property
     def flexibility(self) -> np.ndarray:
-        """The line's flexibility at the contact points (kernels.contact_readings reads it)."""
+        """The line's flexibility at the contact points (contact_readings reads it)."""
         return self._flex
 
     @property
     def readings(self) -> np.ndarray:
-        """kernels.contact_readings at the present contact point (a copy)."""
+        """contact_readings at the present contact point (a copy)."""
         return self._readings.copy()
 
     @property
@@ -227,7 +234,7 @@ class FEPlant(Plant):
 
     def stiffness_at(self, t: float | None = None) -> float:
         """Static point stiffness of the line at the current contact point [N/m] (``t`` ignored)."""
-        return float(self._readings[kernels.STATIC_STIFFNESS])
+        return float(self._readings[STATIC_STIFFNESS])
 
     def truth(self) -> Truth:
         s, r = self.sim, self._readings.tolist()
@@ -236,12 +243,12 @@ class FEPlant(Plant):
             tick=self.tick,
             time=self.time,
             z=self._heights(),
-            stiffness=r[kernels.STATIC_STIFFNESS],
+            stiffness=r[STATIC_STIFFNESS],
             contact_force=force,
             in_contact=force > 0.0,
             u_applied=self.u_applied,
-            contact_uplift=r[kernels.CONTACT_UPLIFT],
-            support_uplift=r[kernels.SUPPORT_UPLIFT],  # at the support nearest x
+            contact_uplift=r[CONTACT_UPLIFT],
+            support_uplift=r[SUPPORT_UPLIFT],  # at the support nearest x
             contact_position=s.position - s.lags[0],
             roof_height=self.roof_height(),
         )
@@ -250,14 +257,14 @@ class FEPlant(Plant):
         """What each pantograph of ``pantographs`` (in that order) feels at this tick."""
         s, out, r = self.sim, [], np.zeros(5)
         for k in self.contact_of:
-            force, position = kernels.pantograph_contact(s.constants, s.state, k)
+            force, position = pantograph_contact(s.constants, s.state, k)
             s.readings_at(self._flex, s.x - s.lags[k], r)
             out.append(
                 PantographTruth(
                     contact_force=float(force),
                     contact_position=float(position),
-                    contact_uplift=float(r[kernels.CONTACT_UPLIFT]),
-                    support_uplift=float(r[kernels.SUPPORT_UPLIFT]),
+                    contact_uplift=float(r[CONTACT_UPLIFT]),
+                    support_uplift=float(r[SUPPORT_UPLIFT]),
                     controlled=k == 0,
                 )
             )

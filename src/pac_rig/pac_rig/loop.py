@@ -16,7 +16,7 @@ its output is one :data:`TICK` record (what the four topics carry), so a tick al
 nothing (``tests/test_compiled.py`` counts numba's allocations over a run).
 
 Every plant, observer and law has its compiled form: the lumped line (``plant_advance_inplace``)
-and the FE line (``pac_plant.catenary.kernels.fe_advance``, on the buffers its ``ContactSimulation``
+and the FE line (``pac_plant.catenary.step.fe_advance``, on the buffers its ``ContactSimulation``
 packs: :data:`FE_ARGS`), the paper's observer and the contact-force filter (``OBSERVER_CONSTS.kind``),
 every law of ``pac_controller.kernels`` (line_adaptive with its two tables).  Which one a tick
 runs is a field of the records (``PLANT_PARAMS.kind``, ``OBSERVER_CONSTS.kind``,
@@ -51,7 +51,8 @@ from pac_observer.observer import (
     observer_advance,
     observer_start,
 )
-from pac_plant.catenary import kernels as fe
+from pac_plant.catenary import step as fe
+from pac_plant.catenary.packing import unpack
 from pac_plant.fe_plant import FEPlant, several_pantographs
 from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
 from pac_plant.hardware.car_body import TERMS, roof_at, roof_force
@@ -117,7 +118,7 @@ PLANT_STATE = np.dtype(
         ("u_applied", "f8"),  # force applied over the period that ends at this tick
         ("pending", "f8", MAX_DELAY),  # commands sent, not yet applied (a ring)
         ("head", "i8"),
-        ("readings", "f8", 5),  # scratch: kernels.readings_at one pantograph's contact point
+        ("readings", "f8", 5),  # scratch: step.readings_at one pantograph's contact point
         ("actuator", ACTUATOR_STATE),
         ("roof", "f8", 3),  # scratch: the roof's height, velocity, acceleration (car_body.roof_at)
         ("gust", "f8", 3),  # scratch: the turbulent uplift and its rates (car_body.roof_at)
@@ -172,7 +173,7 @@ TICK = np.dtype(
 
 
 #: The FE line's arguments of :func:`loop_tick` (``FE_ARGS``): the packed constants and state of its
-#: ``ContactSimulation`` (``kernels.pack``), the element flexibilities and the contact readings.
+#: ``ContactSimulation`` (``packing.pack``), the element flexibilities and the contact readings.
 FE_ARGS = ("cf", "ci", "cl", "sf", "si", "sl", "flexibility", "readings")
 
 
@@ -184,7 +185,7 @@ def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
     z = ps.z
     if pp.kind == FE:
         cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
-        c, st = fe.unpack(cf, ci, cl, sf, si, sl)
+        c, st = unpack(cf, ci, cl, sf, si, sl)
         if pp.static_wire:  # the datum moves with the contact point along the pre-sagged wire
             datum, rate = readings[fe.STATIC_HEIGHT], c.numbers[1] * readings[fe.STATIC_SLOPE]
         else:
@@ -287,7 +288,7 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
         )
     if pp.kind == FE:
         cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
-        c, st = fe.unpack(cf, ci, cl, sf, si, sl)
+        c, st = unpack(cf, ci, cl, sf, si, sl)
         if fe.fe_advance(c, st, force, pp.substeps, flexibility, readings) != fe.STEP_OK:
             return OFF_LINE
     else:

@@ -32,7 +32,10 @@ MODULES = (
     "pac_controller.backstepping",
     "pac_controller.controller",
     "pac_controller.kernels",
-    "pac_plant.catenary.kernels",
+    "pac_plant.catenary.banded",
+    "pac_plant.catenary.newmark",
+    "pac_plant.catenary.step",
+    "pac_plant.catenary.packing",
     "pac_rig.loop",
     "pac_rig.batch",
 )

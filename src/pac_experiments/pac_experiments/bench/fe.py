@@ -25,7 +25,9 @@ import numpy as np
 
 from pac_common import markdown
 from pac_model.parameters import PantographParameters, TrackParameters
-from pac_plant.catenary import kernels as kn
+from pac_plant.catenary.banded import KD, band_chol_solve, chunk_solve
+from pac_plant.catenary.newmark import newmark_rhs, newmark_rhs_mass, newmark_update
+from pac_plant.catenary.step import StepConstants, StepState, fe_step
 from pac_plant.fe_plant import FEPlant
 from pac_plant.parameters import PlantOptions
 
@@ -59,9 +61,9 @@ def warm_plant(element_size: float = 0.5) -> FEPlant:
 
 
 @numba.njit(cache=True)
-def _steps(c: kn.StepConstants, s: kn.StepState, force: float, n: int) -> None:
+def _steps(c: StepConstants, s: StepState, force: float, n: int) -> None:
     for _ in range(n):
-        kn.fe_step(c, s, force)
+        fe_step(c, s, force)
 
 
 @numba.njit(cache=True)
@@ -125,26 +127,26 @@ def fe_tick_figures(steps: int = 2000, batches: int = 10) -> dict[str, float]:
     # Parts of the new step, on copies of the state (the solve on a fresh right-hand side).
     d, v, a = s.d.copy(), s.v.copy(), s.a.copy()
     rhs, y, dt = np.empty_like(d), np.empty_like(d), sim.dt
-    x1, x2 = np.zeros(len(d) + 2 * kn.KD), np.zeros(len(d) + 2 * kn.KD)
-    kn.newmark_rhs_mass(c.m_pad, d, v, a, dt, sim.alpha, sim.beta, x1, x2[: len(d)], rhs)
+    x1, x2 = np.zeros(len(d) + 2 * KD), np.zeros(len(d) + 2 * KD)
+    newmark_rhs_mass(c.m_pad, d, v, a, dt, sim.alpha, sim.beta, x1, x2[: len(d)], rhs)
     work = np.zeros_like(s.chunk_work)
 
     def solve() -> None:
         y[:] = rhs
-        kn.chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y, work, x2[: len(d)])
+        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y, work, x2[: len(d)])
 
     def solve_old() -> None:
         y[:] = rhs
-        kn.band_chol_solve(c.chol, y)
+        band_chol_solve(c.chol, y)
 
     tail = x2[: len(d)]
-    put("rhs_new", lambda: kn.newmark_rhs_mass(c.m_pad, d, v, a, dt, sim.alpha, sim.beta, x1, tail, y))
+    put("rhs_new", lambda: newmark_rhs_mass(c.m_pad, d, v, a, dt, sim.alpha, sim.beta, x1, tail, y))
     m_band, k_band, _ = sim.bands
-    put("rhs_old", lambda: kn.newmark_rhs(m_band, k_band, d, v, a, dt, sim.alpha, sim.beta, x1, x2, y))
+    put("rhs_old", lambda: newmark_rhs(m_band, k_band, d, v, a, dt, sim.alpha, sim.beta, x1, x2, y))
     put("solve_new", solve)
     put("solve_old", solve_old)
     put("copy_vector", lambda: np.copyto(y, rhs))
-    put("update", lambda: kn.newmark_update(d, v, a, rhs, dt))
+    put("update", lambda: newmark_update(d, v, a, rhs, dt))
     readings = np.zeros(5)
     put("call_and_readings", lambda: sim.advance(FORCE, 0, plant.flexibility, readings))
     put("measurement_truth", lambda: (plant.measurement(), plant.truth()))
@@ -173,7 +175,7 @@ def fe_tick_figures(steps: int = 2000, batches: int = 10) -> dict[str, float]:
     out["stream_bound_us"] = out["bytes_per_step"] / (out["copy_bandwidth_l2_gb_s"] * 1e3)
     # The solve's dependency chain: per row one dependent fused multiply-add (LDL^T, the newest
     # term last), both sweeps; the eight chunks run side by side in the lanes of one vector.
-    chain_rows = c.chunk_factors.shape[0] - 2 * kn.KD
+    chain_rows = c.chunk_factors.shape[0] - 2 * KD
     out["solve_chain_bound_us"] = 2 * chain_rows * out["dependent_multiply_add_ns"] / 1e3
     return out
 

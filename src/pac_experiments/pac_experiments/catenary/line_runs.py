@@ -277,7 +277,7 @@ def experiment_metrics(r: dict[str, Any], dt: float = 1e-3) -> dict[str, Any]:
 # -- numerics: cost per step ---------------------------------------------------------------------
 def cost_breakdown(n_steps: int = 2000) -> dict[str, float]:
     """Microseconds per 1 kHz step of the 10-span line + 3-mass pantograph at 300 km/h, by part."""
-    from pac_plant.catenary.kernels import band_chol_solve, band_matvec2
+    from pac_plant.catenary.banded import band_chol_solve, band_matvec2
 
     line = Line(DATA, NumericalOptions())
     sim = ContactSimulation(line, load_pantograph(REFERENCE_PANTOGRAPH)[0], 1e-3, 300 / 3.6, SPAN)

@@ -8,7 +8,7 @@ p, the pantograph's heights. Both parts are linear and constant,
 with Rayleigh damping C = alpha M + beta K on the line. Newmark's average-acceleration
 rule (trapezoidal: unconditionally stable, no numerical damping, energy-conserving for
 a linear system) turns each step into A q = b with the constant A = K + 4/dt^2 M + 2/dt C
-(banded Cholesky once, ``kernels.band_chol_solve``) for the line and a small dense inverse
+(banded Cholesky once, ``banded.band_chol_solve``) for the line and a small dense inverse
 for the pantograph. The two non-smooth parts are low-rank corrections of A, solved exactly
 with the Woodbury identity at the new time level (implicit, no refactorisation):
 
@@ -22,7 +22,7 @@ with the Woodbury identity at the new time level (implicit, no refactorisation):
 The active set (contact on/off, which droppers are slack) is iterated until it agrees
 with the solution it produces (a few passes at most; usually the first one).
 
-``step`` runs all of it compiled (``kernels.fe_step`` on the explicit arrays
+``step`` runs all of it compiled (``step.fe_step`` on the explicit arrays
 ``constants``/``state``); ``step_reference`` is the same algorithm in numpy, kept as the
 reference the compiled step is tested against. The compiled step's kernels differ from the
 reference's only in how they compute the same numbers (docs/numerics.md, "FE line"): the
@@ -44,19 +44,32 @@ from pac_common import divergence
 from pac_common.divergence import OFF_LINE
 from pac_model.parameters import positive_period
 
-from . import kernels as kn
-from .kernels import (
+from .banded import KD, band_chol_solve, band_matvec2, chol_factor, chunk_factor, pad_band
+from .line import DOFS_PER_NODE, Line
+from .newmark import newmark_rhs, newmark_update
+from .packing import CONSTANT_KINDS, STATE_KINDS, fe_advance_packed, pack
+from .pantographs import LumpedPantograph
+from .step import (
+    DELTA,
+    IN_CONTACT,
+    INPUT_FORCE,
     MAX_ACTIVE_SET_PASSES,
+    N_SLACK,
+    OFFSET,
+    PASSES_MAX,
+    STEP_OK,
+    STEPS,
+    UNCONVERGED,
+    UNIT_REACH,
     StepConstants,
     StepState,
-    band_chol_solve,
-    band_matvec2,
-    chol_factor,
-    newmark_rhs,
-    newmark_update,
+    X,
+    contact_readings,
+    pantograph_contact,
+    prepare_unit_patches,
+    readings_at,
+    unit_start,
 )
-from .line import DOFS_PER_NODE, Line
-from .pantographs import LumpedPantograph
 
 
 @dataclass(frozen=True)
@@ -171,16 +184,16 @@ class ContactSimulation:
         span = line.period_length
         rear = rear_periods(span, float(self.lags.max()) if window_lag is None else window_lag)
         self.shift_at = ((line.n_periods - rear) // 2 + 1 + rear) * span
-        factors, starts, bounds = kn.chunk_factor(a_line)
+        factors, starts, bounds = chunk_factor(a_line)
         # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
         # is < 1e-18 of the peak), what the update adds for a slack dropper.
-        width = min(n, 4 * (2 * kn.UNIT_REACH + 1))
+        width = min(n, 4 * (2 * UNIT_REACH + 1))
         drop_patches = np.empty((nd, width))
         for j, node in enumerate(dr.node):
-            lo = kn.unit_start(n, width, int(node))
+            lo = unit_start(n, width, int(node))
             drop_patches[j] = g[j, lo : lo + width]
         self.constants = StepConstants(
-            m_pad=kn.pad_band(self._m),
+            m_pad=pad_band(self._m),
             chol=self._chol,
             chunk_factors=factors,
             chunk_starts=starts,
@@ -245,16 +258,16 @@ class ContactSimulation:
             unit_patches=np.zeros((line.n_nodes, 2, width)),
             unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
             work=np.zeros((1 + n_contacts, n)),
-            padded=np.zeros((2, n + 2 * kn.KD)),
+            padded=np.zeros((2, n + 2 * KD)),
             chunk_work=np.zeros((factors.shape[0], factors.shape[2])),
             deltas=np.zeros(n_contacts),
             touching=np.zeros(n_contacts, dtype=np.int64),
             yc_range=np.zeros((n_contacts, 2), dtype=np.int64),
         )
         # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
-        self._cf, self._ci, self._cl, views = kn.pack(tuple(self.constants), kn.CONSTANT_KINDS)
+        self._cf, self._ci, self._cl, views = pack(tuple(self.constants), CONSTANT_KINDS)
         self.constants = StepConstants(*views)
-        self._sf, self._si, self._sl, views = kn.pack(tuple(self.state), kn.STATE_KINDS)
+        self._sf, self._si, self._sl, views = pack(tuple(self.state), STATE_KINDS)
         self.state = StepState(*views)
         self._packed = (self._cf, self._ci, self._cl, self._sf, self._si, self._sl)
         self._no_flex, self._no_readings = np.zeros((0, 4, 4)), np.zeros(0)
@@ -300,13 +313,13 @@ class ContactSimulation:
     vp = _vector("vp")
     ap = _vector("ap")
     roof_rest = _vector("roof_rest")
-    x = _number(kn.X)
-    offset = _number(kn.OFFSET)  # distance already shifted out of the window (endless)
-    input_force = _number(kn.INPUT_FORCE)
-    steps = _number(kn.STEPS, True, int)
-    active_set_passes_max = _number(kn.PASSES_MAX, True, int)
+    x = _number(X)
+    offset = _number(OFFSET)  # distance already shifted out of the window (endless)
+    input_force = _number(INPUT_FORCE)
+    steps = _number(STEPS, True, int)
+    active_set_passes_max = _number(PASSES_MAX, True, int)
     #: steps whose active set did not settle (see step)
-    active_set_unconverged = _number(kn.UNCONVERGED, True, int)
+    active_set_unconverged = _number(UNCONVERGED, True, int)
     del _vector, _number
 
     # The controlled contact's penetration and contact flag (contact 0; the state keeps a copy of
@@ -317,7 +330,7 @@ class ContactSimulation:
 
     @delta.setter
     def delta(self, value: float) -> None:
-        self.state.deltas[0] = self.state.scalars[kn.DELTA] = value
+        self.state.deltas[0] = self.state.scalars[DELTA] = value
 
     @property
     def in_contact(self) -> bool:
@@ -325,32 +338,28 @@ class ContactSimulation:
 
     @in_contact.setter
     def in_contact(self, value: bool) -> None:
-        self.state.touching[0] = self.state.counters[kn.IN_CONTACT] = int(value)
+        self.state.touching[0] = self.state.counters[IN_CONTACT] = int(value)
 
     @property
     def contact_positions(self) -> np.ndarray:
         """Each contact point's distance from the line's start (plus what an endless line shifted)."""
-        return np.array(
-            [kn.pantograph_contact(self.constants, self.state, k)[1] for k in range(len(self.lags))]
-        )
+        return np.array([pantograph_contact(self.constants, self.state, k)[1] for k in range(len(self.lags))])
 
     @property
     def contact_forces(self) -> np.ndarray:
         """Each contact's penalty force [N] (0 where it does not touch)."""
-        return np.array(
-            [kn.pantograph_contact(self.constants, self.state, k)[0] for k in range(len(self.lags))]
-        )
+        return np.array([pantograph_contact(self.constants, self.state, k)[0] for k in range(len(self.lags))])
 
     @property
     def slack(self) -> np.ndarray:
         """The slack droppers, ascending."""
-        return self.state.slack[: self.state.counters[kn.N_SLACK]].copy()
+        return self.state.slack[: self.state.counters[N_SLACK]].copy()
 
     @slack.setter
     def slack(self, value: np.ndarray) -> None:
         value = np.asarray(value, dtype=np.int64)
         self.state.slack[: len(value)] = value
-        self.state.counters[kn.N_SLACK] = len(value)
+        self.state.counters[N_SLACK] = len(value)
 
     # -- initial states ------------------------------------------------------------------------
     def _place_pantographs(self, heads: np.ndarray, forces: np.ndarray) -> None:
@@ -444,7 +453,7 @@ class ContactSimulation:
     # -- observables ---------------------------------------------------------------------------
     @property
     def packed(self) -> tuple[np.ndarray, ...]:
-        """The step's constants and state packed for the compiled step (kernels.pack): (floats,
+        """The step's constants and state packed for the compiled step (packing.pack): (floats,
         integers, layout) of the constants, then of the state; the state's arrays are live."""
         return self._packed
 
@@ -497,18 +506,18 @@ class ContactSimulation:
     # -- stepping ------------------------------------------------------------------------------
     def step(self, input_force: float) -> None:
         """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time
-        (``kernels.fe_step``, compiled: the same algorithm as ``step_reference``)."""
-        if self._advance(input_force, 1, self._no_flex, self._no_readings) != kn.STEP_OK:
+        (``step.fe_step``, compiled: the same algorithm as ``step_reference``)."""
+        if self._advance(input_force, 1, self._no_flex, self._no_readings) != STEP_OK:
             raise ValueError(divergence.reason(OFF_LINE, self.x + self.speed * self.dt))
 
     def advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> None:
-        """``steps`` x ``step`` and ``kernels.contact_readings`` into ``readings``, in one compiled call
+        """``steps`` x ``step`` and ``step.contact_readings`` into ``readings``, in one compiled call
         (``flexibility``: ``Line.element_flexibility()``)."""
-        if self._advance(input_force, steps, flexibility, readings) != kn.STEP_OK:
+        if self._advance(input_force, steps, flexibility, readings) != STEP_OK:
             raise ValueError(divergence.reason(OFF_LINE, self.x + self.speed * self.dt))
 
     def _advance(self, input_force: float, steps: int, flexibility: np.ndarray, readings: np.ndarray) -> int:
-        return kn.fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
+        return fe_advance_packed(*self._packed, input_force, steps, flexibility, readings)
 
     def prepare_contact_columns(self, x_from: float, x_to: float) -> None:
         """Solve the contact columns (A^-1 e_i, 2 solves per node) of the stretch the contact points
@@ -516,15 +525,15 @@ class ContactSimulation:
         otherwise does at each node's first use)."""
         e_from, _ = self.line.locate(max(x_from - float(self.lags.max()), 0.0))
         e_to, _ = self.line.locate(x_to)
-        kn.prepare_unit_patches(self.constants, self.state, e_from, e_to + 1)
+        prepare_unit_patches(self.constants, self.state, e_from, e_to + 1)
 
     def readings_at(self, flexibility: np.ndarray, x: float, readings: np.ndarray) -> None:
-        """``kernels.readings_at`` window position x (a contact point: x - lag) into ``readings``."""
-        kn.readings_at(self.constants, self.state, flexibility, x, readings)
+        """``step.readings_at`` window position x (a contact point: x - lag) into ``readings``."""
+        readings_at(self.constants, self.state, flexibility, x, readings)
 
     def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
-        """``kernels.contact_readings`` of the present state into ``readings``."""
-        kn.contact_readings(self.constants, self.state, flexibility, readings)
+        """``step.contact_readings`` of the present state into ``readings``."""
+        contact_readings(self.constants, self.state, flexibility, readings)
 
     def step_reference(self, input_force: float) -> None:
         """``step`` in numpy (the implementation the compiled ``fe_step`` replaced): the reference

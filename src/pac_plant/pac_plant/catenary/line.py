@@ -439,9 +439,9 @@ class Line:
 
     def element_flexibility(self) -> np.ndarray:
         """Per element, the 4x4 block of K^-1 on its contact DOFs (static stiffness at any x): read
-        off the band of K^-1 (``kernels.band_inverse_band``; an element's DOFs are 5 apart at most,
+        off the band of K^-1 (``banded.band_inverse_band``; an element's DOFs are 5 apart at most,
         inside the band of 7), a fixed DOF's rows and columns 0 (as ``solve_static`` gives)."""
-        from .kernels import band_inverse_band, chol_factor
+        from .banded import band_inverse_band, chol_factor
 
         z = band_inverse_band(chol_factor(self.K.ab))
         z[:, self.fixed] = 0.0
