@@ -104,6 +104,34 @@ def test_a_pass_on_a_map_learns_the_mean_from_span_1_on_and_gives_back_what_the_
 
 
 @pytest.mark.unit
+def test_a_pass_on_a_map_that_backs_off_runs_every_later_span_on_its_own_harmonics_halved(tmp_path):
+    """A learning span whose commands the limits all changed (2 N taken off each) backs off: the span
+    after it ramps down, and from the one after that on every span runs its own harmonics of the map
+    at the back-off's scale (0.5, docs/laws.md), not another span's. On a map the guard judges from
+    span 2 on, so span 2 strikes, span 3 ramps, spans 4 and 5 run on 0.5 W_4 and 0.5 W_5. The
+    estimate is on the target (no error), so what oscillates about each span's mean command is the
+    feedforward alone."""
+    learned = _map(_harmonics(), np.random.default_rng(5))
+    write_line_map(learned, tmp_path / "map.json")
+    law = _law(tmp_path / "map.json")
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    commands = np.empty(6 * N - 1)
+    for k in range(commands.size):
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R)
+        law.commit(k, u - 2.0 if k // N == 2 else u)
+        commands[k] = u
+    assert not law.tripped
+    assert float(law.state[0]["line_map_scale"]) == 0.5
+    for m, ticks in ((4, range(4 * N, 5 * N)), (5, range(5 * N, 6 * N - 1))):
+        u = commands[list(ticks)]
+        ff = np.array([0.5 * _feedforward(learned.harmonics[m], k) for k in ticks])
+        # what is left of the command once the feedforward is taken off is one constant (F_r, U_0
+        # and what the limits took, given back) over the whole span
+        rest = u - ff
+        np.testing.assert_allclose(rest, np.full(u.size, rest.mean()), rtol=0, atol=1e-9, err_msg=f"span {m}")
+
+
+@pytest.mark.unit
 def test_the_next_map_is_the_laws_step_on_each_spans_own_error(tmp_path):
     """An error of 10 N on harmonic 2 in every span (imposed): each span the pass recorded takes
     W_m - gamma (conj(D) E_m + mu W_m) / (|D|^2 + mu) with the map's D; span 0 (the start) and the
