@@ -162,6 +162,18 @@ def test_slew_rate_limit():
     assert later.u - second.u == pytest.approx(10.0)
 
 
+def test_a_new_controller_has_commanded_nothing():
+    """Before its first command a controller reports none: no last command, its tick -1 (the node's
+    first fallback goes out at the estimate's own tick, max(tick, last tick + 1)), no law tick; and
+    its first command, a fallback at tick 0, is the fallback force at once (no rate limit from a
+    command that never was)."""
+    ctrl = make_controller(PANTO, TRACK, ControllerParameters(), ReferenceParameters(), DT)
+    assert ctrl.last_u is None and ctrl.last_tick == -1 and ctrl.law_tick is None
+    first = ctrl.fallback(max(0, ctrl.last_tick + 1))
+    assert first.tick == 0 and first.u == ControllerParameters().fallback_force
+    assert ctrl.last_u == first.u and ctrl.last_tick == 0
+
+
 def test_fallback_force_must_be_within_limits():
     with pytest.raises(ParameterError, match="fallback_force"):
         ControllerParameters(u_min=0.0, u_max=50.0, fallback_force=100.0)
