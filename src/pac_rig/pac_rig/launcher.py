@@ -101,6 +101,84 @@ class Process:
             return ""
 
 
+def node_parameters(
+    params: dict[str, dict[str, Any]] | None,
+    *,
+    duration: float,
+    timing_mode: str = "realtime",
+    record: bool = True,
+    relay: bool = False,
+    priorities: dict[str, int] | None = None,
+) -> dict[str, dict[str, Any]]:
+    """Each node's parameters for a run (the recorder's without its bag path), composed from
+    ``params`` (per node, and ``"all"``: the rig's flat names, a ``scenario`` included) as
+    :class:`Rig` runs them: the scenario file's values under the user's own, each value to the
+    nodes that have it; then what the parts derive from each other: the observer the controller's
+    law needs where none was named (and the form of F_hat a fixed-gain law reads from it), the static
+    force of an actuator as hardware (the run's reference); and a refusal (CompositionError, one
+    line) of a law on an observer that does not give what it needs. The arguments are
+    :class:`Rig`'s."""
+    if priorities is None:
+        # Lock step is a simulation that runs flat out: at SCHED_FIFO it would starve the
+        # recorder (seen: two lock-step rigs at once lost the last third of a bag) and has no
+        # deadline to meet anyway.
+        priorities = REALTIME_PRIORITIES if timing_mode == "realtime" else {}
+    # A scenario file's values go to the nodes that have them, under the user's own.
+    shared, _ = scenario_file.expand({"wait_for_recorder": record, **(params or {}).get("all", {})})
+
+    def common(name: str) -> dict[str, Any]:
+        # "all" goes to every loop node that has the parameter (an unknown name is refused).
+        names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
+        return {k: v for k, v in shared.items() if k in names}
+
+    loop_names = {s.name for n in LOOP_NODES for c in parameter_sets(n) for s in c.specs()}
+    unknown = sorted(set(shared) - loop_names)
+    if unknown:
+        raise ValueError(f"unknown parameter '{unknown[0]}' in params['all']: no loop node has it")
+
+    # The run ends by itself: the plant announces its end, the others stop once they have
+    # handled (recorded) its last tick; idle_timeout guards a recorder that never hears it.
+    nodes: dict[str, dict[str, Any]] = {
+        "recorder": {"stop_after_run": True, "idle_timeout": 5.0},
+        "observer": {**common("observer"), "stop_after_run": True},
+        "controller": {**common("controller"), "stop_after_run": True},
+        "plant": {**common("plant"), "timing_mode": timing_mode, "duration": duration},
+    }
+    for name, priority in priorities.items():
+        if "realtime_priority" not in shared:
+            nodes[name]["realtime_priority"] = priority
+    if timing_mode == "lockstep":
+        # The plant waits for every command: a wall-clock watchdog has nothing to guard
+        # and would perturb an exact run when a sample is re-sent.
+        nodes["controller"]["watchdog_ticks"] = 0
+    for name, extra in (params or {}).items():
+        if name != "all":
+            nodes[name].update(extra)
+    # What the parts derive from each other.
+    static_force = composition.actuator_static_force({**nodes["controller"], **nodes["plant"]})
+    if static_force is not None:
+        nodes["plant"]["actuator_static_force"] = static_force
+    law = nodes["controller"].get("law")
+    if law is None or relay:
+        return nodes
+    # The plant's parts too: its line (a whole line's map), its sensors (the observer they
+    # allow), its actuator (the law's design for it).
+    derived, _ = composition.derive(
+        {"law": law}, {**nodes["plant"], **nodes["observer"], **nodes["controller"]}
+    )
+    for name in ("observer", "controller"):  # each derived value to the node that has it
+        names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
+        nodes[name].update({k: v for k, v in derived.items() if k != "law" and k in names})
+    observer = nodes["observer"].get("observer", ObserverParameters().observer)
+    composition.check_pair(
+        str(law),
+        str(observer),
+        nodes["controller"].get("force_estimate"),
+        str(nodes["plant"].get("sensors", "ground")),
+    )
+    return nodes
+
+
 class Rig:
     """The three loop nodes and the recorder, as separate processes."""
 
@@ -132,73 +210,16 @@ class Rig:
         self.log_dir = Path(log_dir) if log_dir else self.bag_path.parent / f"{self.bag_path.name}_logs"
         self.record = record
         self.prefix = prefix
-        if priorities is None:
-            # Lock step is a simulation that runs flat out: at SCHED_FIFO it would starve the
-            # recorder (seen: two lock-step rigs at once lost the last third of a bag) and has no
-            # deadline to meet anyway.
-            priorities = REALTIME_PRIORITIES if timing_mode == "realtime" else {}
-        # A scenario file's values go to the nodes that have them, under the user's own.
-        shared, _ = scenario_file.expand({"wait_for_recorder": record, **(params or {}).get("all", {})})
-
-        def common(name: str) -> dict[str, Any]:
-            # "all" goes to every loop node that has the parameter (an unknown name is refused).
-            names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
-            return {k: v for k, v in shared.items() if k in names}
-
-        loop_names = {s.name for n in LOOP_NODES for c in parameter_sets(n) for s in c.specs()}
-        unknown = sorted(set(shared) - loop_names)
-        if unknown:
-            raise ValueError(f"unknown parameter '{unknown[0]}' in params['all']: no loop node has it")
-
-        # The run ends by itself: the plant announces its end, the others stop once they have
-        # handled (recorded) its last tick; idle_timeout guards a recorder that never hears it.
-        self.params: dict[str, dict[str, Any]] = {
-            "recorder": {"bag_path": str(self.bag_path), "stop_after_run": True, "idle_timeout": 5.0},
-            "observer": {**common("observer"), "stop_after_run": True},
-            "controller": {**common("controller"), "stop_after_run": True},
-            "plant": {**common("plant"), "timing_mode": timing_mode, "duration": duration},
-        }
-        for name, priority in priorities.items():
-            if "realtime_priority" not in shared:
-                self.params[name]["realtime_priority"] = priority
-        if timing_mode == "lockstep":
-            # The plant waits for every command: a wall-clock watchdog has nothing to guard
-            # and would perturb an exact run when a sample is re-sent.
-            self.params["controller"]["watchdog_ticks"] = 0
-        for name, extra in (params or {}).items():
-            if name != "all":
-                self.params[name].update(extra)
-        self._compose()
+        self.params = node_parameters(
+            params,
+            duration=duration,
+            timing_mode=timing_mode,
+            record=record,
+            relay=relay,
+            priorities=priorities,
+        )
+        self.params["recorder"] = {"bag_path": str(self.bag_path), **self.params["recorder"]}
         self.processes: dict[str, Process] = {}
-
-    def _compose(self) -> None:
-        """The observer the controller's law needs where none was named (and the form of F_hat a
-        fixed-gain law reads from it), the static force of an actuator as hardware (the run's
-        reference), and a refusal (CompositionError, one line) of a law on an observer that does
-        not give what it needs."""
-        static_force = composition.actuator_static_force(
-            {**self.params["controller"], **self.params["plant"]}
-        )
-        if static_force is not None:
-            self.params["plant"]["actuator_static_force"] = static_force
-        law = self.params["controller"].get("law")
-        if law is None or self.relay:
-            return
-        # The plant's parts too: its line (a whole line's map), its sensors (the observer they
-        # allow), its actuator (the law's design for it).
-        derived, _ = composition.derive(
-            {"law": law}, {**self.params["plant"], **self.params["observer"], **self.params["controller"]}
-        )
-        for name in ("observer", "controller"):  # each derived value to the node that has it
-            names = {spec.name for cls in parameter_sets(name) for spec in cls.specs()}
-            self.params[name].update({k: v for k, v in derived.items() if k != "law" and k in names})
-        observer = self.params["observer"].get("observer", ObserverParameters().observer)
-        composition.check_pair(
-            str(law),
-            str(observer),
-            self.params["controller"].get("force_estimate"),
-            str(self.params["plant"].get("sensors", "ground")),
-        )
 
     def composed_command(self) -> list[str]:
         """``composed`` with a params file holding one section per node (by node name)."""

@@ -33,7 +33,7 @@ from pac_common.parameters import LoopParameters, ParameterError
 from pac_plant.plant_node import PlantNodeOptions
 
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
-from .launcher import Rig, params_file_sections
+from .launcher import node_parameters, params_file_sections
 from .nodes import LOOP_NODES
 
 #: The plant's run-control values the launcher takes as its own arguments.
@@ -42,19 +42,18 @@ RUN_CONTROL = ("duration", "timing_mode")
 
 def rig_parameters(values: dict[str, Any], record: bool = False) -> dict[str, dict[str, Any]]:
     """Each loop node's parameters for a run of ``values`` (the rig's flat names, ``scenario``
-    included), composed as :class:`~pac_rig.launcher.Rig` composes them; ``record``: the plant
-    waits for a recorder before its first tick."""
+    included), composed as the launcher composes them (:func:`~pac_rig.launcher.node_parameters`);
+    ``record``: the plant waits for a recorder before its first tick."""
     values = dict(values)
     run = {name: values.pop(name) for name in RUN_CONTROL if name in values}
-    rig = Rig(
-        Path("unused"),
+    params = node_parameters(
+        {"all": values},
         duration=float(run.get("duration", LoopParameters().duration)),
         timing_mode=str(run.get("timing_mode", PlantNodeOptions().timing_mode)),
-        params={"all": values},
         record=record,
         priorities={},
     )
-    return {name: rig.params[name] for name in LOOP_NODES}
+    return {name: params[name] for name in LOOP_NODES}
 
 
 def main(argv: list[str] | None = None) -> int:
