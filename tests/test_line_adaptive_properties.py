@@ -154,6 +154,33 @@ def test_a_tick_counts_as_nearly_lost_below_the_margin_times_the_reference():
     assert strikes_after_a_span_with_lost_ticks(lost, level=1.1 * near) == 0
 
 
+def passive_bar_after_near_losses_in_span_1(level: float, start_bias: float) -> float:
+    """The guard's passive loss bar after span 1 (a passive span) had 20 ticks with F_hat = ``level``
+    and span 0 (the start's transient) an estimate ``start_bias`` high in every tick."""
+    law = LineAdaptiveLaw(TRACK, LAWS, DT)
+    n, w = law.period_ticks, law.omega_span
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    for k in range(2 * n):
+        span, i = divmod(k, n)
+        f_hat = F_R + (start_bias if span == 0 else 0.0) - PASSIVE * math.cos(w * k * DT)
+        if span == 1 and i < 20:
+            f_hat = level
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), f_hat)
+        law.commit(k, u)
+    return float(law.state[0]["line_passive_loss"])
+
+
+def test_the_starts_mean_moves_no_near_loss_count_of_the_next_span():
+    """Span 0's mean (the start's transient, 20 N high here) is not taken off span 1's estimate: ticks
+    half a newton above margin x F_r count no near loss, half a newton below they do (20 of the span's
+    ticks: the bar is their share)."""
+    n = LineAdaptiveLaw(TRACK, LAWS, DT).period_ticks
+    near = LAWS.line_guard_loss_margin * F_R
+    assert LAWS.line_runin_spans >= 2  # span 1 is passive: its count sets the bar
+    assert passive_bar_after_near_losses_in_span_1(near + 0.5, start_bias=20.0) == 0.0
+    assert passive_bar_after_near_losses_in_span_1(near - 0.5, start_bias=20.0) == 20 / n
+
+
 def test_lost_ticks_are_counted_on_the_estimate_less_its_mean_bias():
     """F_hat's mean 15 N high in every span (within line_guard_bias): a loss reads F_hat = 15 N,
     above line_guard_loss_margin F_r, and is counted only once the last span's bias is taken off.
