@@ -475,34 +475,56 @@ def write_report(
     (out / f"{name}.json").write_text(json.dumps([asdict(m) for m in ms], indent=1) + "\n")
 
 
+def equivalent(record: dict, notes: dict[str, str]) -> bool:
+    """A survivor argued equivalent: its note says so first (not near-equivalent, not a boundary)."""
+    key = f"{record['module']} {record['function']}: {record['original']} -> {record['mutated']}"
+    return (notes.get(record["ident"]) or notes.get(key, "")).startswith("Equivalent")
+
+
 def write_summary(out: Path) -> None:
-    rows = ["| scope | module | mutants | run | killed | survived | score |", "|---|---|---|---|---|---|---|"]
-    total = [0, 0, 0, 0]
+    notes = load_notes(out)
+    rows = [
+        "| scope | module | mutants | run | killed | survived | score | argued equivalent "
+        "| score without them |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    total = [0, 0, 0, 0, 0]
     for name in SCOPE:
         path = out / f"{name}.json"
         if not path.exists():
-            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | |")
+            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | | | |")
             continue
         ms = json.loads(path.read_text())
         run = [m for m in ms if m["status"] != "not run"]
         killed = sum(m["status"] in ("killed", "timeout") for m in run)
         survived = sum(m["status"] == "survived" for m in run)
-        score = f"{100.0 * killed / len(run):.1f} %" if run else ""
-        cells = (f"[{name}]({name}.md)", SCOPE[name][0], len(ms), len(run), killed, survived, score)
+        same = sum(m["status"] == "survived" and equivalent(m, notes) for m in run)
+        cells = (
+            f"[{name}]({name}.md)", SCOPE[name][0], len(ms), len(run), killed, survived,
+            _percent(killed, len(run)), same, _percent(killed, len(run) - same),
+        )  # fmt: skip
         rows.append("| " + " | ".join(str(c) for c in cells) + " |")
-        for i, v in enumerate((len(ms), len(run), killed, survived)):
+        for i, v in enumerate((len(ms), len(run), killed, survived, same)):
             total[i] += v
-    score = f"{100.0 * total[2] / total[1]:.1f} %" if total[1] else ""
-    rows.append(f"| all | | {total[0]} | {total[1]} | {total[2]} | {total[3]} | {score} |")
+    rows.append(
+        f"| all | | {total[0]} | {total[1]} | {total[2]} | {total[3]} | {_percent(total[2], total[1])} "
+        f"| {total[4]} | {_percent(total[2], total[1] - total[4])} |"
+    )
     text = [
         "# Mutation run (`make mutation`, scripts/mutation.py)",
         "",
         "Killed by the `make test-fast` kinds of each module's tests (listed per module); a timeout "
-        "counts as killed. Survivors are listed and argued in each module's page.",
+        "counts as killed. Survivors are listed and argued in each module's page. \"Argued "
+        'equivalent": survivors whose argument shows that no input tells them from the code; near-'
+        "equivalents, boundaries of measure zero and gaps stay in the score without them.",
         "",
         *rows,
     ]
     (out / "summary.md").write_text("\n".join(text) + "\n")
+
+
+def _percent(part: int, whole: int) -> str:
+    return f"{100.0 * part / whole:.1f} %" if whole else ""
 
 
 def main(argv: list[str] | None = None) -> int:
