@@ -10,7 +10,7 @@ runs that module's tests (the ``make test-fast`` kinds: unit and offline, not sl
 a timeout, and restores the file.  Killed: a test failed or errored (or the run timed out, counted
 apart); survived: every test passed.  The report (``reports/mutation/<module>.md`` and
 ``summary.md``) lists every mutant, and every survivor with the argument in ``notes.json`` (why it
-is equivalent, or what test is missing).
+is equivalent, or what test is missing), keyed like the results below.
 
 Results are kept between runs (``<scope>.json``) by each mutant's key: its function's name and a
 digest of that function's source, the change, and which occurrence of it. Lines may move; a
@@ -442,9 +442,10 @@ def load_notes(out: Path) -> dict[str, str]:
 
 
 def note_for(m: Mutant, notes: dict[str, str]) -> str:
-    """A survivor's argument: keyed by its id, or by what it changes (``module function: original
-    -> mutant``, which survives line moves)."""
-    return notes.get(m.ident) or notes.get(f"{m.module} {m.function}: {m.original} -> {m.mutated}", "")
+    """A survivor's argument, keyed by the mutant's ``key``: its function and a digest of the
+    function's source, the change and its occurrence. A line move keeps it; any change to the
+    function drops it with the result, since both must then be made again."""
+    return notes.get(m.key, "")
 
 
 def write_report(
@@ -477,8 +478,7 @@ def write_report(
 
 def equivalent(record: dict, notes: dict[str, str]) -> bool:
     """A survivor argued equivalent: its note says so first (not near-equivalent, not a boundary)."""
-    key = f"{record['module']} {record['function']}: {record['original']} -> {record['mutated']}"
-    return (notes.get(record["ident"]) or notes.get(key, "")).startswith("Equivalent")
+    return notes.get(record.get("key", ""), "").startswith("Equivalent")
 
 
 def write_summary(out: Path) -> None:
