@@ -274,9 +274,11 @@ def _fit_case(samples, information, last_fit, model_below=None, learn=False):
     return law, (c, b, det, rows[4].real)
 
 
-def test_the_model_response_is_the_pantograph_on_the_fitted_spring_with_the_hold():
-    """_model_response with a fitted spring line (c = 0) equals an independent solve of eqs. (3)-(4)
-    on that spring, times the hold's gain (test_line_response.spring_response)."""
+@pytest.mark.parametrize("damping", [0.0, 50.0])
+def test_the_model_response_is_the_pantograph_on_the_fitted_line_with_the_hold(damping):
+    """_model_response with a fitted line Z = k + i c w (a spring, c = 0, and a damped one) equals an
+    independent solve of eqs. (3)-(4) on that line, times the hold's gain
+    (test_line_response.spring_response, whose k may be complex: Z at each w)."""
     from numba import njit
     from test_line_response import spring_response
 
@@ -288,11 +290,13 @@ def test_the_model_response_is_the_pantograph_on_the_fitted_spring_with_the_hold
         return kern._model_response(states[0], table, n, j)
 
     law = LineAdaptiveLaw(TrackParameters(speed_kmh=300.0, span_length=SPAN), LawParameters(), 1e-3)
-    law.state[0]["line_stiffness"], law.state[0]["line_damping"] = 3000.0, 0.0
+    law.state[0]["line_stiffness"], law.state[0]["line_damping"] = 3000.0, damping
     n = law.period_ticks
     w, hold = law.table[n + kern.MODEL_OMEGA].real, law.table[n + kern.MODEL_HOLD].real
     got = np.array([complex(*response(law.state, law.table, n, j)) for j in range(law.harmonics)])
-    np.testing.assert_allclose(got, spring_response(PantographParameters(), 3000.0, w) * hold, rtol=1e-10)
+    panto = PantographParameters()
+    line = [spring_response(panto, 3000.0 + 1j * damping * wj, np.array([wj]))[0] for wj in w]
+    np.testing.assert_allclose(got, np.array(line) * hold, rtol=1e-10)
 
 
 def test_a_harmonic_the_line_model_calls_weak_steps_on_the_models_response_the_others_on_their_own():

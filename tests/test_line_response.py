@@ -12,9 +12,10 @@ from pac_rig.closed_loop import build_cores
 pytestmark = pytest.mark.offline
 
 
-def spring_response(p, k: float, omega: np.ndarray) -> np.ndarray:
+def spring_response(p, k: complex, omega: np.ndarray) -> np.ndarray:
     """F / U of eqs. (3)-(4) with k(t) = k: head m1 on the spring k and on (k1, b1) to the frame m2,
-    the frame damped by b2 to the car body, u on the frame; F = k z1 (an independent solve)."""
+    the frame damped by b2 to the car body, u on the frame; F = k z1 (an independent solve). A
+    complex k is a line's impedance at one frequency (k + i c w: a spring with a damper)."""
     out = []
     for w in omega:
         s = 1j * w
