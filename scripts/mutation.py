@@ -515,8 +515,9 @@ def write_summary(out: Path) -> None:
         "",
         "Killed by the `make test-fast` kinds of each module's tests (listed per module); a timeout "
         "counts as killed. Survivors are listed and argued in each module's page. \"Argued "
-        'equivalent": survivors whose argument shows that no input tells them from the code; near-'
-        "equivalents, boundaries of measure zero and gaps stay in the score without them.",
+        'equivalent": survivors whose argument (a judgement, each one written out) is that no input '
+        "the rig accepts, or no state it reaches, tells them from the code; near-equivalents, "
+        "boundaries of measure zero and gaps stay in the score without them.",
         "",
         *rows,
     ]
