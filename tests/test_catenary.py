@@ -324,6 +324,32 @@ def test_compiled_step_equals_the_numpy_step_on_random_states():
     assert seen_slack >= 3 and seen_free >= 3 and seen_shift >= 3  # every branch was exercised
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_banded_cholesky_solve_is_a_dense_solve(compiled):
+    """band_chol_solve on chol_factor's factor solves A x = b as a dense solve does, for an SPD matrix
+    of the line's band width (7 sub-diagonals, all non-zero here) and at sizes below it. Also run as
+    plain Python (``py_func``: the same source interpreted, every index checked), so that a loop
+    that reads or writes past the vector fails instead of passing silently."""
+    from pac_plant.catenary.banded import band_chol_solve, chol_factor
+
+    rng = np.random.default_rng(11)
+    kd = 7
+    solve = band_chol_solve if compiled else band_chol_solve.py_func
+    for n in (1, 3, kd + 1, 40):
+        a = np.zeros((n, n))
+        for k in range(1, min(kd, n - 1) + 1):
+            off = rng.uniform(-1.0, 1.0, n - k)
+            a += np.diag(off, k) + np.diag(off, -k)
+        a += np.diag(2.0 * kd + rng.uniform(1.0, 2.0, n))  # diagonally dominant: SPD
+        ab = np.zeros((kd + 1, n))  # LAPACK lower storage: ab[k, j] = A[j + k, j]
+        for k in range(min(kd, n - 1) + 1):
+            ab[k, : n - k] = np.diag(a, -k)
+        b = rng.normal(size=n)
+        x = b.copy()
+        solve(chol_factor(ab), x)
+        np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-12, atol=1e-14, err_msg=f"n = {n}")
+
+
 def test_fast_kernels_equal_the_banded_reference():
     """Chunked solve (8 LDL^T chains in vector lanes) = one banded Cholesky solve; the M-only
     right-hand side = M x1 + beta K w; a stored contact-column or slack-dropper patch = the full
