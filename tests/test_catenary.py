@@ -324,6 +324,30 @@ def test_compiled_step_equals_the_numpy_step_on_random_states():
     assert seen_slack >= 3 and seen_free >= 3 and seen_shift >= 3  # every branch was exercised
 
 
+def test_the_contact_point_is_found_in_the_element_that_holds_it_at_both_ends_of_the_line():
+    """hermite_weights (the compiled step's locate) gives the element whose nodes enclose x, the first
+    at the line's start and the last at its end (its last node included), with weights that
+    interpolate: (1, 0, 0, 0) at the element's first node, (0, 0, 1, 0) at its second."""
+    from pac_plant.catenary.step import hermite_weights
+
+    x_nodes = Line(n_spans=2).x
+    last = x_nodes.shape[0] - 2
+    first_h, last_h = x_nodes[1] - x_nodes[0], x_nodes[-1] - x_nodes[-2]
+    cases = [
+        (x_nodes[0], 0, (1.0, 0.0, 0.0, 0.0)),
+        (x_nodes[0] + 0.5 * first_h, 0, None),
+        (x_nodes[1], 1, (1.0, 0.0, 0.0, 0.0)),
+        (x_nodes[-2] + 0.5 * last_h, last, None),
+        (x_nodes[-1], last, (0.0, 0.0, 1.0, 0.0)),
+    ]
+    for x, element, at_node in cases:
+        e, n = hermite_weights(x_nodes, float(x))
+        assert e == element and x_nodes[e] <= x <= x_nodes[e + 1], x
+        if at_node is not None:
+            np.testing.assert_allclose(n, at_node, rtol=0, atol=1e-12, err_msg=f"x = {x}")
+        assert n[0] + n[2] == pytest.approx(1.0, abs=1e-12)  # the shapes of w sum to one
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_the_banded_cholesky_solve_is_a_dense_solve(compiled):
     """band_chol_solve on chol_factor's factor solves A x = b as a dense solve does, for an SPD matrix
