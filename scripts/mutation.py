@@ -54,6 +54,16 @@ LINE_LAW_TESTS = (
     "tests/test_line_layout.py",
     "tests/test_line_map.py",
 )
+#: The FE line's behaviour: its own tests, the whole realistic line (stitch wires, slack droppers),
+#: two pantographs on one line (several contacts in the active set) and the line files.
+FE_TESTS = (
+    "tests/test_catenary.py",
+    "tests/test_line_physics.py",
+    "tests/test_catenary_realistic.py",
+    "tests/test_catenary_data.py",
+    "tests/test_two_pantographs.py",
+    "tests/test_offline_pantographs.py",
+)
 #: name -> (module, functions (qualified names), tests). The tests are those of the module's
 #: behaviour that ``make test-fast`` runs; a mutant they all pass survives.
 SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
@@ -109,17 +119,17 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     "fe_step": (
         "pac_plant.catenary.step",
         ("hermite_weights", "fe_step"),
-        ("tests/test_catenary.py", "tests/test_line_physics.py"),
+        FE_TESTS,
     ),
     "newmark": (
         "pac_plant.catenary.newmark",
         ("newmark_rhs", "newmark_update"),
-        ("tests/test_catenary.py", "tests/test_line_physics.py"),
+        FE_TESTS,
     ),
     "banded": (
         "pac_plant.catenary.banded",
         ("band_chol_solve",),
-        ("tests/test_catenary.py", "tests/test_line_physics.py"),
+        FE_TESTS,
     ),
     "bag_writer": (
         "pac_bag.mcap_writer",
@@ -132,7 +142,7 @@ SCOPE: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     "line": (
         "pac_plant.catenary.line",
         ("Line._assemble", "Line.solve_dropper_lengths", "Line.set_dropper_lengths", "Line._assemble_wires"),
-        ("tests/test_line_physics.py", "tests/test_catenary.py"),
+        FE_TESTS,
     ),
 }  # fmt: skip
 
