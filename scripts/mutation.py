@@ -46,6 +46,12 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 FAST = "(unit or offline) and not live and not slow"
+#: ``--slow``: a fast survivor again with the slow tests of its scope too, what `make test` adds
+#: but live: the live tests drive the same cores through nodes (their physics is the offline
+#: loop's, which the offline tests compare), at minutes a mutant.
+FULL = "(unit or offline) and not live"
+#: A fast survivor that a slow test kills.
+KILLED_SLOW = "killed (slow)"
 
 LINE_LAW_TESTS = (
     "tests/test_line_adaptive_properties.py",
@@ -184,7 +190,7 @@ class Mutant:
     mutated: str
     start: tuple[int, int]
     end: tuple[int, int]
-    status: str = "not run"  # killed, survived, timeout, not run
+    status: str = "not run"  # killed, survived, timeout, not run, KILLED_SLOW
     seconds: float = 0.0
     failing: str = ""
     #: What the mutant is, independent of where its function sits in the file: the function's name
@@ -398,8 +404,8 @@ def cache_for(modules: set[str], warm: Path, into: Path) -> None:
             f.unlink()
 
 
-def run_tests(tests: tuple[str, ...], env: dict, timeout: float) -> tuple[str, str]:
-    cmd = [sys.executable, "-m", "pytest", *tests, "-q", "-x", "-p", "no:cacheprovider", "-m", FAST]
+def run_tests(tests: tuple[str, ...], env: dict, timeout: float, marks: str = FAST) -> tuple[str, str]:
+    cmd = [sys.executable, "-m", "pytest", *tests, "-q", "-x", "-p", "no:cacheprovider", "-m", marks]
     proc = subprocess.Popen(
         cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
         start_new_session=True,
@@ -463,13 +469,16 @@ def write_report(
 ) -> None:
     done = [m for m in ms if m.status != "not run"]
     killed = sum(m.status in ("killed", "timeout") for m in done)
+    slow = sum(m.status == KILLED_SLOW for m in done)
     lines = [
         f"# Mutation: {name} ({ms[0].module if ms else ''})",
         "",
-        f'Tests (`-m "{FAST}"`): ' + ", ".join(f"`{t}`" for t in tests),
+        f'Tests (`-m "{FAST}"`; a survivor again with `-m "{FULL}"`): ' + ", ".join(f"`{t}`" for t in tests),
         "",
-        f"{len(ms)} mutants, {len(done)} run: {killed} killed"
+        f"{len(ms)} mutants, {len(done)} run: {killed} killed by the fast tests"
         + (f" ({100.0 * killed / len(done):.1f} %)" if done else "")
+        + f", {slow} more by the slow ones"
+        + (f" ({100.0 * (killed + slow) / len(done):.1f} % in all)" if done else "")
         + f", {sum(m.status == 'survived' for m in done)} survived, "
         f"{sum(m.status == 'timeout' for m in done)} of the killed by timeout.",
         "",
@@ -477,7 +486,8 @@ def write_report(
         "|---|---|---|---|---|---|---|",
     ]
     for m in ms:
-        why = m.failing if m.status == "killed" else note_for(m, notes) if m.status == "survived" else ""
+        caught = m.status in ("killed", KILLED_SLOW)
+        why = m.failing if caught else note_for(m, notes) if m.status == "survived" else ""
         if m.status == "survived" and not why:
             why = "**not argued yet**"
         cells = [m.ident, f"`{m.function}`", str(m.line), f"`{m.original}`", f"`{m.mutated}`", m.status, why]
@@ -494,44 +504,50 @@ def equivalent(record: dict, notes: dict[str, str]) -> bool:
 def write_summary(out: Path) -> None:
     notes = load_notes(out)
     rows = [
-        "| scope | module | mutants | run | killed | survived | score | argued equivalent "
-        "| score without them |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| scope | module | mutants | run | killed (fast) | killed (slow) | survived | score fast "
+        "| score with slow | argued equivalent | score with slow, without them |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    total = [0, 0, 0, 0, 0]
+    total = [0, 0, 0, 0, 0, 0]
     for name in SCOPE:
         path = out / f"{name}.json"
         if not path.exists():
-            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | | | |")
+            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | | | | | |")
             continue
         ms = json.loads(path.read_text())
         run = [m for m in ms if m["status"] != "not run"]
         killed = sum(m["status"] in ("killed", "timeout") for m in run)
+        slow = sum(m["status"] == KILLED_SLOW for m in run)
         survived = sum(m["status"] == "survived" for m in run)
         same = sum(m["status"] == "survived" and equivalent(m, notes) for m in run)
-        cells = (
-            f"[{name}]({name}.md)", SCOPE[name][0], len(ms), len(run), killed, survived,
-            _percent(killed, len(run)), same, _percent(killed, len(run) - same),
-        )  # fmt: skip
-        rows.append("| " + " | ".join(str(c) for c in cells) + " |")
-        for i, v in enumerate((len(ms), len(run), killed, survived, same)):
+        counts = (len(ms), len(run), killed, slow, survived, same)
+        rows.append(_summary_row(f"[{name}]({name}.md)", SCOPE[name][0], counts))
+        for i, v in enumerate(counts):
             total[i] += v
-    rows.append(
-        f"| all | | {total[0]} | {total[1]} | {total[2]} | {total[3]} | {_percent(total[2], total[1])} "
-        f"| {total[4]} | {_percent(total[2], total[1] - total[4])} |"
-    )
+    rows.append(_summary_row("all", "", tuple(total)))
     text = [
         "# Mutation run (`make mutation`, scripts/mutation.py)",
         "",
         "Killed by the `make test-fast` kinds of each module's tests (listed per module); a timeout "
-        "counts as killed. Survivors are listed and argued in each module's page. \"Argued "
-        'equivalent": survivors whose argument (a judgement, each one written out) is that no input '
+        'counts as killed. "killed (slow)": a fast survivor run again with the module\'s slow '
+        f'tests too (`-m "{FULL}"`, `--slow`): what `make test` adds but live. Survivors are listed '
+        'and argued in each module\'s page. "Argued equivalent": survivors whose argument (a '
+        "judgement, each one written out) is that no input "
         "the rig accepts, or no state it reaches, tells them from the code; near-equivalents, "
         "boundaries of measure zero and gaps stay in the score without them.",
         "",
         *rows,
     ]
     (out / "summary.md").write_text("\n".join(text) + "\n")
+
+
+def _summary_row(name: str, module: str, counts: tuple[int, ...]) -> str:
+    mutants, run, killed, slow, survived, same = counts
+    cells = (
+        name, module, mutants, run, killed, slow, survived, _percent(killed, run),
+        _percent(killed + slow, run), same, _percent(killed + slow, run - same),
+    )  # fmt: skip
+    return "| " + " | ".join(str(c) for c in cells) + " |"
 
 
 def _percent(part: int, whole: int) -> str:
@@ -550,6 +566,11 @@ def main(argv: list[str] | None = None) -> int:
         "--survivors",
         action="store_true",
         help="run the survivors again (after tests were added), and what was not run",
+    )
+    ap.add_argument(
+        "--slow",
+        action="store_true",
+        help="run the fast survivors again with the slow tests too (what make test adds but live)",
     )
     ap.add_argument("--out", type=Path, default=ROOT / "reports" / "mutation")
     args = ap.parse_args(argv)
@@ -590,19 +611,26 @@ def main(argv: list[str] | None = None) -> int:
                 for serial, m in enumerate(ms):
                     if args.only is not None and m.ident not in args.only:
                         continue
+                    if args.slow and m.status != "survived":
+                        continue  # (a fast survivor only: the slow stage runs after the fast one)
                     if (
-                        args.only is None
+                        not args.slow
+                        and args.only is None
                         and m.status != "not run"
-                        and not (args.survivors and m.status == "survived")
+                        and not (args.survivors and m.status in ("survived", KILLED_SLOW))
                     ):
                         continue
                     planted.plant(apply(source, m), serial)
                     cache = Path(tmp) / "numba_cache"
                     cache_for(stale, warm, cache)
                     t0 = time.monotonic()
-                    m.status, m.failing = run_tests(
-                        tests, {**env, "NUMBA_CACHE_DIR": str(cache)}, args.timeout
+                    status, m.failing = run_tests(
+                        tests,
+                        {**env, "NUMBA_CACHE_DIR": str(cache)},
+                        args.timeout,
+                        FULL if args.slow else FAST,
                     )
+                    m.status = KILLED_SLOW if args.slow and status in ("killed", "timeout") else status
                     m.seconds = round(time.monotonic() - t0, 1)
                     planted.path.write_text(source)
                     print(

@@ -230,7 +230,6 @@ def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     assert fields["contact_uplift"] == truth.contact_uplift and math.isfinite(fields["support_uplift"])
 
 
-@pytest.mark.slow
 def test_endless_window_equals_a_long_fixed_line():
     """A 6-span moving window over 5 spans (3 shifts) gives the contact force of a fixed 12-span line."""
     forces = {}
@@ -293,7 +292,6 @@ def _assert_same_state(fast, ref):
     assert fast.x == ref.x and fast.offset == ref.offset
 
 
-@pytest.mark.slow
 def test_compiled_step_equals_the_numpy_step_on_random_states():
     """Random line and pantograph states (contact on and off, droppers slack and taut, the window
     shift due): one compiled step equals one numpy step to rounding."""
