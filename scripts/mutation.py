@@ -416,6 +416,10 @@ def run_tests(tests: tuple[str, ...], env: dict, timeout: float, marks: str = FA
         os.killpg(proc.pid, signal.SIGKILL)
         proc.communicate()
         return "timeout", ""
+    except BaseException:  # the run stopped (SIGTERM, Ctrl-C): its tests, in their own session, too
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+        raise
     if proc.returncode == 0:
         return "survived", ""
     failed = [
