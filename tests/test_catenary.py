@@ -326,6 +326,55 @@ def test_compiled_step_equals_the_numpy_step_on_random_states():
     assert seen_slack >= 3 and seen_free >= 3 and seen_shift >= 3  # every branch was exercised
 
 
+def test_every_step_ends_with_the_droppers_slack_that_are_compressed_and_no_other():
+    """The active set's fixed point, checked from the state each step ends in: a dropper is in the
+    slack set exactly when its elongation (computed from the line's displacements, not by the step)
+    is negative. A run that pushes the head up until droppers go slack near it, then drops the
+    uplift until the head leaves the wire, so that both the contact and the droppers change sets."""
+    line = Line(n_spans=2)
+    sim = ContactSimulation(line, paper_pantograph(), 1e-3, 80.0, 20.0)
+    sim.start_static(100.0)
+    seen_slack = seen_loss = 0
+    for k in range(400):
+        sim.step(100.0 + 5.0 * k if k < 200 else 0.0)  # up to 1.1 kN, then none
+        e = sim.dropper_elongation()
+        slack = np.zeros(len(e), dtype=bool)
+        slack[sim.slack] = True
+        # 1 nm: rounding and the truncated contact columns are orders below it; a dropper decided
+        # wrongly is off by the step's own motion, 1e-5 m and more here.
+        assert np.all(e[slack] < 1e-9) and np.all(e[~slack] > -1e-9), k
+        seen_slack += bool(slack.any())
+        seen_loss += not sim.in_contact
+    assert sim.active_set_unconverged == 0 and sim.active_set_passes_max >= 2
+    assert seen_slack >= 10 and seen_loss >= 10  # both sets changed during the run
+
+
+def test_a_step_whose_active_set_does_not_settle_keeps_the_set_it_solved_for(monkeypatch):
+    """With one pass allowed, a step that starts with a contact set its solution contradicts does
+    not settle: it keeps that set (the state is the solution computed for it), counts the step,
+    and reports the penetration as the numpy step does. The pass limit is compiled in, so the
+    compiled step's own source runs as Python (``fe_step.py_func``) with the limit patched."""
+    from pac_plant.catenary import integrator, step
+
+    monkeypatch.setattr(step, "MAX_ACTIVE_SET_PASSES", 1)
+    monkeypatch.setattr(integrator, "MAX_ACTIVE_SET_PASSES", 1)
+    line = Line(n_spans=4)
+    x0 = 100.0
+    for in_contact, lift in ((False, 0.02), (True, -0.02)):  # head 2 cm into the wire / below it
+        fast, ref = _twin_simulations(line, x0=x0)
+        p = ref.panto.static_positions(line.static_height(x0) + lift, 0.0)
+        for sim in (fast, ref):
+            sim.p = p
+            sim.in_contact = in_contact
+        assert step.fe_step.py_func(fast.constants, fast.state, 150.0) == step.STEP_OK
+        ref.step_reference(150.0)
+        _assert_same_state(fast, ref)
+        assert fast.active_set_unconverged == 1 and fast.in_contact == in_contact
+        # The penetration the kept set's solution has: into the wire when the contact was kept
+        # off, out of it when kept on; reported as at most zero while off.
+        assert fast.delta == (0.0 if not in_contact else ref.delta) and (ref.delta < 0.0) == in_contact
+
+
 def test_the_contact_point_is_found_in_the_element_that_holds_it_at_both_ends_of_the_line():
     """hermite_weights (the compiled step's locate) gives the element whose nodes enclose x, the first
     at the line's start and the last at its end (its last node included), with weights that
