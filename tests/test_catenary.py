@@ -326,13 +326,19 @@ def test_compiled_step_equals_the_numpy_step_on_random_states():
     assert seen_slack >= 3 and seen_free >= 3 and seen_shift >= 3  # every branch was exercised
 
 
-def test_every_step_ends_with_the_droppers_slack_that_are_compressed_and_no_other():
+@pytest.mark.parametrize(
+    ("speed", "x0"),
+    [(80.0, 20.0), (0.0, DATA.span + DATA.dropper_positions[4])],
+    ids=["moving", "at_a_dropper"],
+)
+def test_every_step_ends_with_the_droppers_slack_that_are_compressed_and_no_other(speed, x0):
     """The active set's fixed point, checked from the state each step ends in: a dropper is in the
     slack set exactly when its elongation (computed from the line's displacements, not by the step)
     is negative. A run that pushes the head up until droppers go slack near it, then drops the
-    uplift until the head leaves the wire, so that both the contact and the droppers change sets."""
-    line = Line(n_spans=2)
-    sim = ContactSimulation(line, paper_pantograph(), 1e-3, 80.0, 20.0)
+    uplift until the head leaves the wire, so that both the contact and the droppers change sets:
+    moving, and standing at a dropper, where the contact's own push decides that dropper's set."""
+    line = Line(n_spans=3)
+    sim = ContactSimulation(line, paper_pantograph(), 1e-3, speed, x0)
     sim.start_static(100.0)
     seen_slack = seen_loss = 0
     for k in range(400):
