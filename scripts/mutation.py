@@ -404,6 +404,15 @@ def cache_for(modules: set[str], warm: Path, into: Path) -> None:
             f.unlink()
 
 
+def fast_test_ids(tests: tuple[str, ...], env: dict) -> set[str]:
+    """The node ids ``-m FAST`` selects of ``tests``: a test that kills in the slow stage but is
+    among them (added after the fast stage ran) is a fast kill."""
+    cmd = [sys.executable, "-m", "pytest", *tests, "-q", "--collect-only", "-p", "no:cacheprovider"]
+    cmd += ["-m", FAST]
+    out = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, check=True).stdout
+    return {line.strip() for line in out.splitlines() if "::" in line}
+
+
 def run_tests(tests: tuple[str, ...], env: dict, timeout: float, marks: str = FAST) -> tuple[str, str]:
     cmd = [sys.executable, "-m", "pytest", *tests, "-q", "-x", "-p", "no:cacheprovider", "-m", marks]
     proc = subprocess.Popen(
@@ -610,6 +619,7 @@ def main(argv: list[str] | None = None) -> int:
                 if old and old["original"] == m.original and old["mutated"] == m.mutated:
                     m.status, m.seconds, m.failing = old["status"], old["seconds"], old["failing"]
             stale = dependents(module)
+            fast_ids = fast_test_ids(tests, env) if args.slow else set()
             planted = Planted(path)
             try:
                 for serial, m in enumerate(ms):
@@ -634,7 +644,11 @@ def main(argv: list[str] | None = None) -> int:
                         args.timeout,
                         FULL if args.slow else FAST,
                     )
-                    m.status = KILLED_SLOW if args.slow and status in ("killed", "timeout") else status
+                    # In the slow stage a kill by a test of the fast selection (added since) is a fast kill.
+                    fast_kill = status == "killed" and m.failing in fast_ids
+                    if args.slow and status in ("killed", "timeout") and not fast_kill:
+                        status = KILLED_SLOW
+                    m.status = status
                     m.seconds = round(time.monotonic() - t0, 1)
                     planted.path.write_text(source)
                     print(

@@ -355,6 +355,19 @@ def test_every_step_ends_with_the_droppers_slack_that_are_compressed_and_no_othe
     assert seen_slack >= 10 and seen_loss >= 10  # both sets changed during the run
 
 
+def test_a_steady_contact_settles_in_one_active_set_pass_per_step():
+    """At rest under a constant uplift nothing changes set: each step starts from the last step's
+    contact and slack sets (its warm start) and settles in one pass. A step that took two would
+    double the cost of every step of a run and report it in the line runs' pass count."""
+    line = Line(n_spans=3)
+    sim = ContactSimulation(line, paper_pantograph(), 1e-3, 0.0, DATA.span + DATA.dropper_positions[4])
+    sim.start_static(50.0)
+    for _ in range(20):
+        sim.step(50.0)
+        assert sim.in_contact
+    assert sim.active_set_passes_max == 1 and sim.contact_force == pytest.approx(50.0, rel=1e-6)
+
+
 def test_a_step_whose_active_set_does_not_settle_keeps_the_set_it_solved_for(monkeypatch):
     """With one pass allowed, a step that starts with a contact set its solution contradicts does
     not settle: it keeps that set (the state is the solution computed for it), counts the step,
