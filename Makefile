@@ -44,7 +44,8 @@ test-portable: setup
 # Mutation testing (scripts/mutation.py): defects planted one at a time in the safety chain, the
 # guard, the observers, the line law, the line's assembly, the FE step and the MCAP writer; each
 # scope's fast tests run on each; the report in reports/mutation/. Not part of `make test` (tens of minutes per scope).
-# ARGS="--modules kernels guard" narrows it, ARGS="--list" lists the mutants.
+# ARGS="--modules kernels guard" narrows it, ARGS="--list" lists the mutants, ARGS="--slow" runs
+# the survivors again with the slow tests too.
 mutation: setup
 	scripts/with_env.sh python scripts/mutation.py $(ARGS)
 
