@@ -8,7 +8,7 @@ import pytest
 
 from pac_common.contact_statistics import contact_statistics
 from pac_plant.catenary.data import CatenaryData, NumericalOptions
-from pac_plant.catenary.integrator import ContactSimulation
+from pac_plant.catenary.integrator import ContactSimulation, PassivePantograph
 from pac_plant.catenary.line import DOFS_PER_NODE, WC, Line
 from pac_plant.catenary.pantographs import paper_pantograph, three_mass_pantograph
 
@@ -353,6 +353,38 @@ def test_every_step_ends_with_the_droppers_slack_that_are_compressed_and_no_othe
         seen_loss += not sim.in_contact
     assert sim.active_set_unconverged == 0 and sim.active_set_passes_max >= 2
     assert seen_slack >= 10 and seen_loss >= 10  # both sets changed during the run
+
+
+def test_two_contacts_and_slack_droppers_every_step_ends_on_its_sets():
+    """Two pantographs pressing hard enough to slacken droppers under both, the leading one's
+    uplift swinging until it leaves the wire: each step ends on its sets, checked from the state
+    it ends in. A contact touches exactly when its head is above the wire at its point (head
+    height against the static height plus the line's displacement there), and then presses with
+    kp times that penetration; a dropper is slack exactly when it is compressed. Several contacts
+    with slack droppers is the case where the contacts' coefficients follow the droppers'."""
+    line = Line(n_spans=4)
+    passive = (PassivePantograph(three_mass_pantograph(), 30.0, 400.0),)
+    sim = ContactSimulation(line, paper_pantograph(), 1e-3, 40.0, 80.0, passive=passive)
+    sim.start_touching()
+    heads = sim.constants.p_heads
+    both_with_slack = lost = 0
+    for k in range(1500):
+        sim.step(350.0 + 300.0 * math.sin(2 * math.pi * 7.0 * k * 1e-3))
+        e = sim.dropper_elongation()
+        slack = np.zeros(len(e), dtype=bool)
+        slack[sim.slack] = True
+        assert np.all(e[slack] < 1e-9) and np.all(e[~slack] > -1e-9), k  # (tolerance: as above)
+        touching = sim.state.touching.astype(bool)
+        for c, x in enumerate(sim.x - sim.lags):
+            dofs, n = line.contact_interpolation(x)
+            penetration = sim.p[heads[c]] - line.static_height(x) - float(n @ sim.d[dofs])
+            assert (penetration > -1e-9) if touching[c] else (penetration < 1e-9), (k, c)
+            want = sim.kp * penetration if touching[c] else 0.0
+            assert sim.contact_forces[c] == pytest.approx(want, rel=1e-6, abs=1e-6), (k, c)
+        both_with_slack += bool(touching.all() and slack.any())
+        lost += not touching[0]
+    assert sim.active_set_unconverged == 0
+    assert both_with_slack >= 100 and lost >= 20  # the sets the test is about were there
 
 
 def test_a_steady_contact_settles_in_one_active_set_pass_per_step():
