@@ -193,6 +193,8 @@ class Mutant:
     status: str = "not run"  # killed, survived, timeout, not run, KILLED_SLOW
     seconds: float = 0.0
     failing: str = ""
+    #: Run with the slow tests too (``--slow``): a survivor that has this survived ``make test``'s kinds.
+    slow: bool = False
     #: What the mutant is, independent of where its function sits in the file: the function's name
     #: and a digest of its source, the change, and which occurrence of that change in the function.
     #: A result is kept while its key is the same (the function unchanged); lines may move.
@@ -518,14 +520,14 @@ def write_summary(out: Path) -> None:
     notes = load_notes(out)
     rows = [
         "| scope | module | mutants | run | killed (fast) | killed (slow) | survived | score fast "
-        "| score with slow | argued equivalent | score with slow, without them |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| score with slow | survivors run with slow | argued equivalent | score with slow, without them |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    total = [0, 0, 0, 0, 0, 0]
+    total = [0, 0, 0, 0, 0, 0, 0]
     for name in SCOPE:
         path = out / f"{name}.json"
         if not path.exists():
-            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | | | | | |")
+            rows.append(f"| {name} | {SCOPE[name][0]} | | not run | | | | | | | | |")
             continue
         ms = json.loads(path.read_text())
         run = [m for m in ms if m["status"] != "not run"]
@@ -533,7 +535,8 @@ def write_summary(out: Path) -> None:
         slow = sum(m["status"] == KILLED_SLOW for m in run)
         survived = sum(m["status"] == "survived" for m in run)
         same = sum(m["status"] == "survived" and equivalent(m, notes) for m in run)
-        counts = (len(ms), len(run), killed, slow, survived, same)
+        slow_run = sum(m["status"] == "survived" and m.get("slow", False) for m in run)
+        counts = (len(ms), len(run), killed, slow, survived, slow_run, same)
         rows.append(_summary_row(f"[{name}]({name}.md)", SCOPE[name][0], counts))
         for i, v in enumerate(counts):
             total[i] += v
@@ -543,10 +546,11 @@ def write_summary(out: Path) -> None:
         "",
         "Killed by the `make test-fast` kinds of each module's tests (listed per module); a timeout "
         'counts as killed. "killed (slow)": a fast survivor run again with the module\'s slow '
-        f'tests too (`-m "{FULL}"`, `--slow`): what `make test` adds but live. Survivors are listed '
-        'and argued in each module\'s page. "Argued equivalent": survivors whose argument (a '
-        "judgement, each one written out) is that no input "
-        "the rig accepts, or no state it reaches, tells them from the code; near-equivalents, "
+        f'tests too (`-m "{FULL}"`, `--slow`): what `make test` adds but live. "Survivors run with '
+        'slow": how many of the survivors that stage ran (the others survived the fast tests only). '
+        "Survivors are listed and argued in each module's page. "
+        '"Argued equivalent": survivors whose argument (a judgement, each one written out) is that '
+        "no input the rig accepts, or no state it reaches, tells them from the code; near-equivalents, "
         "boundaries of measure zero and gaps stay in the score without them.",
         "",
         *rows,
@@ -555,10 +559,10 @@ def write_summary(out: Path) -> None:
 
 
 def _summary_row(name: str, module: str, counts: tuple[int, ...]) -> str:
-    mutants, run, killed, slow, survived, same = counts
+    mutants, run, killed, slow, survived, slow_run, same = counts
     cells = (
         name, module, mutants, run, killed, slow, survived, _percent(killed, run),
-        _percent(killed + slow, run), same, _percent(killed + slow, run - same),
+        _percent(killed + slow, run), slow_run, same, _percent(killed + slow, run - same),
     )  # fmt: skip
     return "| " + " | ".join(str(c) for c in cells) + " |"
 
@@ -618,6 +622,7 @@ def main(argv: list[str] | None = None) -> int:
                 old = previous.get(m.key)
                 if old and old["original"] == m.original and old["mutated"] == m.mutated:
                     m.status, m.seconds, m.failing = old["status"], old["seconds"], old["failing"]
+                    m.slow = old.get("slow", False)
             stale = dependents(module)
             fast_ids = fast_test_ids(tests, env) if args.slow else set()
             planted = Planted(path)
@@ -649,6 +654,7 @@ def main(argv: list[str] | None = None) -> int:
                     if args.slow and status in ("killed", "timeout") and not fast_kill:
                         status = KILLED_SLOW
                     m.status = status
+                    m.slow = m.slow or args.slow  # (a fast run after a slow one adds fast tests only)
                     m.seconds = round(time.monotonic() - t0, 1)
                     planted.path.write_text(source)
                     print(
