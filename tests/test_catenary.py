@@ -326,6 +326,17 @@ def test_compiled_step_equals_the_numpy_step_on_random_states():
     assert seen_slack >= 3 and seen_free >= 3 and seen_shift >= 3  # every branch was exercised
 
 
+def _assert_slack_exactly_where_compressed(sim, k):
+    """A dropper is in the step's slack set exactly when its elongation, computed from the line's
+    displacements (not by the step), is negative. 1 nm: rounding and the truncated contact columns
+    are orders below it; a dropper decided wrongly is off by the step's own motion, 1e-5 m and more."""
+    e = sim.dropper_elongation()
+    slack = np.zeros(len(e), dtype=bool)
+    slack[sim.slack] = True
+    assert np.all(e[slack] < 1e-9) and np.all(e[~slack] > -1e-9), k
+    return slack
+
+
 @pytest.mark.parametrize(
     ("speed", "x0"),
     [(80.0, 20.0), (0.0, DATA.span + DATA.dropper_positions[4])],
@@ -343,12 +354,7 @@ def test_every_step_ends_with_the_droppers_slack_that_are_compressed_and_no_othe
     seen_slack = seen_loss = 0
     for k in range(400):
         sim.step(100.0 + 5.0 * k if k < 200 else 0.0)  # up to 1.1 kN, then none
-        e = sim.dropper_elongation()
-        slack = np.zeros(len(e), dtype=bool)
-        slack[sim.slack] = True
-        # 1 nm: rounding and the truncated contact columns are orders below it; a dropper decided
-        # wrongly is off by the step's own motion, 1e-5 m and more here.
-        assert np.all(e[slack] < 1e-9) and np.all(e[~slack] > -1e-9), k
+        slack = _assert_slack_exactly_where_compressed(sim, k)
         seen_slack += bool(slack.any())
         seen_loss += not sim.in_contact
     assert sim.active_set_unconverged == 0 and sim.active_set_passes_max >= 2
@@ -370,10 +376,7 @@ def test_two_contacts_and_slack_droppers_every_step_ends_on_its_sets():
     both_with_slack = lost = 0
     for k in range(1500):
         sim.step(350.0 + 300.0 * math.sin(2 * math.pi * 7.0 * k * 1e-3))
-        e = sim.dropper_elongation()
-        slack = np.zeros(len(e), dtype=bool)
-        slack[sim.slack] = True
-        assert np.all(e[slack] < 1e-9) and np.all(e[~slack] > -1e-9), k  # (tolerance: as above)
+        slack = _assert_slack_exactly_where_compressed(sim, k)
         touching = sim.state.touching.astype(bool)
         for c, x in enumerate(sim.x - sim.lags):
             dofs, n = line.contact_interpolation(x)
