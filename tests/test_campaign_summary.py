@@ -82,3 +82,45 @@ def test_against_pairs_each_run_with_the_reference_run_of_its_line():
     assert pid.sigma_change.n == 5
     assert pid.sigma_change.mean == pytest.approx(np.mean(expected))
     assert pid.sigma_change.largest == pytest.approx(max(expected))
+
+
+def test_draws_within_a_line_are_averaged_before_the_interval_over_the_lines(tmp_path):
+    """With draws (``--draws roof_seed``) the interval is Student's t over the lines' means, not over
+    the runs (two runs on one line are not independent draws of the line); the worst change, the
+    extremes and the runs with more contact loss are over every run; a draw is never a group."""
+    from pac_experiments.campaign.summary import compare
+
+    data = []
+    for seed in range(4):
+        for draw in range(2):
+            for law, sigma in (("passive", 50.0 + seed), ("pid", 40.0 + seed + 5.0 * draw)):
+                data.append(
+                    {
+                        "law": law,
+                        "line_seed": str(seed),
+                        "roof_seed": str(draw),
+                        "status": "ok",
+                        "en50318_contact_force_std": str(sigma),
+                        "en50318_contact_loss_percent": "0.1" if (law, seed, draw) == ("pid", 3, 1) else "0",
+                    }
+                )
+    (pid,) = compare(data, "line_seed", "passive", ("roof_seed",))
+    changes = {(s, d): 100.0 * ((40.0 + s + 5.0 * d) / (50.0 + s) - 1.0) for s in range(4) for d in range(2)}
+    per_line = [np.mean([changes[(s, 0)], changes[(s, 1)]]) for s in range(4)]
+    low, high = stats.t.interval(0.95, 3, loc=np.mean(per_line), scale=stats.sem(per_line))
+    change = pid.sigma_change
+    assert pid.group == {"law": "pid"} and pid.pairs == 8 and change.n == 4 and pid.more_loss == 1
+    assert change.mean == pytest.approx(np.mean(per_line))
+    assert (change.low, change.high) == (pytest.approx(low), pytest.approx(high))
+    assert change.largest == pytest.approx(max(changes.values()))
+    assert change.smallest == pytest.approx(min(changes.values()))
+    groups = summarise(data, "line_seed", ("roof_seed",))
+    assert [g for g, _ in groups] == [{"law": "passive"}, {"law": "pid"}]
+    assert groups[1][1]["en50318_contact_force_std"].n == 4
+    with (tmp_path / "results.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(data[0]))
+        writer.writeheader()
+        writer.writerows(data)
+    assert main([str(tmp_path), "--against", "passive", "--draws", "roof_seed"]) == 0
+    against = (tmp_path / "against.md").read_text()
+    assert "| pid | 8 | 4 |" in against and "averaged per line_seed first" in against

@@ -14,12 +14,19 @@ scenario; the observer may differ), and ``DIR/against.md`` / ``against.json`` gi
 change of sigma [%] (mean with its 95 % interval over the pairs, and the worst: the largest), the
 runs with more contact loss than their reference run, and the paired runs' Fm, Fm - 3 sigma, largest
 |u| and F_hat error. A run without its reference run is left out (and counted).
+
+``--draws AXIS[,AXIS...]`` names axes that are draws *within* a line (the car body's track, the
+turbulence, the noise: another run of the same train on the same line): they are not groups. Each
+line's runs are averaged over its draws first, and the interval is over the lines (the lines are the
+independent draws; two runs on one line are not); the extremes, the worst change and the runs with
+more contact loss are over every run.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import math
 import statistics
 import sys
@@ -55,6 +62,16 @@ class Interval:
     largest: float
 
     @staticmethod
+    def clustered(values: list[float], clusters: list[str]) -> Interval:
+        """The interval of the clusters' means (each cluster's values averaged first), with the
+        extremes of every value: ``--draws`` (module docstring)."""
+        means: dict[str, list[float]] = {}
+        for value, cluster in zip(values, clusters, strict=True):
+            means.setdefault(cluster, []).append(value)
+        over = Interval.of([statistics.fmean(v) for v in means.values()])
+        return dataclasses.replace(over, smallest=min(values), largest=max(values))
+
+    @staticmethod
     def of(values: list[float]) -> Interval:
         n = len(values)
         mean = statistics.fmean(values)
@@ -69,15 +86,17 @@ class Interval:
         return f"{self.mean:.4g} [{self.low:.4g}, {self.high:.4g}] ({self.smallest:.4g}..{self.largest:.4g})"
 
 
-def summarise(rows: list[dict[str, str]], over: str) -> list[tuple[dict[str, str], dict[str, Interval]]]:
-    """Groups of ``rows`` (status ok) by every axis but ``over`` and the measures, in first-seen
-    order, each with its measures' intervals."""
+def summarise(
+    rows: list[dict[str, str]], over: str, draws: tuple[str, ...] = ()
+) -> list[tuple[dict[str, str], dict[str, Interval]]]:
+    """Groups of ``rows`` (status ok) by every axis but ``over`` and the ``draws`` and the measures,
+    in first-seen order, each with its measures' intervals (over ``over``, its draws averaged)."""
     if not rows:
         return []
     columns = list(rows[0])
     # The campaign writes its axes first, then what it derives and the status, then the measures.
     head = columns[: columns.index("status")] if "status" in columns else columns
-    axes = [c for c in head if c not in NOT_AXES and c != over]
+    axes = [c for c in head if c not in NOT_AXES and c != over and c not in draws]
     groups: dict[tuple[str, ...], list[dict[str, str]]] = {}
     for row in rows:
         if row.get("status") != "ok":
@@ -87,9 +106,10 @@ def summarise(rows: list[dict[str, str]], over: str) -> list[tuple[dict[str, str
     for key, members in groups.items():
         measures = {}
         for name in MEASURES:
-            values = [float(r[name]) for r in members if r.get(name) not in (None, "", "nan")]
-            if values:
-                measures[name] = Interval.of(values)
+            kept = [r for r in members if r.get(name) not in (None, "", "nan")]
+            if kept:
+                values = [float(r[name]) for r in kept]
+                measures[name] = Interval.clustered(values, [r[over] for r in kept])
         out.append((dict(zip(axes, key, strict=True)), measures))
     return out
 
@@ -111,15 +131,18 @@ class Comparison:
     """One law's runs against the reference law's on the same other axes."""
 
     group: dict[str, str]
-    sigma_change: Interval  # percent, per pair
+    sigma_change: Interval  # percent, per pair (per line, its draws averaged)
+    pairs: int
     more_loss: int  # pairs where the run lost contact more than its reference run
     unpaired: int
     measures: dict[str, Interval]
 
 
-def compare(rows: list[dict[str, str]], over: str, reference: str) -> list[Comparison]:
+def compare(
+    rows: list[dict[str, str]], over: str, reference: str, draws: tuple[str, ...] = ()
+) -> list[Comparison]:
     """Every law but ``reference`` against it, pair by pair (module docstring), grouped by every axis
-    but ``over`` (runs that are not ``ok`` are left out, with their pairs)."""
+    but ``over`` and the ``draws`` (runs that are not ``ok`` are left out, with their pairs)."""
     ok = [r for r in rows if r.get("status") == "ok"]
     if not ok:
         return []
@@ -132,7 +155,7 @@ def compare(rows: list[dict[str, str]], over: str, reference: str) -> list[Compa
     for row in ok:
         if row["law"] == reference:
             continue
-        key = tuple(row[a] for a in axes if a != over)
+        key = tuple(row[a] for a in axes if a != over and a not in draws)
         groups.setdefault(key, []).append((row, references.get(tuple(row[a] for a in pair_axes))))
     out = []
     sigma = "en50318_contact_force_std"
@@ -142,21 +165,27 @@ def compare(rows: list[dict[str, str]], over: str, reference: str) -> list[Compa
         if not pairs:
             continue
         changes = [100.0 * (float(run[sigma]) / float(ref[sigma]) - 1.0) for run, ref in pairs]
+        lines = [run[over] for run, _ in pairs]
         more = sum(float(run[loss]) > float(ref[loss]) for run, ref in pairs)
         measures = {}
         for name in AGAINST_MEASURES:
-            values = [float(r[name]) for r, _ in pairs if r.get(name) not in (None, "", "nan")]
-            if values:
-                measures[name] = Interval.of(values)
-        group = dict(zip([a for a in axes if a != over], key, strict=True))
-        out.append(Comparison(group, Interval.of(changes), more, len(members) - len(pairs), measures))
+            kept = [r for r, _ in pairs if r.get(name) not in (None, "", "nan")]
+            if kept:
+                measures[name] = Interval.clustered([float(r[name]) for r in kept], [r[over] for r in kept])
+        group = dict(zip([a for a in axes if a != over and a not in draws], key, strict=True))
+        change = Interval.clustered(changes, lines)
+        out.append(Comparison(group, change, len(pairs), more, len(members) - len(pairs), measures))
     return out
 
 
-def write_against(out: Path, comparisons: list[Comparison], over: str, reference: str) -> str:
+def write_against(
+    out: Path, comparisons: list[Comparison], over: str, reference: str, draws: tuple[str, ...] = ()
+) -> str:
     """``against.md`` and ``against.json`` in ``out``; returns the markdown."""
     axes = list(comparisons[0].group)
     header = [*axes, "pairs", "sigma change [%]", "worst [%]", "more loss", *AGAINST_MEASURES.values()]
+    if draws:
+        header.insert(len(axes) + 1, over)
     table = []
     for c in comparisons:
         change = c.sigma_change
@@ -166,7 +195,8 @@ def write_against(out: Path, comparisons: list[Comparison], over: str, reference
         table.append(
             [
                 *c.group.values(),
-                str(change.n),
+                str(c.pairs),
+                *([str(change.n)] if draws else []),
                 interval,
                 f"{change.largest:+.1f}",
                 str(c.more_loss),
@@ -178,13 +208,23 @@ def write_against(out: Path, comparisons: list[Comparison], over: str, reference
         f"Each run against the `{reference}` run on the same {over} and other axes: the change of the "
         "EN 50318 sigma [%] (mean [95 % confidence interval], worst = largest), the runs with more "
         f"contact loss than their `{reference}` run, then the runs' measures (mean [95 % interval] "
-        "(smallest..largest)).\n\n" + markdown.table(header, table) + "\n"
+        "(smallest..largest)).\n\n"
+        + (
+            f"Draws within a line ({', '.join(draws)}) are averaged per {over} first; the interval is "
+            f"over the {over} values (column {over}), the worst and the runs with more loss over every "
+            "pair.\n\n"
+            if draws
+            else ""
+        )
+        + markdown.table(header, table)
+        + "\n"
     )
     (out / "against.md").write_text(text)
     data = [
         {
             "group": c.group,
             "sigma_change_percent": vars(c.sigma_change),
+            "pairs": c.pairs,
             "more_loss": c.more_loss,
             "unpaired": c.unpaired,
             "measures": {k: vars(v) for k, v in c.measures.items()},
@@ -211,24 +251,33 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("out", type=Path, help="a campaign's output directory (with results.csv)")
     parser.add_argument("--over", default="line_seed", help="the axis summarised over (default line_seed)")
     parser.add_argument("--against", metavar="LAW", help="also compare every other law with LAW, run by run")
+    parser.add_argument(
+        "--draws",
+        default="",
+        metavar="AXIS[,AXIS...]",
+        help="axes that are draws within one value of --over, averaged per value first (module docstring)",
+    )
     args = parser.parse_args(argv)
+    draws = tuple(a for a in args.draws.split(",") if a)
     path = args.out / "results.csv"
     rows = read_results(args.out, "campaign_summary")
     if rows is None:
         return 2
-    groups = summarise(rows, args.over)
+    groups = summarise(rows, args.over, draws)
     if not groups:
         print(f"campaign_summary: no run in {path}", file=sys.stderr)
         return 2
     axes = list(groups[0][0])
-    header = [*axes, "runs", *MEASURES.values()]
+    header = [*axes, args.over if draws else "runs", *MEASURES.values()]
     table = [
         [*group.values(), str(next(iter(m.values())).n), *(m[k].text() if k in m else "" for k in MEASURES)]
         for group, m in groups
     ]
     text = (
         f"# Summary over `{args.over}` of {args.out.name}\n\n"
-        "Per measure: mean [95 % confidence interval] (smallest..largest) over the runs of each group.\n\n"
+        "Per measure: mean [95 % confidence interval] (smallest..largest) over the runs of each group"
+        + (f", each {args.over}'s draws ({', '.join(draws)}) averaged first" if draws else "")
+        + ".\n\n"
         + markdown.table(header, table)
         + "\n"
     )
@@ -237,11 +286,11 @@ def main(argv: list[str] | None = None) -> int:
     jsonio.write(args.out / "summary.json", data)  # strict JSON: a NaN (no interval) as null
     print(text)
     if args.against:
-        comparisons = compare(rows, args.over, args.against)
+        comparisons = compare(rows, args.over, args.against, draws)
         if not comparisons:
             print(f"campaign_summary: no run of {path} pairs with a {args.against} run", file=sys.stderr)
             return 2
-        print(write_against(args.out, comparisons, args.over, args.against))
+        print(write_against(args.out, comparisons, args.over, args.against, draws))
     return 0
 
 
