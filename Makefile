@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-pair realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -128,6 +128,13 @@ realistic-experiment: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_laws.yaml --out reports/realistic/laws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/laws --against passive
 	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/laws
+
+# line_adaptive against passive on the 20 report lines with three draws each of the car body's track,
+# the turbulence and the noise (config/campaigns/realistic_draws.yaml -> reports/realistic/draws/;
+# draw 0 is realistic-experiment's; against.md averages each line's draws before the interval).
+realistic-draws: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_draws.yaml --out reports/realistic/draws $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/draws --against passive --draws roof_seed,aero_turbulence_seed,noise_seed
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair
 # (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py).
