@@ -220,7 +220,7 @@ class LineAdaptiveLaw:
         ticks = max(self.span_ticks, 1)
         loss, bias = self.loss_ticks / ticks, self.bias_sum / ticks
         reference = self.reference_sum / ticks
-        if span >= 1 and not self.tripped and not abs(bias) <= self.guard_bias * abs(reference):
+        if span >= 2 and not self.tripped and not abs(bias) <= self.guard_bias * abs(reference):
             self._trip("bias")  # the momentum balance: mean F_hat against the mean actuator force
         self.last_bias = bias if span >= 1 else 0.0
         back_off = False

@@ -220,16 +220,22 @@ def modes_with_a_biased_mean(bias: list[float]) -> tuple[LineAdaptiveLaw, list[s
 
 def test_a_mean_off_the_momentum_balance_by_more_than_line_guard_bias_trips_at_the_first_judged_span():
     """|mean(F_hat) - mean(F_a)| above line_guard_bias times the mean reference trips at the end of
-    span 1 (span 0 holds the start's transient and is not judged: a bias there alone trips
+    span 2 (spans 0 and 1 hold the start's transient and are not judged: a bias there alone trips
     nothing); just below the bound, nothing trips (over the passive spans: F_hat is imposed here, so
     once the law learns it would chase the mean error it cannot move)."""
     bound = LAWS.line_guard_bias * F_R
-    law, modes = modes_with_a_biased_mean([5.0 * bound] + [0.9 * bound] * (LAWS.line_runin_spans - 1))
+    assert LAWS.line_runin_spans >= 3  # span 2 is still passive: the trip moves nothing
+    law, modes = modes_with_a_biased_mean(
+        [5.0 * bound, 5.0 * bound] + [0.9 * bound] * (LAWS.line_runin_spans - 2)
+    )
     assert not law.tripped and set(modes) == {"active"}
     for sign in (1.0, -1.0):
-        law, modes = modes_with_a_biased_mean([0.0] + [sign * 1.1 * bound] * 3)
+        law, modes = modes_with_a_biased_mean([0.0, 0.0] + [sign * 1.1 * bound] * 3)
         assert law.trip_reason == "bias"
-        assert modes[1] == "active" and modes[2] == "passive"  # judged at the end of span 1
+        assert modes[2] == "active" and modes[3] == "passive"  # judged at the end of span 2
+        # The start's transient in spans 0 and 1 does not hide a bias that follows it.
+        law, modes = modes_with_a_biased_mean([sign * 5.0 * bound] * 2 + [sign * 1.1 * bound] * 3)
+        assert law.trip_reason == "bias" and modes[2] == "active" and modes[3] == "passive"
 
 
 # -- the learning step by property ----------------------------------------------------------

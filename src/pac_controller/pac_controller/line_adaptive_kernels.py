@@ -20,6 +20,10 @@ GUARD_SPANS = 3
 GUARD_HARD_FACTOR = 3.0
 #: A back-off (contact loss or saturation in a span) scales the feedforward's harmonics by this.
 GUARD_BACKOFF = 0.5
+#: The first span whose momentum balance the guard judges: the start's transient (a pantograph set
+#: down at rest on a wire at rest, the actuator rising to F_r) lasts into span 1, most where the run
+#: starts inside a span (the trailing pantograph of a pair), so spans 0 and 1 are not judged.
+BIAS_FIRST_SPAN = 2
 #: Why the guard fell back (``line_trip_reason``): not at all; the span-periodic sigma of F_hat above
 #: passive's (harm); the mean of F_hat off the actuator's (bias); contact loss / saturation in
 #: ``line_guard_strikes`` spans (each one backed off first).
@@ -368,8 +372,8 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
     # terms; a mean of F_hat - F_applied beyond line_guard_bias times the mean reference is an
     # estimate whose mean is wrong, which the band the law judges below cannot show (docs/laws.md).
     bias, reference = s.line_bias_sum / ticks, s.line_reference_sum / ticks
-    if span >= 1 and not s.line_tripped and not abs(bias) <= p.line_guard_bias * abs(reference):
-        _trip(s, TRIP_BIAS)  # span 0 holds the start transient
+    if span >= BIAS_FIRST_SPAN and not s.line_tripped and not abs(bias) <= p.line_guard_bias * abs(reference):
+        _trip(s, TRIP_BIAS)
     s.line_last_bias = bias if span >= 1 else 0.0
     back_off = False
     runin = _runin(p)
