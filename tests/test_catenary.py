@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from fe_step_oracle import NumpyStep
 
 from pac_common.contact_statistics import contact_statistics
 from pac_plant.catenary.data import CatenaryData, NumericalOptions
@@ -268,7 +269,7 @@ def test_live_lockstep_rig_on_the_fe_line_equals_the_offline_loop(rigs, tmp_path
     assert np.max(offline["plant_truth"]["contact_force"]) > 10.0  # the run pressed on the wire
 
 
-# -- the compiled step (step.fe_step) against the numpy step it replaced (step_reference) -------
+# -- the compiled step (step.fe_step) against the numpy step (fe_step_oracle.NumpyStep) ---------
 #: Largest difference allowed between the two paths, relative to the largest value of each
 #: quantity: rounding (sums in another order, the two-chunk solve, the M-only right-hand side).
 COMPILED_TOLERANCE = 1e-9
@@ -318,7 +319,7 @@ def test_compiled_step_equals_the_numpy_step_on_random_states():
         fast.in_contact = ref.in_contact = bool(trial % 2)
         force = float(rng.uniform(0.0, 300.0))
         fast.step(force)
-        ref.step_reference(force)
+        NumpyStep(ref)(force)
         _assert_same_state(fast, ref)
         seen_slack += len(ref.slack) > 0
         seen_free += not ref.in_contact
@@ -408,10 +409,9 @@ def test_a_step_whose_active_set_does_not_settle_keeps_the_set_it_solved_for(mon
     not settle: it keeps that set (the state is the solution computed for it), counts the step,
     and reports the penetration as the numpy step does. The pass limit is compiled in, so the
     compiled step's own source runs as Python (``fe_step.py_func``) with the limit patched."""
-    from pac_plant.catenary import integrator, step
+    from pac_plant.catenary import step
 
-    monkeypatch.setattr(step, "MAX_ACTIVE_SET_PASSES", 1)
-    monkeypatch.setattr(integrator, "MAX_ACTIVE_SET_PASSES", 1)
+    monkeypatch.setattr(step, "MAX_ACTIVE_SET_PASSES", 1)  # the numpy step reads it too
     line = Line(n_spans=4)
     x0 = 100.0
     for in_contact, lift in ((False, 0.02), (True, -0.02)):  # head 2 cm into the wire / below it
@@ -421,7 +421,7 @@ def test_a_step_whose_active_set_does_not_settle_keeps_the_set_it_solved_for(mon
             sim.p = p
             sim.in_contact = in_contact
         assert step.fe_step.py_func(fast.constants, fast.state, 150.0) == step.STEP_OK
-        ref.step_reference(150.0)
+        NumpyStep(ref)(150.0)
         _assert_same_state(fast, ref)
         assert fast.active_set_unconverged == 1 and fast.in_contact == in_contact
         # The penetration the kept set's solution has: into the wire when the contact was kept
@@ -547,9 +547,10 @@ def test_compiled_reference_run_equals_the_numpy_run():
     fast.start_static(force)
     ref.start_static(force)
     f_fast, f_ref, slack = [], [], 0
+    ref_step = NumpyStep(ref)
     while ref.x + ref.speed * ref.dt < 6.5 * DATA.span:
         fast.step(force)
-        ref.step_reference(force)
+        ref_step(force)
         f_fast.append(fast.contact_force)
         f_ref.append(ref.contact_force)
         slack = max(slack, len(ref.slack))

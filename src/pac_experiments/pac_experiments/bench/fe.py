@@ -1,4 +1,5 @@
-"""The FE line's cost per 1 kHz step: old (numpy) and new (compiled) path side by side, by part.
+"""The FE line's cost per 1 kHz step, by part: the compiled step, and its right-hand side and solve beside
+the kernels they replaced.
 
 ``python -m pac_experiments.bench.fe`` prints a table; ``fe_tick_figures()`` returns the
 figures (``make bench`` calls it). CPU time (``time.process_time``) per step, median and
@@ -121,9 +122,6 @@ def fe_tick_figures(steps: int = 2000, batches: int = 10) -> dict[str, float]:
     )
     out["step_compiled_us"] /= calls
     out["step_compiled_us_min"] /= calls
-    # The old path: the numpy step on a copy of the same state (a twin simulation).
-    twin = warm_plant().sim
-    put("step_old", lambda: twin.step_reference(FORCE))
     # Parts of the new step, on copies of the state (the solve on a fresh right-hand side).
     d, v, a = s.d.copy(), s.v.copy(), s.a.copy()
     rhs, y, dt = np.empty_like(d), np.empty_like(d), sim.dt
@@ -152,7 +150,6 @@ def fe_tick_figures(steps: int = 2000, batches: int = 10) -> dict[str, float]:
     put("measurement_truth", lambda: (plant.measurement(), plant.truth()))
     out["fe_plant_realtime_factor"] = 1e3 / out["fe_plant_tick_us"]
     out["step_compiled_realtime_factor"] = 1e3 / out["step_compiled_us"]
-    out["step_speedup"] = out["step_old_us"] / out["step_new_us"]
     # The rest of the compiled step: contact column, pantograph, active set, Woodbury, patches.
     for suffix in ("_us", "_us_min"):
         parts = out["rhs_new" + suffix] + out["solve_new" + suffix] + out["update" + suffix]
@@ -192,12 +189,7 @@ def table(f: dict[str, float]) -> str:
             m("fe_plant_tick_coarse"),
             f"{1e3 / f['fe_plant_tick_coarse_us']:.1f}x real time",
         ),
-        ("step, old path (numpy, step_reference)", m("step_old"), ""),
-        (
-            "step, new path (compiled fe_step, called from Python)",
-            m("step_new"),
-            f"{f['step_speedup']:.1f}x faster",
-        ),
+        ("step (compiled fe_step, called from Python)", m("step_new"), ""),
         (
             "**step in a compiled loop** (what a compiled caller pays)",
             f"**{m('step_compiled')}**",

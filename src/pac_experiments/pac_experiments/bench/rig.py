@@ -636,15 +636,14 @@ def goal_figures(args: argparse.Namespace, workdir: Path, runs: dict, startup: d
         )
     print("bench: FE tick ...", flush=True)
     from pac_experiments.bench.fe import (
-        fe_tick_figures,  # the FE line's own timing (by part, old and new step)
+        fe_tick_figures,  # the FE line's own timing (by part)
     )
 
     fe = fe_tick_figures()
     figures["fe_tick_x"] = fe["fe_plant_realtime_factor"]
-    today["fe_tick_x"] = {"value": 1e3 / fe["step_old_us"], "what": "numpy step alone"}
     notes.append(
         f"FE plant tick {fe['fe_plant_tick_us']:.0f} µs CPU (advance + measurement + truth; compiled step "
-        f"{fe['step_new_us']:.0f} µs, numpy step {fe['step_old_us']:.0f} µs): "
+        f"{fe['step_new_us']:.0f} µs): "
         "`python -m pac_experiments.bench.fe` for the parts"
     )
     if startup:

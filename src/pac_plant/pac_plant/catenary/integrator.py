@@ -23,8 +23,8 @@ The active set (contact on/off, which droppers are slack) is iterated until it a
 with the solution it produces (a few passes at most; usually the first one).
 
 ``step`` runs all of it compiled (``step.fe_step`` on the explicit arrays
-``constants``/``state``); ``step_reference`` is the same algorithm in numpy, kept as the
-reference the compiled step is tested against. The compiled step's kernels differ from the
+``constants``/``state``); the same algorithm in numpy is the tests' reference
+(``tests/fe_step_oracle.py``). The compiled step's kernels differ from the
 reference's only in how they compute the same numbers (docs/numerics.md, "FE line"): the
 right-hand side with M alone, the solve as eight overlapping chunks side by side in vector
 lanes, A^-1 e_i and A^-1 g_j stored on the 20 nodes around i (the rest is below 1e-19 and
@@ -46,14 +46,12 @@ from pac_model.parameters import positive_period
 
 from .banded import KD, band_chol_solve, band_matvec2, chol_factor, chunk_factor, pad_band
 from .line import DOFS_PER_NODE, Line
-from .newmark import newmark_rhs, newmark_update
 from .packing import CONSTANT_KINDS, STATE_KINDS, fe_advance_packed, pack
 from .pantographs import LumpedPantograph
 from .step import (
     DELTA,
     IN_CONTACT,
     INPUT_FORCE,
-    MAX_ACTIVE_SET_PASSES,
     N_SLACK,
     OFFSET,
     PASSES_MAX,
@@ -272,10 +270,7 @@ class ContactSimulation:
         self._packed = (self._cf, self._ci, self._cl, self._sf, self._si, self._sl)
         self._no_flex, self._no_readings = np.zeros((0, 4, 4)), np.zeros(0)
         self.x = float(x0)
-        self._b = np.empty(n)
-        self._x1, self._x2 = np.empty(n), np.empty(n)
         self._zero = np.zeros(n)
-        self._unit_solutions: dict[int, np.ndarray] = {}  # DOF i -> A^-1 e_i (reference step)
         self.start_touching()
 
     def _rest_solution(self) -> np.ndarray:
@@ -506,7 +501,7 @@ class ContactSimulation:
     # -- stepping ------------------------------------------------------------------------------
     def step(self, input_force: float) -> None:
         """Advance one dt with ``input_force`` [N] on the pantograph's input DOF at the new time
-        (``step.fe_step``, compiled: the same algorithm as ``step_reference``)."""
+        (``step.fe_step``, compiled)."""
         if self._advance(input_force, 1, self._no_flex, self._no_readings) != STEP_OK:
             raise ValueError(divergence.reason(OFF_LINE, self.x + self.speed * self.dt))
 
@@ -534,149 +529,3 @@ class ContactSimulation:
     def readings(self, flexibility: np.ndarray, readings: np.ndarray) -> None:
         """``step.contact_readings`` of the present state into ``readings``."""
         contact_readings(self.constants, self.state, flexibility, readings)
-
-    def step_reference(self, input_force: float) -> None:
-        """``step`` in numpy (the implementation the compiled ``fe_step`` replaced): the reference
-        of the equality tests and of the benchmark's old path; one pantograph only."""
-        if len(self.pantographs) > 1:
-            raise NotImplementedError("step_reference runs one pantograph (the compiled step runs several)")
-        dt, c0, c1 = self.dt, self.c0, self.c1
-        d, v, a = self.d, self.v, self.a
-        x_new = self.x + self.speed * dt
-        if self.endless and x_new > (self.line.n_periods // 2 + 1) * self.line.period_length:
-            self._shift_window()
-            d, v, a = self.d, self.v, self.a
-            x_new = self.x + self.speed * dt
-        if x_new > self.line.length:
-            raise ValueError(divergence.reason(OFF_LINE, x_new))
-        # Line right-hand side: M (c0 d + 4/dt v + a) + C (c1 d + v), C = alpha M + beta K.
-        y_l = self._b
-        newmark_rhs(self._m, self._k, d, v, a, dt, self.alpha, self.beta, self._x1, self._x2, y_l)
-        band_chol_solve(self._chol, y_l)
-        if len(self.constants.y_rest):
-            y_l += self.constants.y_rest
-        dofs, nsh = self.line.contact_interpolation(x_new)
-        yc_l = -(self._unit_solution(dofs[0]) * nsh[0])
-        for i in range(1, 4):
-            yc_l -= self._unit_solution(dofs[i]) * nsh[i]
-        # Pantograph.
-        fp = np.diag(self.panto.ground_stiffness) @ self.roof_rest
-        fp[self.panto.input] += input_force
-        bp = fp + self._pm @ (c0 * self.p + (4.0 / dt) * self.vp + self.ap)
-        bp += self._pc @ (c1 * self.p + self.vp)
-        y_p = self._ap_inv @ bp
-        yc_p = self._ap_inv[:, self.panto.head]
-        h = self.panto.head
-        ws_x = self.line.static_height(x_new)
-        # Projections on the contact direction g_c and on the dropper directions g_j.
-        gc_y = -float(nsh @ y_l[dofs]) + y_p[h]
-        gc_yc = -float(nsh @ yc_l[dofs]) + yc_p[h]
-        gc_ydrop = -(nsh @ self._ydrop[dofs, :])  # (nd,)
-        gd_y = y_l[self._dwm] - y_l[self._dwc]  # (nd,)
-        gd_yc = yc_l[self._dwm] - yc_l[self._dwc]  # (nd,)
-        contact, slack = self.in_contact, self.slack
-        passes = 0
-        while passes < MAX_ACTIVE_SET_PASSES:
-            passes += 1
-            ns = len(slack)
-            m = ns + (1 if contact else 0)
-            if ns == 0:  # the usual case, in scalars: z = (g_c^T y + g_c^T A^-1 g_c r) / cap
-                coef = np.zeros(m)
-                if contact:
-                    r_c = self.kp * ws_x
-                    coef[0] = r_c - (gc_y + gc_yc * r_c) / (gc_yc + 1.0 / self.kp)
-            else:
-                coef = self._woodbury_coefficients(slack, contact, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
-            # Contact penetration and dropper elongations at that solution.
-            delta = gc_y - ws_x
-            e = self._e0 + gd_y
-            if ns:
-                delta += float(gc_ydrop[slack] @ coef[:ns])
-                e += self._ddrop[:, slack] @ coef[:ns]
-            if contact:
-                delta += gc_yc * coef[ns]
-                e += gd_yc * coef[ns]
-            new_contact = bool(delta > 0.0)
-            new_slack = np.flatnonzero(e < 0.0)
-            consistent = new_contact == contact and np.array_equal(new_slack, slack)
-            if consistent or passes == MAX_ACTIVE_SET_PASSES:
-                if not consistent:  # keep the set the solution was computed for; count it
-                    self.active_set_unconverged += 1
-                break
-            contact, slack = new_contact, new_slack
-        self.active_set_passes_max = max(self.active_set_passes_max, passes)
-        d_new = y_l  # scratch buffer, consumed by newmark_update below
-        p_new = y_p.copy()
-        if len(slack):
-            d_new += self._ydrop[:, slack] @ coef[: len(slack)]
-        if contact:
-            d_new += yc_l * coef[len(slack)]
-            p_new += yc_p * coef[len(slack)]
-        newmark_update(d, v, a, d_new, dt)
-        ap_new = c0 * (p_new - self.p) - (4.0 / dt) * self.vp - self.ap
-        self.vp = self.vp + 0.5 * dt * (self.ap + ap_new)
-        self.ap, self.p = ap_new, p_new
-        self.x = x_new
-        self.in_contact, self.slack = contact, slack
-        self.delta = delta if contact else min(delta, 0.0)
-        self.input_force = input_force
-        self.steps += 1
-
-    def _unit_solution(self, i: int) -> np.ndarray:
-        """A^-1 e_i, cached for the DOFs of the last two contact elements (2 new solves per element)."""
-        col = self._unit_solutions.get(int(i))
-        if col is None:
-            col = np.zeros(self.line.n_dof)
-            col[i] = 1.0
-            band_chol_solve(self._chol, col)
-            if len(self._unit_solutions) >= 8:
-                self._unit_solutions.pop(next(iter(self._unit_solutions)))
-            self._unit_solutions[int(i)] = col
-        return col
-
-    def _woodbury_coefficients(
-        self,
-        slack: np.ndarray,
-        contact: bool,
-        gc_y: float,
-        gc_yc: float,
-        gc_ydrop: np.ndarray,
-        gd_y: np.ndarray,
-        gd_yc: np.ndarray,
-        ws_x: float,
-    ) -> np.ndarray:
-        """r - z of q = y + Y (r - z), z = cap^-1 U^T (y + Y r), cap = S^-1 + U^T A^-1 U."""
-        ns = len(slack)
-        m = ns + (1 if contact else 0)
-        cap = np.zeros((m, m))
-        uy = np.zeros(m)
-        r = np.zeros(m)
-        cap[:ns, :ns] = self._ddrop[np.ix_(slack, slack)] - np.diag(1.0 / self._kdrop[slack])
-        uy[:ns] = gd_y[slack]
-        r[:ns] = self._kdrop[slack] * self._e0[slack]
-        if contact:
-            cap[ns, ns] = gc_yc + 1.0 / self.kp
-            cap[ns, :ns] = gc_ydrop[slack]
-            cap[:ns, ns] = gd_yc[slack]
-            uy[ns] = gc_y
-            r[ns] = self.kp * ws_x
-        return r - np.linalg.solve(cap, uy + (cap - np.diag(self._sinv(slack, contact))) @ r)
-
-    def _sinv(self, slack: np.ndarray, contact: bool) -> np.ndarray:
-        """Diagonal of S^-1 in A + U S U^T: -1/k_j for slack droppers, 1/k_p for the contact."""
-        s = list(-1.0 / self._kdrop[slack])
-        if contact:
-            s.append(1.0 / self.kp)
-        return np.array(s)
-
-    def _shift_window(self) -> None:
-        """Move the window one span forward: states shift back one span, the new span is at rest."""
-        s = DOFS_PER_NODE * self.line.nodes_per_period
-        self._unit_solutions.clear()
-        for vec in (self.d, self.v, self.a):
-            vec[:-s] = vec[s:].copy()
-            vec[-s:] = 0.0
-            vec[self.line.fixed] = 0.0
-        self.slack = self.slack[self.slack >= self._drop_per_span] - self._drop_per_span
-        self.x -= self.line.period_length
-        self.offset += self.line.period_length
