@@ -202,8 +202,9 @@ def test_fe_plant_has_the_plant_interface_and_settles_on_the_uplift():
     """FEPlant (catenary_model fe): slow run under a held u, F -> u, truth consistent with the line."""
     from pac_common import messages
     from pac_model.parameters import PantographParameters, TrackParameters
-    from pac_plant.fe_plant import FEPlant, make_plant
+    from pac_plant.fe_plant import FEPlant
     from pac_plant.parameters import PlantOptions
+    from pac_plant.plants import make_plant
 
     options = PlantOptions(catenary_model="fe")
     plant = make_plant(PantographParameters(), TrackParameters(speed_kmh=5.0), None, options, 1e-3)

@@ -293,15 +293,3 @@ def several_pantographs(plant: Plant) -> FEPlant | None:
     an FE line with several; None otherwise (one pantograph: PlantTruth is all there is to say).
     The plant node publishes that topic, and the offline simulator records it, exactly then."""
     return plant if isinstance(plant, FEPlant) and len(plant.options.pantographs) > 1 else None
-
-
-def make_plant(
-    pantograph: PantographParameters,
-    track: TrackParameters,
-    catenary: CatenaryParameters,
-    options: PlantOptions,
-    sample_period: float,
-) -> Plant:
-    """The plant ``options.catenary_model`` asks for: ``Plant`` (lumped k(t)) or ``FEPlant``."""
-    cls = FEPlant if options.catenary_model == "fe" else Plant
-    return cls(pantograph, track, catenary, options, sample_period)

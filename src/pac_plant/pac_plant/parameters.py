@@ -9,6 +9,7 @@ from pac_common.parameters import ParameterError, ParameterSet, parameter
 from .hardware.actuators import ACTUATORS
 from .hardware.car_body import CAR_BODIES, TRACKS
 from .hardware.sensors import SENSORS
+from .plants import PLANTS, plant_kind, several_pantograph_models
 
 #: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
 #: moving window grows by that distance (its cost with it).
@@ -48,7 +49,7 @@ class PlantOptions(ParameterSet):
         "catenary: 'lumped' k(t) = k0 (1 + alpha cos(omega t - beta)) of eq. (7); 'fe' the "
         "finite-element line of the file 'catenary' (docs/catenary.md; endless moving window; "
         "ignores k0/alpha/beta/span_length and contact_model: its contact is always unilateral)",
-        choices=("lumped", "fe"),
+        choices=tuple(PLANTS),
     )
     catenary: str = parameter(
         "benchmark_55m",
@@ -198,18 +199,19 @@ class PlantOptions(ParameterSet):
         load_catenary(self.catenary)  # a bad file: one line (its key, value, what is allowed)
         if self.pantograph:
             chain = load_pantograph_file(self.pantograph)
-            if self.catenary_model == "lumped":  # eq. (5): the paper's 2-DOF shape, else one line
+            if plant_kind(self.catenary_model).paper_pantograph_shape:  # eq. (5), else one line
                 chain.table1("pantograph")
         spacings = self.pantographs
         if spacings[0] != 0.0 or any(b <= a for a, b in zip(spacings, spacings[1:], strict=False)):
             raise ParameterError(
                 "pantographs", spacings, "distances behind the first pantograph: 0 first, then increasing"
             )
-        if len(spacings) > 1 and self.catenary_model != "fe":
+        if len(spacings) > 1 and not plant_kind(self.catenary_model).several_pantographs:
             raise ParameterError(
                 "pantographs",
                 spacings,
-                "one pantograph (0) on the lumped line; several need catenary_model fe",
+                f"one pantograph (0) on the {self.catenary_model} line; several need catenary_model "
+                + " or ".join(several_pantograph_models()),
             )
         if self.controlled_pantograph >= len(spacings):
             raise ParameterError(

@@ -24,7 +24,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from rclpy.timer import Timer
 
@@ -36,21 +36,10 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .parameters import PlantOptions
 from .plant import Plant
+from .plants import make_plant, plant_kind
 
 if TYPE_CHECKING:
     from .fe_plant import FEPlant
-
-
-def make_plant(*args: Any) -> Plant:
-    """``fe_plant.make_plant`` (same arguments), its module imported only for the FE line: the
-    FE line's modules (scipy.linalg, the line kernels) are ~0.2 s of a lumped plant node's
-    start-up otherwise. The plant options (``catenary_model``) are the fourth argument."""
-    options: PlantOptions = args[3]
-    if options.catenary_model != "fe":
-        return Plant(*args)
-    from .fe_plant import make_plant as make_fe_plant
-
-    return make_fe_plant(*args)
 
 
 @dataclass(frozen=True)
@@ -126,7 +115,10 @@ class PlantNode(PacNode):
         # Every pantograph's truth, when the FE line carries several (docs/catenary.md).
         self.spacing = self.parameters(PlantOptions).pantographs
         self.fe_plant: FEPlant | None = None
-        if len(self.spacing) > 1 and self.parameters(PlantOptions).catenary_model == "fe":
+        if (
+            len(self.spacing) > 1
+            and plant_kind(self.parameters(PlantOptions).catenary_model).several_pantographs
+        ):
             from .fe_plant import several_pantographs  # here: a lumped plant node does not load the FE line
 
             # the rule the offline simulator records the topic by (a relay's plant reports nothing)
@@ -251,9 +243,9 @@ class PlantNode(PacNode):
     def publish_run_status(self, state: int) -> None:
         k = self.plant.tick
         model = self.parameters(PlantOptions).catenary_model
-        data = getattr(self.plant, "data", None)  # the FE line's data (55 m spans)
+        data = getattr(self.plant, "data", None)  # the line file's data (its mean span)
         span = self.parameters(TrackParameters).span_length
-        if model == "fe" and data is not None:
+        if plant_kind(model).line_from_file and data is not None:
             span = data.span
         fields = messages.run_status_fields(
             k, state, self.loop.duration, messages.tick_stamp_ns(k, self.loop.rate_hz), model, span

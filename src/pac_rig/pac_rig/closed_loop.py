@@ -24,8 +24,9 @@ from pac_controller.kernels import MODES
 from pac_controller.laws import make_controller
 from pac_observer.contact_force import ContactForceObserver, make_observer
 from pac_observer.observer import AdaptiveObserver, Estimate, ObserverDivergedError
-from pac_plant.fe_plant import PantographTruth, make_plant, several_pantographs
+from pac_plant.fe_plant import PantographTruth, several_pantographs
 from pac_plant.plant import Measurement, Plant, Truth
+from pac_plant.plants import make_plant
 
 from . import composition
 from .loop import TICK, CompiledLoop, compile_loop

@@ -71,6 +71,7 @@ def derive(
     from pac_controller.parameters import ControllerParameters, LawParameters
     from pac_observer.parameters import OBSERVER_GIVES, ObserverParameters
     from pac_plant.parameters import PlantOptions
+    from pac_plant.plants import plant_kind
 
     # A scenario file's parts count as named (its values are consulted, not copied: ``scenario``
     # stays in the result, which the cores expand again).
@@ -88,7 +89,7 @@ def derive(
             out["observer"], why = "head_balance", f"the F_hat law {law} runs on, from the head accelerometer"
         notes.append(f"observer:={out['observer']} ({why})")
     observer = str(out.get("observer", given.get("observer", ObserverParameters().observer)))
-    fe_line = given.get("catenary_model") == "fe"
+    fe_line = plant_kind(str(given.get("catenary_model", PlantOptions().catenary_model))).line_from_file
     catenary = str(given.get("catenary", PlantOptions().catenary))
     if (
         entry is not None

@@ -20,6 +20,7 @@ from pac_bag.writer import DEFAULT_COMPRESSION, BagWriter
 from pac_common import messages
 from pac_common.parameters import ParameterError, check_new_directory
 from pac_plant.fe_plant import several_pantographs
+from pac_plant.plants import plant_kind
 
 from . import composition, scenario_file
 from .cli import OverrideError, add_override_arguments, overrides_from_args, without_ros_args
@@ -58,10 +59,11 @@ class RunResult:
 
 def plant_line(scenario: Scenario) -> tuple[str, float]:
     """(catenary_model, span length) of the line the plant simulates, as run_status announces it."""
-    if scenario.plant.catenary_model == "fe":
+    model = scenario.plant.catenary_model
+    if plant_kind(model).line_from_file:
         from pac_plant.catenary.catenary_file import load_catenary
 
-        return "fe", load_catenary(scenario.plant.catenary).data.span
+        return model, load_catenary(scenario.plant.catenary).data.span
     return scenario.plant.catenary_model, scenario.track.span_length
 
 

@@ -41,6 +41,7 @@ from pac_controller.laws import LAWS
 from pac_controller.parameters import LawParameters
 from pac_controller.user_law import file_digest
 from pac_plant.catenary.catenary_file import load_catenary
+from pac_plant.plants import plant_kind
 from pac_rig import composition
 from pac_rig.closed_loop import Scenario
 from pac_rig.simulate import scenario_from_flat, scenario_to_flat
@@ -390,7 +391,7 @@ def resolve(spec: Spec, values: dict[str, Any]) -> tuple[Scenario, dict[str, Any
         scenario = _scenario(values, composed=False)
     if spec.window_spans is not None:
         fe_span = load_catenary(scenario.plant.catenary).data.span
-        if scenario.plant.catenary_model == "fe" and scenario.track.span_length != fe_span:
+        if plant_kind(scenario.plant.catenary_model).line_from_file and scenario.track.span_length != fe_span:
             raise SpecError(
                 f"invalid parameter 'span_length' = {scenario.track.span_length:g}: window_spans on the "
                 f"FE line needs its (mean) span, {fe_span:g} m"

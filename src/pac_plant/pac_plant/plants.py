@@ -1,0 +1,75 @@
+"""The plants a run can simulate, by ``catenary_model``: one registry of what each one is and can do.
+
+Every place that asks "which plant?" asks this table, not the name: the parameter's choices, the
+checks of the plant options, the plant node, the offline simulator, the campaigns and the
+composition rules. A new plant is its module (a class taking ``(pantograph, track, catenary,
+options, sample_period)``, as :class:`pac_plant.plant.Plant` does) and one line in :data:`PLANTS`;
+its module is imported only when a run chooses it (the FE line's modules cost a lumped plant node
+~0.2 s of start-up otherwise).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
+
+    from .parameters import PlantOptions
+    from .plant import Plant
+
+
+@dataclass(frozen=True)
+class PlantKind:
+    """One plant: where its class is and what it can do."""
+
+    name: str
+    #: "module:Class", imported when a run chooses this plant
+    target: str
+    #: The line is the catenary file's (``catenary``): its span, not ``span_length``, is the run's.
+    line_from_file: bool
+    #: It carries several pantographs (``pantographs``), each with its own contact.
+    several_pantographs: bool
+    #: Its pantograph must have the paper's 2-DOF shape (eq. (5)): a file is checked against Table 1.
+    paper_pantograph_shape: bool
+
+    def plant_class(self) -> type[Plant]:
+        module, name = self.target.split(":")
+        cls: type[Plant] = getattr(importlib.import_module(module), name)
+        return cls
+
+
+#: Every plant, by the ``catenary_model`` that chooses it.
+PLANTS: dict[str, PlantKind] = {
+    kind.name: kind
+    for kind in (
+        PlantKind("lumped", "pac_plant.plant:Plant", False, False, True),
+        PlantKind("fe", "pac_plant.fe_plant:FEPlant", True, True, False),
+    )
+}
+
+
+def plant_kind(catenary_model: str) -> PlantKind:
+    """The registry's entry for ``catenary_model`` (checked against :data:`PLANTS` by the
+    parameter's choices before any run)."""
+    return PLANTS[catenary_model]
+
+
+def make_plant(
+    pantograph: PantographParameters,
+    track: TrackParameters,
+    catenary: CatenaryParameters | None,
+    options: PlantOptions,
+    sample_period: float,
+) -> Plant:
+    """The plant ``options.catenary_model`` names, its module imported now."""
+    cls: Any = plant_kind(options.catenary_model).plant_class()
+    plant: Plant = cls(pantograph, track, catenary, options, sample_period)
+    return plant
+
+
+def several_pantograph_models() -> tuple[str, ...]:
+    """The ``catenary_model`` values whose plant carries several pantographs (for messages)."""
+    return tuple(name for name, kind in PLANTS.items() if kind.several_pantographs)
