@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
-    from .parameters import PlantOptions
-    from .plant import Plant
+# The plant classes and PlantOptions are not imported here, not even for types: the parameters
+# read this table for their choices, and the plant modules import the parameters.
 
 
 @dataclass(frozen=True)
@@ -35,10 +35,10 @@ class PlantKind:
     #: Its pantograph must have the paper's 2-DOF shape (eq. (5)): a file is checked against Table 1.
     paper_pantograph_shape: bool
 
-    def plant_class(self) -> type[Plant]:
+    def plant_class(self) -> Any:
+        """The plant's class (a ``pac_plant.plant.Plant``), its module imported now."""
         module, name = self.target.split(":")
-        cls: type[Plant] = getattr(importlib.import_module(module), name)
-        return cls
+        return getattr(importlib.import_module(module), name)
 
 
 #: Every plant, by the ``catenary_model`` that chooses it.
@@ -61,13 +61,13 @@ def make_plant(
     pantograph: PantographParameters,
     track: TrackParameters,
     catenary: CatenaryParameters | None,
-    options: PlantOptions,
+    options: Any,
     sample_period: float,
-) -> Plant:
-    """The plant ``options.catenary_model`` names, its module imported now."""
-    cls: Any = plant_kind(options.catenary_model).plant_class()
-    plant: Plant = cls(pantograph, track, catenary, options, sample_period)
-    return plant
+) -> Any:
+    """The plant (a ``pac_plant.plant.Plant``) that ``options.catenary_model`` (``PlantOptions``)
+    names, its module imported now."""
+    cls = plant_kind(options.catenary_model).plant_class()
+    return cls(pantograph, track, catenary, options, sample_period)
 
 
 def several_pantograph_models() -> tuple[str, ...]:
