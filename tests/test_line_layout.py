@@ -134,3 +134,42 @@ def test_a_span_longer_than_the_nominal_is_judged_by_its_shape_not_by_its_ticks(
     assert not law.tripped
     # 1 to the sampling of the cosine by each span's ticks (1e-7 here); 1.2 were sums by tick count.
     assert law.last_sigma_ratio == pytest.approx(1.0, abs=1e-3)
+
+
+def _trips_on_a_biased_start(start_ticks: int, biased_ticks: int) -> bool:
+    """Spans of exactly N ticks from support 0; the train starts ``start_ticks`` into span 0 and
+    F_hat's mean is 5 times ``line_guard_bias`` F_r off for its first ``biased_ticks`` ticks, then on
+    it (the actuator applies what the law asks): whether the guard fell back on the bias."""
+    f_r, n = 150.0, 500
+    speed = 100.0  # m/s: 0.1 m a tick, so the spans are N = 500 ticks of 50 m
+    supports = tuple(50.0 * np.arange(10))
+    laws = LawParameters(
+        line_supports=supports, line_position_start=0.1 * start_ticks + 0.05, design_delay_ticks=0
+    )
+    law = LineAdaptiveLaw(TrackParameters(speed_kmh=3.6 * speed, span_length=50.0), laws, DT)
+    assert law.period_ticks == n
+    bias = 5.0 * laws.line_guard_bias * f_r
+    reference = np.array([f_r, 0.0, 0.0, 0.0])
+    for k in range(6 * n):
+        f_hat = f_r + (bias if k < biased_ticks else 0.0)
+        u, _ = law.output(k, k * DT, reference, np.zeros(4), np.zeros(3), f_hat)
+        law.commit(k, u)
+    return law.trip_reason == "bias"
+
+
+@pytest.mark.unit
+def test_a_run_that_starts_past_a_spans_middle_counts_its_spans_from_the_next():
+    """The start's transient is spans 0 and 1 (not judged by the momentum balance). A run that starts
+    past the middle of a span (the train's map just behind a support) counts that piece as part of
+    it: its spans 0 and 1 are the two whole spans after it. One that starts before the middle counts
+    the piece as span 0. Each is shown by a bias over exactly its transient (not judged) and over one
+    span more (judged: a fallback)."""
+    n = 500
+    for start in (300, 490):  # past the middle: the piece (200, 10 ticks) is no span of its own
+        piece = n - start
+        assert not _trips_on_a_biased_start(start, piece + 2 * n)
+        assert _trips_on_a_biased_start(start, piece + 3 * n)
+    for start in (0, 200):  # before it: the piece is span 0
+        piece = n - start
+        assert not _trips_on_a_biased_start(start, piece + n)
+        assert _trips_on_a_biased_start(start, piece + 2 * n)

@@ -281,10 +281,14 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     s.line_last_commit = tick
     if s.line_start_tick < 0:
         s.line_start_tick = tick
-        s.line_cursor, _ = locate(p, table, tick, s.line_cursor)
-        s.line_first_span = s.line_cursor
+        s.line_cursor, phase = locate(p, table, tick, s.line_cursor)
+        # A run that starts past the middle of a span (the train's map a little behind a support)
+        # counts its spans from the next: that piece is too short to hold the start's transient,
+        # which would otherwise run into the passive spans and the first learning one (span -1).
+        late = p.line_supports >= 2 and 2 * phase >= p.line_period
+        s.line_first_span = s.line_cursor + (1 if late else 0)
         if p.line_map:
-            _load_map(p, s, memory, s.line_first_span)
+            _load_map(p, s, memory, s.line_cursor)
     span = _span_of(p, s, table, tick)
     if s.line_open_span >= 0 and span != s.line_open_span:
         # The open span's last tick never came (no estimate for it, live): close it now, or its
