@@ -126,3 +126,23 @@ def test_measurement_noise_is_seeded_per_tick_and_quantised():
         q.advance(100.0)
     y = q.measurement()
     assert y.z1 == pytest.approx(round(q.z[0] / 1e-4) * 1e-4, abs=1e-15) and y.z1 != q.z[0]
+
+
+@pytest.mark.unit
+def test_what_a_plant_can_do_is_read_from_the_registry_of_plants(monkeypatch):
+    """Every catenary_model is a registry entry whose class is a Plant; the checks ask the entry, not
+    the name: the lumped line refuses several pantographs until its entry says it carries them."""
+    import dataclasses
+
+    from pac_common.parameters import ParameterError
+    from pac_plant import plants
+
+    choices = next(spec.choices for spec in PlantOptions.specs() if spec.name == "catenary_model")
+    assert tuple(choices) == tuple(plants.PLANTS)
+    for name, kind in plants.PLANTS.items():
+        assert kind.name == name and issubclass(kind.plant_class(), Plant)
+    with pytest.raises(ParameterError, match="several need catenary_model fe"):
+        PlantOptions(pantographs=(0.0, 200.0))
+    lumped = plants.PLANTS["lumped"]
+    monkeypatch.setitem(plants.PLANTS, "lumped", dataclasses.replace(lumped, several_pantographs=True))
+    assert PlantOptions(pantographs=(0.0, 200.0)).pantographs == (0.0, 200.0)
