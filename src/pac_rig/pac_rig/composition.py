@@ -89,8 +89,9 @@ def derive(
             out["observer"], why = "head_balance", f"the F_hat law {law} runs on, from the head accelerometer"
         notes.append(f"observer:={out['observer']} ({why})")
     observer = str(out.get("observer", given.get("observer", ObserverParameters().observer)))
-    fe_line = plant_kind(str(given.get("catenary_model", PlantOptions().catenary_model))).line_from_file
-    catenary = str(given.get("catenary", PlantOptions().catenary))
+    plant_defaults = PlantOptions()  # one construction: it reads the default catenary file
+    fe_line = plant_kind(str(given.get("catenary_model", plant_defaults.catenary_model))).line_from_file
+    catenary = str(given.get("catenary", plant_defaults.catenary))
     if (
         entry is not None
         and entry.fixed_gain

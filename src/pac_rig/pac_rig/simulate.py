@@ -64,7 +64,7 @@ def plant_line(scenario: Scenario) -> tuple[str, float]:
         from pac_plant.catenary.catenary_file import load_catenary
 
         return model, load_catenary(scenario.plant.catenary).data.span
-    return scenario.plant.catenary_model, scenario.track.span_length
+    return model, scenario.track.span_length
 
 
 #: Ticks collected before they are serialised and written at once (bounds the memory of long runs).
