@@ -113,7 +113,8 @@ class LineAdaptiveLaw:
         self.line_damping = 0.0
         self.model_valid = False
         self.passive_loss = 0.0  # the largest share of F_hat nearly lost over the passive spans
-        self.strikes = 0
+        self.strikes = 0  # back-offs on contact loss (the trip counts them)
+        self.saturation_backoffs = 0
         self.last_bias = 0.0  # mean of F_hat - F_applied over the last judged span
         self.trip_reason = ""
         self.fade_from = -1  # the tick the guard tripped: the feedforward fades out over one span
@@ -239,13 +240,15 @@ class LineAdaptiveLaw:
             if judged or not span_ratio <= GUARD_HARD_FACTOR * self.guard_ratio:
                 self._trip("harm")
             else:
-                lost = loss > self.passive_loss + self.guard_loss
-                if lost or self.clip_ticks / ticks > self.guard_saturation:
+                if loss > self.passive_loss + self.guard_loss:
                     self.strikes += 1
                     if self.strikes >= self.guard_strikes:
-                        self._trip("loss" if lost else "saturation")
+                        self._trip("loss")
                     else:
                         back_off = True
+                elif self.clip_ticks / ticks > self.guard_saturation:  # backs off, never trips
+                    self.saturation_backoffs += 1
+                    back_off = True
         if self.backoff_from >= 0:  # the span that ramped a back-off down: halved, nothing learned
             self.backoff_from = -1
             self.u_ff = GUARD_BACKOFF * self.u_ff

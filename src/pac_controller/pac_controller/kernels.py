@@ -171,7 +171,8 @@ CONTROLLER_STATE = np.dtype(
         ("line_loss_ticks", "i8"),  # ticks with F_hat <= 0
         ("line_clip_ticks", "i8"),  # ticks the limits changed u_law
         ("line_passive_loss", "f8"),  # the largest share of F_hat <= 0 over the passive spans
-        ("line_strikes", "i8"),  # back-offs so far (contact loss, saturation)
+        ("line_strikes", "i8"),  # back-offs on contact loss so far (the trip counts them)
+        ("line_saturation_backoffs", "i8"),  # back-offs on saturation so far
         ("line_last_bias", "f8"),  # mean of F_hat - F_applied over the last judged span
         ("line_trip_reason", "i8"),  # line_adaptive_kernels.TRIP_*: why the guard fell back (0: it did not)
         ("line_fade_from", "i8"),  # the tick the feedforward's fade-out started (the guard's trip)

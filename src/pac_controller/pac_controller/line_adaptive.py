@@ -152,7 +152,7 @@ from .line_map import LineMap, LineMapError, read_line_map
 from .parameters import LawParameters
 
 #: ``LineAdaptiveLaw.trip_reason`` by ``line_trip_reason`` (line_adaptive_kernels.TRIP_*).
-TRIP_REASONS = ("", "harm", "bias", "loss", "saturation")
+TRIP_REASONS = ("", "harm", "bias", "loss")
 
 
 def line_model_rows(pantograph: PantographParameters, omega: np.ndarray, dt: float) -> np.ndarray:
@@ -245,10 +245,11 @@ class LineAdaptiveLaw(KernelLaw):
     tripped = property(lambda self: bool(self.state[0]["line_tripped"]))
     last_sigma_ratio = property(lambda self: float(self.state[0]["line_last_sigma_ratio"]))
     strikes = property(lambda self: int(self.state[0]["line_strikes"]))
+    saturation_backoffs = property(lambda self: int(self.state[0]["line_saturation_backoffs"]))
 
     @property
     def trip_reason(self) -> str:
-        """Why the guard fell back: "" (it did not), "harm", "bias", "loss" or "saturation"."""
+        """Why the guard fell back: "" (it did not), "harm", "bias" or "loss"."""
         return TRIP_REASONS[int(self.state[0]["line_trip_reason"])]
 
     @property

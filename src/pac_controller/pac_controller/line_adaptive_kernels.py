@@ -25,9 +25,10 @@ GUARD_BACKOFF = 0.5
 #: starts inside a span (the trailing pantograph of a pair), so spans 0 and 1 are not judged.
 BIAS_FIRST_SPAN = 2
 #: Why the guard fell back (``line_trip_reason``): not at all; the span-periodic sigma of F_hat above
-#: passive's (harm); the mean of F_hat off the actuator's (bias); contact loss / saturation in
-#: ``line_guard_strikes`` spans (each one backed off first).
-TRIP_NONE, TRIP_HARM, TRIP_BIAS, TRIP_LOSS, TRIP_SATURATION = range(5)
+#: passive's (harm); the mean of F_hat off the actuator's (bias); contact loss in
+#: ``line_guard_strikes`` spans (each one backed off first). Saturation backs off, never falls back:
+#: what a clipped command could do harm by is the harm and loss checks' (docs/laws.md).
+TRIP_NONE, TRIP_HARM, TRIP_BIAS, TRIP_LOSS = range(4)
 
 
 #: Rows of the ``memory`` table (complex, one column per harmonic); S_h is stored as real parts.
@@ -145,6 +146,7 @@ def line_forget(p, s, memory) -> None:
     s.line_pending_error, s.line_pending_reference = 0.0, 0.0
     s.line_pending_measured, s.line_pending_law = math.nan, 0.0
     s.line_passive_loss, s.line_strikes, s.line_last_bias = 0.0, 0, 0.0
+    s.line_saturation_backoffs = 0
     s.line_trip_reason, s.line_fade_from = TRIP_NONE, -1
     s.line_cursor, s.line_first_span = 0, 0
     s.line_backoff_from = -1
@@ -421,17 +423,20 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
 @njit(cache=True, error_model="numpy")
 def _struck(p, s, loss: float, clipped: float) -> bool:
     """Whether a learning span backs off: more of its ticks with F_hat <= 0 (less the last span's
-    bias) than the worst passive span's by ``line_guard_loss``, or more of its commands changed by
-    the limits than ``line_guard_saturation``. The ``line_guard_strikes``-th such span falls back
-    instead (and does not back off)."""
+    bias) than the worst passive span's by ``line_guard_loss`` (a strike), or more of its commands
+    changed by the limits than ``line_guard_saturation``. The ``line_guard_strikes``-th strike
+    falls back instead (and does not back off); saturation alone only backs off."""
     lost = loss > s.line_passive_loss + p.line_guard_loss
-    if not (lost or clipped > p.line_guard_saturation):
-        return False
-    s.line_strikes += 1
-    if s.line_strikes >= p.line_guard_strikes:
-        _trip(s, TRIP_LOSS if lost else TRIP_SATURATION)
-        return False
-    return True
+    if lost:
+        s.line_strikes += 1
+        if s.line_strikes >= p.line_guard_strikes:
+            _trip(s, TRIP_LOSS)
+            return False
+        return True
+    if clipped > p.line_guard_saturation:
+        s.line_saturation_backoffs += 1
+        return True
+    return False
 
 
 @njit(cache=True, error_model="numpy")

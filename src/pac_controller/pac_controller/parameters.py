@@ -344,16 +344,17 @@ class LawParameters(ParameterSet):
     )
     line_guard_saturation: float = parameter(
         0.25,
-        "line_adaptive: back off likewise when the actuator limits (u_min, u_max, slew_rate_max) "
-        "changed more than this share of a span's commands (the anti-windup keeps the law sound with "
-        "a fifth of them clipped: docs/laws.md)",
+        "line_adaptive: back off likewise (never fall back) when the actuator limits (u_min, u_max, "
+        "slew_rate_max) changed more than this share of a span's commands (the anti-windup keeps the "
+        "law sound with a fifth of them clipped: docs/laws.md)",
         "",
         low=0.0,
         high=1.0,
     )
     line_guard_strikes: int = parameter(
         3,
-        "line_adaptive: the span that would back off this many times falls back to passive instead",
+        "line_adaptive: the span that would back off on contact loss this many times falls back to "
+        "passive instead",
         "spans",
         low=1,
         high=100,
