@@ -289,6 +289,11 @@ if sys.argv[1:] == ["--write-cache"]:
 )
 
 
+def _file_stem(name: str) -> str:
+    """A node's or floor's name as part of a file name ("floor numba" -> "floor_numba")."""
+    return name.replace(" ", "_")
+
+
 def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     """Seconds from ``Popen`` of each loop node to the first message it publishes.
 
@@ -301,29 +306,29 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
     from pac_common.node import LOOP_QOS, PUBLISH_QOS, loopback_only, rclpy
     from pac_interfaces import msg as pac_msg
 
-    floors = ("floor", "floor numba")
-    plan = {**_STARTUP, **dict.fromkeys(floors, ("measurement", "command", None))}
-    out: dict[str, list[float]] = {name: [] for name in plan}
     workdir.mkdir(parents=True, exist_ok=True)
     numba_floor = workdir / "startup_floor_numba.py"
     numba_floor.write_text(STARTUP_FLOOR_NUMBA)
     subprocess.run([sys.executable, str(numba_floor), "--write-cache"], check=True)
+    # Each floor's interpreter arguments, by its name in the plan.
+    floors = {"floor": ["-c", STARTUP_FLOOR], "floor numba": [str(numba_floor)]}
+    plan = {**_STARTUP, **dict.fromkeys(floors, ("measurement", "command", None))}
+    out: dict[str, list[float]] = {name: [] for name in plan}
 
     def start_floor(rig: Rig, name: str) -> Any:
         from pac_rig.launcher import Process, node_env
 
-        stem = name.replace(" ", "_")
-        log = (workdir / f"startup_{stem}.log").open("wb")
-        script = [str(numba_floor)] if name == "floor numba" else ["-c", STARTUP_FLOOR]
+        log_path = workdir / f"startup_{_file_stem(name)}.log"
+        log = log_path.open("wb")
         popen = subprocess.Popen(
-            [sys.executable, *script],
+            [sys.executable, *floors[name]],
             stdout=log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,
             env=node_env(rig.domain_id),
         )
         log.close()
-        rig.processes[name] = proc = Process(name, popen, workdir / f"startup_{stem}.log")
+        rig.processes[name] = proc = Process(name, popen, log_path)
         return proc
 
     with domain_coordinator.domain_id() as domain_id:
@@ -348,7 +353,7 @@ def node_startup(workdir: Path, repeats: int) -> dict[str, list[float]]:
             for _ in range(repeats):
                 for name, (answer, needs, input_type) in plan.items():
                     rig = Rig(
-                        workdir / f"startup_{name.replace(' ', '_')}",
+                        workdir / f"startup_{_file_stem(name)}",
                         duration=0.0,
                         timing_mode="lockstep",
                         domain_id=domain_id,
