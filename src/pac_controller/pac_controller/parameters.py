@@ -328,7 +328,7 @@ class LawParameters(ParameterSet):
     )
     line_guard_loss: float = parameter(
         0.01,
-        "line_adaptive: back off (harmonics halved and capped) when a learning span has more of its "
+        "line_adaptive: back off (learned harmonics halved) when a learning span has more of its "
         "ticks with F_hat <= line_guard_loss_margin F_r than the worst passive span by more than this share",
         "",
         low=0.0,
