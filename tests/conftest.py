@@ -205,8 +205,11 @@ def assert_lockstep_equals_offline(
     return offline
 
 
-def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[str, str], log: Path) -> None:
-    """Start ``cmd``, wait until its log shows ``ready_text``, SIGINT it: it must exit 0.
+def assert_starts_and_stops_cleanly(
+    cmd: list[str], ready_text: str, env: dict[str, str], log: Path, stop: int = signal.SIGINT
+) -> str:
+    """Start ``cmd``, wait until its log shows ``ready_text``, send it ``stop``: it must exit 0.
+    Its log, which a failure shows.
 
     The process is killed on any failure, so nothing outlives the test.
     """
@@ -218,8 +221,9 @@ def assert_starts_and_stops_cleanly(cmd: list[str], ready_text: str, env: dict[s
             assert proc.poll() is None, log.read_text()
             time.sleep(0.05)
         assert ready_text in log.read_text()
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=20) == 0
+        proc.send_signal(stop)
+        assert proc.wait(timeout=20) == 0, log.read_text()
+        return log.read_text()
     finally:
         if proc.poll() is None:
             proc.kill()
