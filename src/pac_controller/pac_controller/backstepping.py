@@ -40,7 +40,7 @@ class BacksteppingController(KernelLaw):
 
     Stateless (F_r is a pure function of time); the actuator limits, fallback and tick
     bookkeeping are the law-agnostic :class:`pac_controller.controller.Controller`'s.  Its
-    numbers are fields of ``kernels.CONTROLLER_PARAMS``; ``output`` is ``kernels.law_output``.
+    numbers are fields of ``kernels.CONTROLLER_PARAMS``; its arithmetic is ``backstepping_kernels``'.
     """
 
     NAME = "adaptive_backstepping"

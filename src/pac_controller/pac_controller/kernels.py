@@ -8,10 +8,11 @@ commands).  Both are numpy structured scalars, so the compiled closed loop
 (:class:`KernelLaw` and its subclasses, which the controller node runs) call the very same
 functions: one formula, two fronts.
 
-Adding a compiled law (docs/design.md, "Adding a law"): give it a code in :data:`LAW_CODES`,
-its numbers as fields of :data:`CONTROLLER_PARAMS` (filled by its class's ``pack``), its
-memory as fields of :data:`CONTROLLER_STATE`, and one branch in each of :func:`law_restart`,
-:func:`law_output` and :func:`law_commit`.
+Each law's arithmetic is its own module (``pid_kernels``, ``lqr_kernels``, ...; the four functions
+``kernel_common`` describes); the step reaches them through ``law_dispatch``, generated from the
+law registry (``law_dispatch_source``). Adding a compiled law (docs/design.md, "Adding a law"):
+its module, its numbers as fields of :data:`CONTROLLER_PARAMS` (filled by its class's ``pack``),
+its memory as fields of :data:`CONTROLLER_STATE`, one registry line, and the dispatch written again.
 """
 
 from __future__ import annotations
@@ -21,23 +22,13 @@ import math
 import numpy as np
 from numba import njit
 
-from pac_common import messages
-from pac_common.smallmat import fma
-from pac_model import model
-
-from . import backstepping_equations, line_adaptive_kernels
+from .kernel_common import FALLBACK, MODES
+from .law_dispatch import LAW_CODES, law_commit, law_mode, law_output, law_restart
 from .parameters import ControllerParameters
 from .reference import reference_at4
 
-#: Law name -> the code the compiled functions dispatch on.
-LAW_CODES = {
-    "adaptive_backstepping": 0, "backstepping_known": 1, "pid": 2, "lqr": 3, "passive": 4, "line_adaptive": 5,
-}  # fmt: skip
-_ADAPTIVE, _KNOWN, _PID, _LQR, _PASSIVE, _LINE = 0, 1, 2, 3, 4, 5
-#: Command.mode by code (``MODES[code]``): what ``controller_step`` returns as its mode.
-MODES = tuple(messages.MODES)  # the message's codes
 assert MODES == ("active", "passive", "fallback")
-_ACTIVE, _MODE_PASSIVE, _FALLBACK = 0, 1, 2
+
 #: Most pending commands the lqr law keeps (design_delay_ticks is at most 10).
 MAX_PENDING = 16
 
@@ -211,127 +202,6 @@ def new_state(states) -> None:
     s.has_last, s.last_u, s.last_tick, s.has_law_tick, s.law_tick = False, 0.0, -1, False, 0
 
 
-@njit(cache=True, error_model="numpy")
-def _contact_force_estimate(t: float, omega: float, z_hat, theta_hat) -> float:
-    """F_hat = k_hat z_hat_1, k_hat = v(t)^T theta_hat (eqs. (6), (8)): controller.contact_force_estimate."""
-    return model.contact_force(model.stiffness(t, omega, theta_hat), z_hat[0], False)
-
-
-@njit(cache=True, error_model="numpy")
-def _fed_back_force(p, t: float, z_hat, theta_hat, f_hat: float) -> float:
-    """The F_hat pid and lqr feed back (``force_estimate``): the estimate's own contact_force_hat
-    when the law reads it (``uses_contact_force``), else k_hat z_hat_1 (eqs. (6), (8))."""
-    if p.uses_contact_force:
-        return f_hat
-    return _contact_force_estimate(t, p.omega, z_hat, theta_hat)
-
-
-@njit(cache=True, error_model="numpy")
-def law_restart(p, s, memory, has_u: bool, u_applied: float) -> None:
-    """Forget the law's state; its next output continues from ``u_applied`` (has_u False: at rest)."""
-    if p.law == _LINE:
-        line_adaptive_kernels.line_restart(p, s, memory, has_u)
-        return
-    s.has_bumpless, s.bumpless_from = has_u, u_applied
-    s.started = False
-    s.integral, s.rate, s.derivative, s.last_error, s.law_last_tick = 0.0, 0.0, 0.0, 0.0, 0
-    if p.law == _LQR:
-        s.head = 0
-        for j in range(p.delay):
-            s.commands[j] = u_applied if has_u else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def law_output(
-    p, s, table, memory, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float, force_measured: float
-) -> tuple[float, float, float, float]:
-    """The unlimited force u_law for ``tick`` and three law-specific errors; remembers them for commit.
-
-    ``table``, ``memory``: the law's arrays (line_adaptive; NO_TABLE for the others); ``f_hat``:
-    the estimate's contact force (read by the laws with ``uses_contact_force``: line_adaptive, and
-    pid and lqr with force_estimate contact_force_hat), ``force_measured``: the actuator force the
-    measurement of this tick reports (NaN: none; read by line_adaptive only)."""
-    law = p.law
-    if law == _LINE:
-        return line_adaptive_kernels.line_output(p, s, table, memory, tick, f_r[0], f_hat, force_measured)
-    if law == _ADAPTIVE or law == _KNOWN:  # eq. (43); the oracle is told the true theta
-        if law == _ADAPTIVE:
-            th0, th1, th2 = theta_hat[0], theta_hat[1], theta_hat[2]
-        else:
-            th0, th1, th2 = p.theta[0], p.theta[1], p.theta[2]
-        return backstepping_equations.backstepping_law4(
-            t, f_r, z_hat, th0, th1, th2, p.omega, p.m1, p.b1, p.k1, p.m2, p.b2,
-            p.c1, p.c2, p.c3, p.stiffness_hat_min,
-        )  # fmt: skip
-    if law == _PID:  # pac_controller.pid (module docstring)
-        e = f_r[0] - _fed_back_force(p, t, z_hat, theta_hat, f_hat)
-        if s.started:
-            h = (tick - s.law_last_tick) * p.dt
-            integral = s.integral + h * s.rate
-            derivative = (p.tf * s.derivative + p.kd * (e - s.last_error)) / (p.tf + h)
-        else:
-            integral, derivative = 0.0, 0.0
-        u = f_r[0] + p.kp * e + derivative
-        if not s.started and s.has_bumpless:
-            integral = s.bumpless_from - u  # continue from the actuator's force
-        u += integral
-        s.pending_error, s.pending_integral, s.pending_derivative, s.pending_u = e, integral, derivative, u
-        return u, e, integral, derivative
-    if law == _LQR:  # pac_controller.lqr (module docstring)
-        u_ss = f_r[0]
-        z1_ss = u_ss / p.design_stiffness  # model.static_equilibrium at the design stiffness
-        x_ss = (z1_ss, z1_ss + u_ss / p.k1, 0.0, 0.0)
-        feedback = 0.0  # K_x (z_hat - x_ss), summed as numpy's dot sums it (smallmat.fma)
-        for i in range(4):
-            feedback = fma(p.gain[i], z_hat[i] - x_ss[i], feedback)
-        if p.delay:
-            pending = 0.0
-            for j in range(p.delay):
-                pending = fma(p.gain[4 + j], s.commands[(s.head + j) % p.delay] - u_ss, pending)
-            feedback += pending
-        k_q = p.gain[4 + p.delay]
-        if s.started:
-            integral = s.integral + (tick - s.law_last_tick) * p.dt * s.rate
-        elif s.has_bumpless:
-            integral = -(s.bumpless_from - u_ss + feedback) / k_q  # u = the actuator's force
-        else:
-            integral = 0.0
-        u = u_ss - feedback - k_q * integral
-        error = _fed_back_force(p, t, z_hat, theta_hat, f_hat) - u_ss
-        s.pending_error, s.pending_integral, s.pending_u = error, integral, u
-        return u, -error, integral, 0.0
-    return f_r[0], 0.0, 0.0, 0.0  # passive: u = F_r
-
-
-@njit(cache=True, error_model="numpy")
-def law_mode(p, s) -> int:
-    """The mode code of the law's command: passive for the passive law and for line_adaptive once
-    its guard has tripped (latched), active otherwise."""
-    if p.law == _PASSIVE or (p.law == _LINE and s.line_tripped):
-        return _MODE_PASSIVE
-    return _ACTIVE
-
-
-@njit(cache=True, error_model="numpy")
-def law_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
-    """The limited force actually commanded for ``tick``: update the law's state."""
-    law = p.law
-    if law == _LINE:
-        line_adaptive_kernels.line_commit(p, s, table, memory, tick, u_applied)
-    elif law == _PID:
-        s.integral, s.derivative, s.last_error = s.pending_integral, s.pending_derivative, s.pending_error
-        s.law_last_tick = tick
-        s.rate = p.ki * s.pending_error + (u_applied - s.pending_u) / p.tt  # back-calculation
-        s.started = True
-    elif law == _LQR:
-        k_q = p.gain[4 + p.delay]
-        s.rate = s.pending_error + (s.pending_u - u_applied) / (k_q * p.tracking_time)
-        s.integral, s.law_last_tick, s.started = s.pending_integral, tick, True
-        if p.delay:
-            s.commands[s.head] = u_applied  # replaces the oldest
-            s.head = (s.head + 1) % p.delay
-
-
 @njit(cache=True)
 def limit_command(
     u: float,
@@ -394,7 +264,7 @@ def controller_fallback(p, s, tick: int) -> tuple[float, float, float, float, fl
     )
     s.has_law_tick = False  # the law did not command this: it restarts from here
     u = _limited(p, s, tick, p.fallback_force)
-    return u, p.fallback_force, f_r[0], 0.0, 0.0, 0.0, _FALLBACK
+    return u, p.fallback_force, f_r[0], 0.0, 0.0, 0.0, FALLBACK
 
 
 def safety_chain(restart, output, mode_of, commit):
@@ -402,8 +272,8 @@ def safety_chain(restart, output, mode_of, commit):
     theta_hat, f_hat, force_measured) -> (u, u_unsaturated, F_r, e1, e2, e3, mode code)``
     (``force_measured``: the actuator force reported with this tick's measurement, the force
     applied over the last period; NaN where the controller is not told it) for the law of the four
-    compiled functions (signatures of :func:`_restart_law`, :func:`law_output`, :func:`law_mode`,
-    :func:`law_commit`; ``table`` and ``memory`` are the law's, passed through to them).
+    compiled functions (signatures of ``law_dispatch``'s law_restart, law_output, law_mode,
+    law_commit; ``table`` and ``memory`` are the law's, passed through to them).
 
     A closure, not a function taking the law as an argument: numba calls the four statically, so
     the functions that call the chain (``step_one``, ``pac_rig.loop``) stay cached on disk (a
@@ -434,12 +304,6 @@ def safety_chain(restart, output, mode_of, commit):
 
 
 @njit(cache=True, error_model="numpy")
-def _restart_law(p, s, table, memory, has_u: bool, u_applied: float) -> None:
-    """:func:`law_restart` in the chain's signature (the law's table unused)."""
-    law_restart(p, s, memory, has_u, u_applied)
-
-
-@njit(cache=True, error_model="numpy")
 def law_command(p, s, tick: int, u_law: float) -> float:
     """The law's finite ``u_law`` through the actuator limits; the law commanded ``tick``."""
     u = _limited(p, s, tick, u_law)
@@ -448,13 +312,13 @@ def law_command(p, s, tick: int, u_law: float) -> float:
 
 
 #: ``Controller.compute`` compiled, for pac's laws: (u, u_unsaturated, F_r, e1, e2, e3, mode code).
-controller_step = safety_chain(_restart_law, law_output, law_mode, law_commit)
+controller_step = safety_chain(law_restart, law_output, law_mode, law_commit)
 
 
 # Entry points for Python callers (the law classes): records travel as 1-element arrays.
 @njit(cache=True, error_model="numpy")
-def _restart_one(params, states, memory, has_u, u_applied) -> None:
-    law_restart(params[0], states[0], memory, has_u, u_applied)
+def _restart_one(params, states, table, memory, has_u, u_applied) -> None:
+    law_restart(params[0], states[0], table, memory, has_u, u_applied)
 
 
 @njit(cache=True, error_model="numpy")
@@ -497,7 +361,7 @@ def _commit_one(params, states, table, memory, tick, u_applied) -> None:
 
 
 class KernelLaw:
-    """A law whose arithmetic is :func:`law_output` / :func:`law_commit` (the ``Law`` protocol).
+    """A law whose arithmetic is its kernel module's, through ``law_dispatch`` (the ``Law`` protocol).
 
     A subclass fills ``self.params[0]`` (its fields of :data:`CONTROLLER_PARAMS`) and sets
     ``params['law']``; the compiled loop copies those fields, so the node's law and the
@@ -522,7 +386,7 @@ class KernelLaw:
 
     def restart(self, u_applied: float | None) -> None:
         _restart_one(
-            self.params, self.state, self.memory, u_applied is not None,
+            self.params, self.state, self.table, self.memory, u_applied is not None,
             0.0 if u_applied is None else float(u_applied),
         )  # fmt: skip
 

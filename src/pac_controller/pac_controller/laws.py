@@ -98,6 +98,9 @@ class LawEntry:
     compiled: bool = True
     #: A law of the file protocol: its module's name (a law module) or its file's path; None: a kernel law.
     source: str | None = None
+    #: A kernel law's compiled parts: the module of its four functions (kernel_common), which the
+    #: generated ``law_dispatch`` calls under the code the registry's order gives; None: not one.
+    kernel: str | None = None
 
     def needs_of(self, force_estimate: str) -> frozenset[str]:
         """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
@@ -167,12 +170,18 @@ def _entry(law: LawFile, observer: str | None = None) -> LawEntry:
 
 
 LAWS: dict[str, LawEntry] = {
-    "adaptive_backstepping": LawEntry(_adaptive, THETA),
-    "backstepping_known": LawEntry(_known),  # told the true theta: z_hat only
-    "pid": LawEntry(_pid, fixed_gain=True, fe_line=_pid_on_fe_line),
-    "lqr": LawEntry(_lqr, fixed_gain=True, fe_line=_lqr_on_fe_line),
-    "passive": LawEntry(_passive),
-    "line_adaptive": LawEntry(_line_adaptive, frozenset({"contact_force_hat"}), observer="contact_force"),
+    "adaptive_backstepping": LawEntry(_adaptive, THETA, kernel="pac_controller.backstepping_kernels"),
+    # told the true theta: z_hat only
+    "backstepping_known": LawEntry(_known, kernel="pac_controller.backstepping_kernels"),
+    "pid": LawEntry(_pid, fixed_gain=True, fe_line=_pid_on_fe_line, kernel="pac_controller.pid_kernels"),
+    "lqr": LawEntry(_lqr, fixed_gain=True, fe_line=_lqr_on_fe_line, kernel="pac_controller.lqr_kernels"),
+    "passive": LawEntry(_passive, kernel="pac_controller.passive_kernels"),
+    "line_adaptive": LawEntry(
+        _line_adaptive,
+        frozenset({"contact_force_hat"}),
+        observer="contact_force",
+        kernel="pac_controller.line_adaptive_kernels",
+    ),
     "skyhook": law_module("pac_controller.skyhook"),
 }
 

@@ -176,7 +176,7 @@ def line_model_rows(pantograph: PantographParameters, omega: np.ndarray, dt: flo
 class LineAdaptiveLaw(KernelLaw):
     """The law of the module docstring: its numbers in the controller's records, its arrays in
     ``table`` / ``memory``, its arithmetic the compiled functions above (through
-    ``kernels.law_output`` / ``law_commit``, as every compiled law)."""
+    ``line_adaptive_kernels``: each compiled law has its kernel module)."""
 
     uses_estimate = True
     uses_contact_force = True

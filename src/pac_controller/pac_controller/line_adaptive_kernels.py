@@ -12,6 +12,8 @@ import math
 import numpy as np
 from numba import njit
 
+from .kernel_common import ACTIVE, PASSIVE
+
 #: An update smaller than this [N] in a harmonic says nothing about its response.
 MIN_INFORMATIVE_STEP = 0.5
 #: The guard judges the RMS of the last this many spans' sigma_b (learning is not monotone span by span).
@@ -630,3 +632,27 @@ def _step(p, s, table, memory, j: int) -> None:
     else:
         st_r, st_i = _cdiv(st_r, st_i, 1.0, 0.0)
     memory[U_FF, j] = complex(real_r + st_r, real_i + st_i)
+
+
+# -- the law's four functions of the controller's step (kernel_common; called by law_dispatch) ---------
+@njit(cache=True, error_model="numpy")
+def line_adaptive_restart(p, s, table, memory, has_u: bool, u_applied: float) -> None:
+    line_restart(p, s, memory, has_u)
+
+
+@njit(cache=True, error_model="numpy")
+def line_adaptive_output(
+    p, s, table, memory, tick: int, t: float, f_r, z_hat, theta_hat, f_hat: float, force_measured: float
+) -> tuple[float, float, float, float]:
+    return line_output(p, s, table, memory, tick, f_r[0], f_hat, force_measured)
+
+
+@njit(cache=True, error_model="numpy")
+def line_adaptive_mode(p, s) -> int:
+    """Passive once the guard has tripped (latched), active before."""
+    return PASSIVE if s.line_tripped else ACTIVE
+
+
+@njit(cache=True, error_model="numpy")
+def line_adaptive_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
+    line_commit(p, s, table, memory, tick, u_applied)

@@ -118,7 +118,7 @@ def design_lqr(pantograph: PantographParameters, laws: LawParameters, dt: float)
 
 class LqrLaw(KernelLaw):
     """The lqr law core (module docstring). State (q, the pending commands, the last tick) and
-    arithmetic: ``kernels.CONTROLLER_STATE`` / ``kernels.law_output``, shared with the compiled loop."""
+    arithmetic: ``kernels.CONTROLLER_STATE`` / ``lqr_kernels``, shared with the compiled loop."""
 
     def __init__(
         self,

@@ -13,7 +13,7 @@ from .kernels import KernelLaw
 
 
 class PassiveLaw(KernelLaw):
-    """u = F_r (``kernels.law_output``'s passive branch); stateless, the estimate unused."""
+    """u = F_r (``passive_kernels``); stateless, the estimate unused."""
 
     mode = "passive"
     uses_estimate = False

@@ -156,7 +156,7 @@ def least_derivative_filter(pantograph: PantographParameters, laws: LawParameter
 
 class PidLaw(KernelLaw):
     """The pid law core (module docstring). State (I, D, e and tick of the previous output) and
-    arithmetic: ``kernels.CONTROLLER_STATE`` / ``kernels.law_output``, shared with the compiled loop."""
+    arithmetic: ``kernels.CONTROLLER_STATE`` / ``pid_kernels``, shared with the compiled loop."""
 
     def __init__(
         self, gains: PidGains, track: TrackParameters, sample_period: float, force_estimate: str = "k_hat_z1"

@@ -31,6 +31,8 @@ MODULES = (
     "pac_controller.reference",
     "pac_controller.backstepping",
     "pac_controller.controller",
+    "pac_controller.kernel_common",
+    "pac_controller.law_dispatch",
     "pac_controller.kernels",
     "pac_plant.catenary.banded",
     "pac_plant.catenary.newmark",
@@ -41,10 +43,18 @@ MODULES = (
 )
 
 
+def compiled_modules() -> tuple[str, ...]:
+    """:data:`MODULES` and the kernel modules of the law registry's compiled laws."""
+    from pac_controller.laws import LAWS
+
+    kernels = sorted({entry.kernel for entry in LAWS.values() if entry.kernel is not None})
+    return MODULES + tuple(name for name in kernels if name not in MODULES)
+
+
 def compiled_functions() -> dict[str, CPUDispatcher]:
-    """Every numba dispatcher defined in :data:`MODULES`, by qualified name."""
+    """Every numba dispatcher defined in :func:`compiled_modules`, by qualified name."""
     found = {}
-    for name in MODULES:
+    for name in compiled_modules():
         module = importlib.import_module(name)
         for attr, value in vars(module).items():
             if isinstance(value, CPUDispatcher) and value.py_func.__module__ == name:
