@@ -29,6 +29,10 @@ CONTACT_FORCE_NOT_FINITE = 6
 OFF_LINE = 7
 #: The head-balance observer (pac_observer.head_balance): its estimate is not finite.
 HEAD_BALANCE_NOT_FINITE = 8
+#: The compiled loop: the observer's record names no compiled observer (OBSERVER_CONSTS.kind).
+UNKNOWN_OBSERVER = 9
+#: The compiled loop: the plant's record names no compiled plant (PLANT_PARAMS.kind).
+UNKNOWN_PLANT = 10
 
 #: |z1|, |z2| beyond this [m] is not a pantograph any more: the run is stopped as diverged.
 DIVERGENCE_DISPLACEMENT = 1.0
@@ -45,6 +49,8 @@ REASONS: dict[int, str] = {
     CONTACT_FORCE_NOT_FINITE: "the contact-force state is not finite",
     OFF_LINE: "the pantograph ran off the line",
     HEAD_BALANCE_NOT_FINITE: "the head-balance estimate is not finite (a head accelerometer reading NaN)",
+    UNKNOWN_OBSERVER: "the observer's record names no compiled observer",
+    UNKNOWN_PLANT: "the plant's record names no compiled plant",
 }
 
 

@@ -56,7 +56,6 @@ from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
 from .observer import (
-    CONTACT_FORCE,
     OBSERVER_CONSTS,
     OBSERVER_STATE,
     AdaptiveObserver,
@@ -64,6 +63,7 @@ from .observer import (
     ObserverDivergedError,
     force_estimate,
 )
+from .observers import OBSERVER_CODES, core_class
 from .parameters import ObserverParameters
 
 #: State size: (z1, z2, z1', z2', F).
@@ -181,6 +181,21 @@ def contact_force_advance(st, c, bank, y1: float, y2: float, gap: int, u: float)
 
 
 @njit(cache=True, error_model="numpy")
+def contact_force_update(
+    k, t, oc, os, bank, y1, y2, u_applied, head_acceleration
+) -> tuple[int, float, float]:
+    """Tick k of the compiled loop (observers.py): the filter bank on y_k (k = 0: its first sample);
+    (status, 0, F_hat): no stiffness estimate, F_hat the selected filter's state."""
+    if k == 0:
+        contact_force_start(os, bank, y1, y2)
+    else:
+        status = contact_force_advance(os, oc, bank, y1, y2, 1, u_applied)
+        if status:
+            return status, 0.0, 0.0
+    return 0, 0.0, os.cf_force
+
+
+@njit(cache=True, error_model="numpy")
 def _output(st, xs) -> None:
     for i in range(4):
         st.z_hat[i] = xs[st.cf_selected, i]
@@ -234,7 +249,7 @@ class ContactForceObserver:
         self.consts = np.zeros(1, OBSERVER_CONSTS)
         c = self.consts[0]
         c["kind"], c["dt"], c["cf_forget"], c["cf_inv_r2"] = (
-            CONTACT_FORCE,
+            OBSERVER_CODES["contact_force"],
             sample_period,
             self.forget,
             self.inv_r2,
@@ -317,11 +332,6 @@ class ContactForceObserver:
 def make_observer(
     pantograph: PantographParameters, track: TrackParameters, params: ObserverParameters, sample_period: float
 ):
-    """The observer ``params.observer`` names: the paper's (eq. (17)), the contact-force filter or
-    the head balance."""
-    from .head_balance import HeadBalanceObserver  # it imports this module's neighbours
-
-    cls = {"contact_force": ContactForceObserver, "head_balance": HeadBalanceObserver}.get(
-        params.observer, AdaptiveObserver
-    )
-    return cls(pantograph, track, params, sample_period)
+    """The observer ``params.observer`` names (the registry, observers.py): the paper's (eq. (17)),
+    the contact-force filter or the head balance."""
+    return core_class(params.observer)(pantograph, track, params, sample_period)

@@ -47,7 +47,6 @@ from pac_common.divergence import HEAD_BALANCE_NOT_FINITE
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
 from .observer import (
-    HEAD_BALANCE,
     OBSERVER_CONSTS,
     OBSERVER_STATE,
     AdaptiveObserver,
@@ -55,6 +54,7 @@ from .observer import (
     ObserverDivergedError,
     force_estimate,
 )
+from .observers import OBSERVER_CODES
 from .parameters import ObserverParameters
 
 
@@ -87,6 +87,19 @@ def head_balance_advance(st, c, y1: float, y2: float, gap: int, u: float, a1: fl
     st.hb_offset = offset
     st.hb_samples += gap
     return _output(st, y1, y2, v1, v2, raw)
+
+
+@njit(cache=True, error_model="numpy")
+def head_balance_update(k, t, oc, os, bank, y1, y2, u_applied, head_acceleration) -> tuple[int, float, float]:
+    """Tick k of the compiled loop (observers.py): the head balance on y_k and the head's
+    acceleration (k = 0: its first sample); (status, 0, F_hat)."""
+    if k == 0:
+        status = head_balance_start(os, oc, y1, y2, u_applied, head_acceleration)
+    else:
+        status = head_balance_advance(os, oc, y1, y2, 1, u_applied, head_acceleration)
+    if status:
+        return status, 0.0, 0.0
+    return 0, 0.0, os.cf_force
 
 
 @njit(cache=True, error_model="numpy")
@@ -129,7 +142,8 @@ class HeadBalanceObserver:
         #: What the compiled functions take as constants: one OBSERVER_CONSTS record.
         self.consts = np.zeros(1, OBSERVER_CONSTS)
         c = self.consts[0]
-        c["kind"], c["dt"], c["m1"], c["m2"] = HEAD_BALANCE, sample_period, pantograph.m1, pantograph.m2
+        c["kind"] = OBSERVER_CODES["head_balance"]
+        c["dt"], c["m1"], c["m2"] = sample_period, pantograph.m1, pantograph.m2
         c["hb_k1"], c["hb_b1"] = pantograph.k1, pantograph.b1
         c["hb_forget"] = math.exp(-sample_period / params.head_balance_window)
         self._st = np.zeros(1, OBSERVER_STATE)

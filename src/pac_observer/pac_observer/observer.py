@@ -46,6 +46,7 @@ from pac_common.parameters import ParameterError
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
+from .observers import OBSERVER_CODES
 from .parameters import ObserverParameters
 
 #: The observer's state and its scratch space: one named record (a numpy structured scalar), so that
@@ -102,7 +103,7 @@ OBSERVER_CONSTS = np.dtype(
         ("omega", "f8"),
         ("m1", "f8"),
         ("m2", "f8"),
-        ("kind", "i8"),  # ADAPTIVE or CONTACT_FORCE: which observer the records are
+        ("kind", "i8"),  # observers.OBSERVER_CODES: which observer the records are
         # observer:=contact_force (the filters' Phi, Gamma, K are its bank's arrays)
         ("cf_forget", "f8"),  # lam = exp(-dt / frame_mass_window)
         ("cf_inv_r2", "f8"),  # 1 / position_noise^2
@@ -112,8 +113,6 @@ OBSERVER_CONSTS = np.dtype(
         ("hb_forget", "f8"),  # lam = exp(-dt / head_balance_window)
     ]
 )
-#: OBSERVER_CONSTS.kind
-ADAPTIVE, CONTACT_FORCE, HEAD_BALANCE = 0, 1, 2
 
 
 @njit(cache=True, error_model="numpy")
@@ -371,6 +370,20 @@ def observer_start(st, y1: float, y2: float) -> None:
 
 
 @njit(cache=True, error_model="numpy")
+def adaptive_update(k, t, oc, os, bank, y1, y2, u_applied, head_acceleration) -> tuple[int, float, float]:
+    """Tick k of the compiled loop (observers.py): eq. (17) on y_k (k = 0: the first sample);
+    (status, k_hat, F_hat) with k_hat = v(t)^T theta_hat and F_hat = k_hat y1 (eqs. (6), (8))."""
+    if k == 0:
+        observer_start(os, y1, y2)
+    else:
+        status, _ = observer_advance(k - 1, os, y1, y2, 1, u_applied, oc)
+        if status:
+            return status, 0.0, 0.0
+    k_hat = model.stiffness(t, oc.omega, os.theta_hat)
+    return 0, k_hat, k_hat * y1
+
+
+@njit(cache=True, error_model="numpy")
 def _init_one(states, xi0, theta_hat0, s_z0, s_theta0, consts) -> None:
     observer_init(states[0], xi0, theta_hat0, s_z0, s_theta0, consts[0])
 
@@ -501,6 +514,7 @@ class AdaptiveObserver:
         c["half_map"], c["half_input"] = self._sz_half_map, self._sz_half_input
         c["forgetting"], c["floor_input"] = self._theta_forgetting, self._floor_input
         c["omega"], c["m1"], c["m2"] = self.omega, pantograph.m1, pantograph.m2
+        c["kind"] = OBSERVER_CODES["adaptive"]
         self._st = np.zeros(1, OBSERVER_STATE)
         self.reset()
 

@@ -6,15 +6,12 @@ from dataclasses import dataclass
 
 from pac_common.parameters import ParameterSet, parameter
 
-#: What each observer gives a law besides z_hat (``observer`` chooses one): the paper's observer the
-#: catenary parameters theta_hat, and with them F_hat = k_hat z1 (eqs. (6), (8)); the contact-force
-#: filter F_hat as a state of its own and no theta_hat (it publishes zeros there). A fixed-gain law
-#: (pid, lqr) reads F_hat in the first form its observer gives (pac_controller.laws.FORCE_ESTIMATE_NEEDS).
-OBSERVER_GIVES: dict[str, frozenset[str]] = {
-    "adaptive": frozenset({"theta_hat", "contact_force_hat"}),
-    "contact_force": frozenset({"contact_force_hat"}),
-    "head_balance": frozenset({"contact_force_hat"}),
-}
+from .observers import OBSERVERS
+
+#: What each observer gives a law besides z_hat (``observer`` chooses one; the registry's, observers.py).
+#: A fixed-gain law (pid, lqr) reads F_hat in the first form its observer gives
+#: (pac_controller.laws.FORCE_ESTIMATE_NEEDS).
+OBSERVER_GIVES: dict[str, frozenset[str]] = {name: entry.gives for name, entry in OBSERVERS.items()}
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,10 @@ class PlantKind:
     several_pantographs: bool
     #: Its pantograph must have the paper's 2-DOF shape (eq. (5)): a file is checked against Table 1.
     paper_pantograph_shape: bool
+    #: The module of its compiled parts (plant_kernels' protocol: ``<name>_output``, ``_advance``,
+    #: ``_pack``), which the compiled loop reaches through the generated ``plant_dispatch``; None:
+    #: it runs in the Python loop only (``closed_loop.run_cores``).
+    kernel: str | None = None
 
     def plant_class(self) -> Any:
         """The plant's class (a ``pac_plant.plant.Plant``), its module imported now."""
@@ -45,10 +49,14 @@ class PlantKind:
 PLANTS: dict[str, PlantKind] = {
     kind.name: kind
     for kind in (
-        PlantKind("lumped", "pac_plant.plant:Plant", False, False, True),
-        PlantKind("fe", "pac_plant.fe_plant:FEPlant", True, True, False),
+        PlantKind("lumped", "pac_plant.plant:Plant", False, False, True, "pac_plant.lumped_kernels"),
+        PlantKind("fe", "pac_plant.fe_plant:FEPlant", True, True, False, "pac_plant.fe_kernels"),
     )
 }
+
+#: Plant name -> its code in the compiled loop's ``PLANT_PARAMS.kind`` (the registry's order,
+#: compiled plants only).
+PLANT_CODES = {name: code for code, name in enumerate(n for n, kind in PLANTS.items() if kind.kernel)}
 
 
 def plant_kind(catenary_model: str) -> PlantKind:
@@ -68,6 +76,14 @@ def make_plant(
     names, its module imported now."""
     cls = plant_kind(options.catenary_model).plant_class()
     return cls(pantograph, track, catenary, options, sample_period)
+
+
+def compiled_plant(plant: Any) -> PlantKind | None:
+    """The registry's entry of ``plant`` (by its exact class) if it has compiled parts, else None."""
+    for kind in PLANTS.values():
+        if kind.kernel is not None and type(plant) is kind.plant_class():
+            return kind
+    return None
 
 
 def several_pantograph_models() -> tuple[str, ...]:

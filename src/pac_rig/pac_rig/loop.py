@@ -15,15 +15,16 @@ Everything a tick reads or writes is a field of a numpy structured record
 its output is one :data:`TICK` record (what the four topics carry), so a tick allocates
 nothing (``tests/test_compiled.py`` counts numba's allocations over a run).
 
-Every plant, observer and law has its compiled form: the lumped line (``plant_advance_inplace``)
-and the FE line (``pac_plant.catenary.step.fe_advance``, on the buffers its ``ContactSimulation``
-packs: :data:`FE_ARGS`), the paper's observer and the contact-force filter (``OBSERVER_CONSTS.kind``),
-every law of ``pac_controller.kernels`` (line_adaptive with its two tables).  Which one a tick
-runs is a field of the records (``PLANT_PARAMS.kind``, ``OBSERVER_CONSTS.kind``,
-``CONTROLLER_PARAMS.law``), so one compiled function serves every combination.
+Every plant, observer and law of pac's registries has its compiled form: each plant's
+(``pac_plant.plants.PLANTS``: the lumped line and the FE line, ``plant_kernels``' protocol),
+each observer's (``pac_observer.observers.OBSERVERS``) and each kernel law's
+(``pac_controller.laws.LAWS``). Which one a tick runs is a field of the records
+(``PLANT_PARAMS.kind``, ``OBSERVER_CONSTS.kind``, ``CONTROLLER_PARAMS.law``), so one compiled
+function serves every combination; the branches on those codes are generated from the
+registries (``plant_dispatch``, ``observer_dispatch``, ``law_dispatch``), never written here.
 
-A plant, an observer or a law added later is added in one place: its record fields, its
-compiled step, and the one call in :func:`loop_tick` (docs/design.md, "Adding to the loop").
+A plant, an observer or a law added later is its modules and one registry line, and the
+dispatch written again (docs/design.md, "Adding to the loop"); nothing in this module changes.
 A scenario whose cores have no compiled form (a core class this module does not know, more
 command delay than :data:`MAX_DELAY`) returns None from :func:`compile_loop`;
 ``closed_loop.run`` then steps the core objects.
@@ -31,37 +32,30 @@ command delay than :data:`MAX_DELAY`) returns None from :func:`compile_loop`;
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 
-from pac_common.divergence import DISPLACEMENT, DIVERGENCE_DISPLACEMENT, DIVERGENCE_FORCE, FORCE, OFF_LINE
+from pac_common.divergence import DISPLACEMENT, DIVERGENCE_DISPLACEMENT, DIVERGENCE_FORCE, FORCE
 from pac_controller.controller import Controller
 from pac_controller.kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, KernelLaw, controller_step, new_state
 from pac_controller.user_law import UserLaw
-from pac_model import model
-from pac_observer.contact_force import ContactForceObserver, contact_force_advance, contact_force_start
-from pac_observer.head_balance import HeadBalanceObserver, head_balance_advance, head_balance_start
-from pac_observer.observer import (
-    CONTACT_FORCE,
-    HEAD_BALANCE,
-    AdaptiveObserver,
-    observer_advance,
-    observer_start,
-)
-from pac_plant.catenary import step as fe
-from pac_plant.catenary.packing import unpack
-from pac_plant.fe_plant import FEPlant, several_pantographs
+from pac_observer.contact_force import ContactForceObserver
+from pac_observer.head_balance import HeadBalanceObserver
+from pac_observer.observer import AdaptiveObserver
+from pac_observer.observer_dispatch import observer_update
+from pac_observer.observers import compiled_observer_classes
 from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
 from pac_plant.hardware.car_body import TERMS, roof_at, roof_force
 from pac_plant.hardware.sensors import SENSOR_PARAMS, SENSOR_STATE, sensor_step
 from pac_plant.parameters import MAX_PANTOGRAPHS
-from pac_plant.plant import Plant, plant_advance_inplace, plant_rhs4, quantise
+from pac_plant.plant import Plant, quantise
+from pac_plant.plant_dispatch import plant_advance, plant_output
+from pac_plant.plants import PLANT_CODES, compiled_plant
 
-#: PLANT_PARAMS.kind
-LUMPED, FE = 0, 1
 #: Most ticks of command delay the compiled loop holds (``command_delay_ticks``' upper bound).
 MAX_DELAY = 100
 
@@ -78,7 +72,7 @@ PLANT_PARAMS = np.dtype(
         ("a", "f8", (4, 4)),  # A of eq. (12) of the plant's pantograph
         ("theta", "f8", 3),  # the catenary's theta, eq. (9)
         ("delay", "i8"),  # command_delay_ticks
-        ("kind", "i8"),  # LUMPED or FE
+        ("kind", "i8"),  # pac_plant.plants.PLANT_CODES: which plant the records are
         # FE line (fe_plant.FEPlant): the fixed datum, or the static wire under the contact point
         ("static_wire", "b1"),
         ("datum", "f8"),
@@ -182,34 +176,14 @@ def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
     """The plant at tick k: truth into ``out`` and ``ps.z``, and the measurement y_k (eq. (10),
     plus noise and quantisation; or a train suite's readings, ``Plant.measurement``)."""
     t = k * pp.dt
-    z = ps.z
-    if pp.kind == FE:
-        cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
-        c, st = unpack(cf, ci, cl, sf, si, sl)
-        if pp.static_wire:  # the datum moves with the contact point along the pre-sagged wire
-            datum, rate = readings[fe.STATIC_HEIGHT], c.numbers[1] * readings[fe.STATIC_SLOPE]
-        else:
-            datum, rate = pp.datum, 0.0
-        z[0], z[1], z[2], z[3] = st.p[0] - datum, st.p[1] - datum, st.vp[0] - rate, st.vp[1] - rate
-        stiff = readings[fe.STATIC_STIFFNESS]
-        force = c.numbers[4] * st.scalars[fe.DELTA] if st.counters[fe.IN_CONTACT] else 0.0
-        out.contact_uplift, out.support_uplift = readings[fe.CONTACT_UPLIFT], readings[fe.SUPPORT_UPLIFT]
-        out.contact_position = st.scalars[fe.X] + st.scalars[fe.OFFSET] - c.p_lag[c.indices[5]]
-        _pantographs_output(pp, ps, c, st, flexibility, out)
-        a1, a2 = st.ap[0], st.ap[1]  # FEPlant._accelerations: the Newmark state's
-    else:
-        stiff = model.stiffness(t, pp.omega, pp.theta)
-        force = model.contact_force(stiff, z[0], pp.unilateral)
-        out.contact_uplift, out.support_uplift, out.contact_position = np.nan, np.nan, np.nan
-        _no_pantographs(out, 0)
-        a1 = a2 = 0.0  # only a train's suite reads them (_lumped_accelerations, below)
     out.roof_height = 0.0
     if pp.roof:
         roof_at(pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, t, ps.roof)
         out.roof_height = ps.roof[0]
+    # The plant's own truth (plant_dispatch, generated from the plant registry).
+    stiff, force, a1, a2 = plant_output(k, t, pp, ps, fe_args, out)
+    z = ps.z
     if pp.suite:  # Plant._sense: the suite's readings of the truth, once a tick
-        if pp.kind != FE:
-            a1, a2 = _lumped_accelerations(t, pp, ps)
         r = ps.sensed
         sensor_step(pp.sensors, ps.sensors, z[0], z[1], a1, a2, out.roof_height, force, noise, r)
         y1, y2 = r[0], r[1]
@@ -231,50 +205,9 @@ def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
 
 
 @njit(cache=True, error_model="numpy")
-def _lumped_accelerations(t, pp, ps) -> tuple[float, float]:
-    """(z1'', z2'') of the lumped plant at tick time t (``Plant._accelerations``): eq. (5) with the
-    forces of the period that ends here, the roof's spring and damper force (``ps.roof``: the roof at
-    t) and the turbulent uplift at that instant."""
-    force = ps.u_applied
-    if pp.roof:
-        force += pp.roof_k * ps.roof[0] + pp.roof_c * ps.roof[1]
-    if pp.gusts:
-        roof_at(pp.gust_amplitude, pp.gust_frequency, pp.gust_phase, t, ps.gust)
-        force += ps.gust[0]
-    z = ps.z
-    args = (pp.a, pp.theta, pp.omega, pp.m1, pp.m2, pp.unilateral)
-    _, _, a1, a2 = plant_rhs4(t, z[0], z[1], z[2], z[3], force + pp.uplift, *args)  # the wind with u
-    return a1, a2
-
-
-@njit(cache=True, error_model="numpy")
-def _pantographs_output(pp, ps, c, st, flexibility, out) -> None:
-    """Every pantograph's contact on the FE line into ``out``: what ``FEPlant.pantograph_truths``
-    reports, by the same kernels (``pantograph_contact``, ``readings_at`` its contact point)."""
-    r = ps.readings
-    for j in range(pp.pantographs):
-        k = pp.contact_of[j]
-        force, position = fe.pantograph_contact(c, st, k)
-        out.pantograph_contact_force[j], out.pantograph_contact_position[j] = force, position
-        fe.readings_at(c, st, flexibility, st.scalars[fe.X] - c.p_lag[k], r)
-        out.pantograph_contact_uplift[j] = r[fe.CONTACT_UPLIFT]
-        out.pantograph_support_uplift[j] = r[fe.SUPPORT_UPLIFT]
-    _no_pantographs(out, pp.pantographs)
-
-
-@njit(cache=True, error_model="numpy")
-def _no_pantographs(out, first) -> None:
-    """NaN in the pantograph fields of ``out`` from pantograph ``first`` on (none reported there)."""
-    for j in range(first, MAX_PANTOGRAPHS):
-        out.pantograph_contact_force[j] = np.nan
-        out.pantograph_contact_position[j] = np.nan
-        out.pantograph_contact_uplift[j] = np.nan
-        out.pantograph_support_uplift[j] = np.nan
-
-
-@njit(cache=True, error_model="numpy")
 def _plant_advance(k, pp, ps, fe_args, applied) -> int:
-    """The plant over [t_k, t_k+1] with ``applied`` held (zero-order hold); 0 or OFF_LINE."""
+    """The plant over [t_k, t_k+1] with ``applied`` held (zero-order hold); 0 or a divergence code
+    (OFF_LINE: past the FE line's end)."""
     force = applied + pp.uplift  # the wind acts with u
     if pp.roof:  # and the moving roof's force (Plant._with_roof)
         t0 = k * pp.dt
@@ -286,58 +219,23 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
         force = force + roof_force(
             pp.gust_amplitude, pp.gust_frequency, pp.gust_phase, 1.0, 0.0, t0, t0 + pp.dt
         )
-    if pp.kind == FE:
-        cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
-        c, st = unpack(cf, ci, cl, sf, si, sl)
-        if fe.fe_advance(c, st, force, pp.substeps, flexibility, readings) != fe.STEP_OK:
-            return OFF_LINE
-    else:
-        plant_advance_inplace(
-            ps.z,
-            k * pp.dt,
-            pp.dt,
-            pp.substeps,
-            force,
-            pp.a,
-            pp.theta,
-            pp.omega,
-            pp.m1,
-            pp.m2,
-            pp.unilateral,
-        )
+    status = plant_advance(k, pp, ps, fe_args, force)  # plant_dispatch
+    if status:
+        return status
     ps.u_applied = applied
     return 0
 
 
 @njit(cache=True, error_model="numpy")
 def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
-    """The observer at tick k (eq. (17), the contact-force filter or the head balance); the estimate
-    into ``out``."""
-    if oc.kind == HEAD_BALANCE:
-        if k == 0:
-            status = head_balance_start(os, oc, y1, y2, u_applied, out.head_acceleration)
-        else:
-            status = head_balance_advance(os, oc, y1, y2, 1, u_applied, out.head_acceleration)
-        if status:
-            return status
-        out.stiffness_hat, out.contact_force_hat = 0.0, os.cf_force
-    elif oc.kind == CONTACT_FORCE:
-        if k == 0:
-            contact_force_start(os, bank, y1, y2)
-        else:
-            status = contact_force_advance(os, oc, bank, y1, y2, 1, u_applied)
-            if status:
-                return status
-        out.stiffness_hat, out.contact_force_hat = 0.0, os.cf_force
-    else:
-        if k == 0:
-            observer_start(os, y1, y2)
-        else:
-            status, _ = observer_advance(k - 1, os, y1, y2, 1, u_applied, oc)
-            if status:
-                return status
-        k_hat = model.stiffness(t, oc.omega, os.theta_hat)
-        out.stiffness_hat, out.contact_force_hat = k_hat, k_hat * y1
+    """The observer of the records at tick k (``observer_dispatch``, generated from the observer
+    registry); the estimate into ``out``."""
+    status, stiffness_hat, contact_force_hat = observer_update(
+        k, t, oc, os, bank, y1, y2, u_applied, out.head_acceleration
+    )
+    if status:
+        return status
+    out.stiffness_hat, out.contact_force_hat = stiffness_hat, contact_force_hat
     out.z_hat[:] = os.z_hat
     out.theta_hat[:] = os.theta_hat
     out.innovation[:] = os.innovation
@@ -387,8 +285,9 @@ def closed_loop_for(step):
             ps.head = (ps.head + 1) % pp.delay
         # The actuator's dynamics (Plant._actuate): its mean force over the tick.
         applied = actuator_apply(pp.actuator, ps.actuator, applied)
-        if _plant_advance(k, pp, ps, fe_args, applied):
-            return OFF_LINE, out.contact_position
+        status = _plant_advance(k, pp, ps, fe_args, applied)
+        if status:
+            return status, out.contact_position
         return 0, 0.0
 
     @njit(error_model="numpy")
@@ -453,13 +352,6 @@ def _user_block(law: UserLaw) -> Callable[..., tuple[int, int, float]]:
     return _USER_BLOCKS[step]
 
 
-#: FE_ARGS of the lumped line: empty arrays of the FE line's types (one compiled loop for both).
-NO_FE = (
-    np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 4), np.int64), np.zeros(0), np.zeros(0, np.int64),
-    np.zeros((0, 4), np.int64), np.zeros((0, 4, 4)), np.zeros(0),
-)  # fmt: skip
-
-
 #: The bank of the paper's observer (it has none): empty arrays of the contact-force bank's types.
 NO_BANK = (
     np.zeros((0, 5, 5)), np.zeros((0, 5)), np.zeros((0, 5, 2)), np.zeros((0, 5)), np.zeros(0),
@@ -470,7 +362,7 @@ NO_BANK = (
 @dataclass
 class CompiledLoop:
     """The records of one run: parameters and states (each a 1-element structured array), the FE
-    line's buffers (:data:`FE_ARGS`, :data:`NO_FE` for the lumped line) and the law's tables."""
+    line's buffers (:data:`FE_ARGS`, ``plant_kernels.NO_FE`` for the lumped line) and the law's tables."""
 
     plant_params: np.ndarray
     plant_state: np.ndarray
@@ -510,13 +402,15 @@ def compile_loop(
     delay: int,
 ) -> CompiledLoop | None:
     """The records of the cores as built (``closed_loop.build_cores``; copies: the cores are not
-    changed by running them), or None if the loop has no compiled form for them: a plant other
-    than :class:`Plant` / :class:`FEPlant`, an observer other than the three, a law without kernel
+    changed by running them), or None if the loop has no compiled form for them: a plant or an
+    observer whose registry gives it no compiled parts (``pac_plant.plants``,
+    ``pac_observer.observers``), a law without kernel
     (not a :class:`KernelLaw`, nor a user's law file with njit functions), more delay than
     :data:`MAX_DELAY`."""
+    plant_kind = compiled_plant(plant)
     if (
-        type(plant) not in (Plant, FEPlant)
-        or type(observer) not in (AdaptiveObserver, ContactForceObserver, HeadBalanceObserver)
+        plant_kind is None
+        or type(observer) not in compiled_observer_classes()
         or type(controller) is not Controller
     ):
         return None
@@ -542,19 +436,11 @@ def compile_loop(
         p["gust_frequency"], p["gust_phase"] = plant.gusts.frequency, plant.gusts.phase
     if plant.sensors is not None:  # a train's suite: its records as they stand (copies)
         p["suite"], p["sensors"], ps[0]["sensors"] = True, plant.sensors.params[0], plant.sensors.state[0]
-    if isinstance(plant, FEPlant):
-        sim = plant.sim
-        p["kind"], p["substeps"] = FE, plant.options.fe_substeps
-        p["static_wire"], p["datum"] = plant.options.fe_datum == "static_wire", plant.datum
-        contacts = plant.contact_of if several_pantographs(plant) else []  # pantograph_truth's
-        p["pantographs"], p["contact_of"][: len(contacts)] = len(contacts), contacts
-        cf, ci, cl, sf, si, sl = sim.packed
-        flexibility = np.ascontiguousarray(plant.flexibility, dtype=np.float64)
-        fe_args = (cf, ci, cl, sf.copy(), si.copy(), sl, flexibility, plant.readings)
-    else:
-        p["kind"], p["omega"], p["unilateral"] = LUMPED, plant.span_frequency, plant.unilateral
-        p["a"], p["theta"] = plant.state_matrix, plant.catenary_theta
-        fe_args = NO_FE
+    # The plant's own fields and arrays (its kernel module's ``<name>_pack``; plant_kernels).
+    p["kind"] = PLANT_CODES[plant_kind.name]
+    assert plant_kind.kernel is not None  # compiled_plant gives only plants with compiled parts
+    pack = getattr(importlib.import_module(plant_kind.kernel), f"{plant_kind.name}_pack")
+    fe_args = pack(plant, p)
     cp = controller.record.copy()  # the law's design and the safety chain's fields
     cs = np.zeros(1, CONTROLLER_STATE)
     new_state(cs)
@@ -565,10 +451,9 @@ def compile_loop(
     else:  # a user's compiled law (checked above)
         assert isinstance(law, UserLaw)
         table, memory, block = law.consts, law.state.copy(), _user_block(law)
-    if isinstance(observer, ContactForceObserver):
-        bank = tuple(np.ascontiguousarray(a).copy() for a in observer.bank)
-    else:
-        bank = NO_BANK
+    # The contact-force filters' arrays (contact_force.BANK_ARGS' types); the others have none.
+    own_bank = getattr(observer, "bank", ())
+    bank = tuple(np.ascontiguousarray(a).copy() for a in own_bank) if own_bank else NO_BANK
     return CompiledLoop(
         pp, ps, fe_args, observer.consts.copy(), observer.state.copy(), bank, cp, cs, table, memory, block
     )

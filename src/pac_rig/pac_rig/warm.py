@@ -26,8 +26,9 @@ MODULES = (
     "pac_model.model",
     "pac_plant.plant",
     "pac_plant.hardware.sensors",
-    "pac_observer.observer",
-    "pac_observer.contact_force",
+    "pac_observer.observer_dispatch",
+    "pac_plant.plant_kernels",
+    "pac_plant.plant_dispatch",
     "pac_controller.reference",
     "pac_controller.backstepping",
     "pac_controller.controller",
@@ -44,10 +45,16 @@ MODULES = (
 
 
 def compiled_modules() -> tuple[str, ...]:
-    """:data:`MODULES` and the kernel modules of the law registry's compiled laws."""
+    """:data:`MODULES` and the kernel modules of the registries' compiled laws, observers and plants."""
     from pac_controller.laws import LAWS
+    from pac_observer.observers import OBSERVERS
+    from pac_plant.plants import PLANTS
 
-    kernels = sorted({entry.kernel for entry in LAWS.values() if entry.kernel is not None})
+    kernels = sorted(
+        {e.kernel for e in LAWS.values() if e.kernel}
+        | {e.kernel for e in OBSERVERS.values() if e.kernel}
+        | {e.kernel for e in PLANTS.values() if e.kernel}
+    )
     return MODULES + tuple(name for name in kernels if name not in MODULES)
 
 

@@ -1,0 +1,67 @@
+"""The observers ``observer`` chooses: one registry line each, a module imported only when chosen.
+
+An entry says what the observer gives a law besides z_hat (the composition rules read it: a law
+that needs theta_hat is refused on an observer without it), its core class (the node's and the
+Python loop's, ``"module:Class"``) and the module of its compiled update, which the compiled
+loop calls through ``observer_dispatch``, generated from this registry
+(``observer_dispatch_source``). That update is
+
+    ``<name>_update(k, t, oc, os, bank, y1, y2, u_applied, head_acceleration)``
+    -> (status, stiffness_hat, contact_force_hat)
+
+at tick k on the records ``OBSERVER_CONSTS`` ``oc`` / ``OBSERVER_STATE`` ``os`` (k = 0: the first
+sample), ``bank`` the contact-force filters' arrays (``contact_force.BANK_ARGS``; empty for the
+others); status 0 or a divergence code. An observer without a compiled update (``kernel`` None)
+runs in the Python loop only (``closed_loop.run_cores``).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class ObserverEntry:
+    """One observer of the registry (module docstring)."""
+
+    gives: frozenset[str]
+    core: str  # "module:Class"
+    kernel: str | None = None
+
+
+#: The paper's observer gives the catenary parameters theta_hat, and with them F_hat = k_hat z1
+#: (eqs. (6), (8)); the contact-force filter F_hat as a state of its own and no theta_hat (it
+#: publishes zeros there); the head balance F_hat from the head's equation of motion.
+OBSERVERS: dict[str, ObserverEntry] = {
+    "adaptive": ObserverEntry(
+        frozenset({"theta_hat", "contact_force_hat"}),
+        "pac_observer.observer:AdaptiveObserver",
+        "pac_observer.observer",
+    ),
+    "contact_force": ObserverEntry(
+        frozenset({"contact_force_hat"}),
+        "pac_observer.contact_force:ContactForceObserver",
+        "pac_observer.contact_force",
+    ),
+    "head_balance": ObserverEntry(
+        frozenset({"contact_force_hat"}),
+        "pac_observer.head_balance:HeadBalanceObserver",
+        "pac_observer.head_balance",
+    ),
+}
+
+#: Observer name -> its code in ``OBSERVER_CONSTS.kind`` (the registry's order, compiled ones only).
+OBSERVER_CODES = {name: code for code, name in enumerate(n for n, e in OBSERVERS.items() if e.kernel)}
+
+
+def core_class(name: str) -> type:
+    """The core class of observer ``name`` (its module imported now)."""
+    module, _, cls = OBSERVERS[name].core.partition(":")
+    found: type = getattr(importlib.import_module(module), cls)
+    return found
+
+
+def compiled_observer_classes() -> tuple[type, ...]:
+    """The core classes of the observers with a compiled update (their modules imported now)."""
+    return tuple(core_class(name) for name, entry in OBSERVERS.items() if entry.kernel)
