@@ -183,6 +183,34 @@ def test_a_stop_signal_leaves_the_whole_teardown_to_the_node_in_order(stop, doma
     assert "context up at close: True" in log, log
 
 
+def test_a_stop_signal_after_the_node_ended_on_its_own_leaves_its_exit_status(domain_id, tmp_path):
+    """A launcher stops every node, also one that has just ended on its own (a recorder after the
+    run). A SIGINT in the interpreter's finalisation killed the process (exit -2, the default
+    handler back in place) instead of letting it exit with its status. Here the plant gives up
+    waiting for its peers (status 1) and is sent SIGINT every 2 ms from its last line on."""
+    log = tmp_path / "plant.log"
+    with open(log, "wb") as out:
+        proc = subprocess.Popen(
+            [ROS2, "run", "pac_plant", "plant_node", "--ros-args", "-p", "start_timeout:=0.5"],
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            env=node_env(domain_id),
+        )
+    try:
+        deadline = time.monotonic() + 30
+        while proc.poll() is None and "pac-stats" not in log.read_text() and time.monotonic() < deadline:
+            time.sleep(0.001)
+        while proc.poll() is None and time.monotonic() < deadline:
+            proc.send_signal(signal.SIGINT)
+            time.sleep(0.002)
+        assert proc.wait(timeout=20) == 1, log.read_text()
+        assert "gave up after" in log.read_text()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+
+
 def test_sigint_stops_every_node_cleanly_and_the_bag_reads(rigs):
     rig = rigs("sigint", duration=0.0)  # runs until stopped
     rig.start()

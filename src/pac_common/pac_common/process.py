@@ -131,6 +131,12 @@ def run_nodes(program: str, node_classes: Sequence[type], args: list[str] | None
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
+    # The process is ending, its results final: a stop that comes now (a launcher's SIGINT to a
+    # node that ended on its own) has nothing left to stop. Ignored, because the interpreter's
+    # finalisation resets a Python handler to the default, and the default kills: exit -2 instead
+    # of the node's status.
+    for stop_signal in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(stop_signal, signal.SIG_IGN)
     return status
 
 
