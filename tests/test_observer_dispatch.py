@@ -51,3 +51,9 @@ def test_an_observer_module_without_its_update_is_refused_in_one_line():
     with pytest.raises(ValueError, match="lacks another_update") as refused:
         observer_dispatch_source.observer_dispatch_source(observers)
     assert "\n" not in str(refused.value)
+
+
+def test_the_parameter_help_says_what_each_registered_observer_is():
+    (observer,) = (spec for spec in ObserverParameters.specs() if spec.name == "observer")
+    for name, entry in OBSERVERS.items():
+        assert f"'{name}' {entry.description}" in observer.description

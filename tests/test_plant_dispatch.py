@@ -48,3 +48,12 @@ def test_a_plant_module_without_its_functions_is_refused_in_one_line():
     with pytest.raises(ValueError, match="lacks another_pack") as refused:
         plant_dispatch_source.plant_dispatch_source(plants)
     assert "\n" not in str(refused.value)
+
+
+def test_the_parameter_help_says_what_each_registered_plant_is():
+    from pac_plant.parameters import PlantOptions
+
+    (model,) = (spec for spec in PlantOptions.specs() if spec.name == "catenary_model")
+    assert tuple(model.choices) == tuple(PLANTS)
+    for name, kind in PLANTS.items():
+        assert f"'{name}' {kind.description}" in model.description

@@ -27,6 +27,8 @@ class ObserverEntry:
 
     gives: frozenset[str]
     core: str  # "module:Class"
+    #: What it is, for the ``observer`` parameter's help ("'name' description; ...").
+    description: str
     kernel: str | None = None
 
 
@@ -37,22 +39,32 @@ OBSERVERS: dict[str, ObserverEntry] = {
     "adaptive": ObserverEntry(
         frozenset({"theta_hat", "contact_force_hat"}),
         "pac_observer.observer:AdaptiveObserver",
+        "the paper's observer, eq. (17) (theta_hat, F_hat = k_hat z1)",
         "pac_observer.observer",
     ),
     "contact_force": ObserverEntry(
         frozenset({"contact_force_hat"}),
         "pac_observer.contact_force:ContactForceObserver",
+        "a Kalman filter on the nominal pantograph with F as a random-walk state (no F = k z1; no "
+        "theta_hat: for laws line_adaptive, pid, lqr (on its F_hat) or passive)",
         "pac_observer.contact_force",
     ),
     "head_balance": ObserverEntry(
         frozenset({"contact_force_hat"}),
         "pac_observer.head_balance:HeadBalanceObserver",
+        "F from the head's equation of motion with its accelerometer (a train's sensors: "
+        "sensors:=train or train_load_cell; pac_observer.head_balance)",
         "pac_observer.head_balance",
     ),
 }
 
 #: Observer name -> its code in ``OBSERVER_CONSTS.kind`` (the registry's order, compiled ones only).
 OBSERVER_CODES = {name: code for code, name in enumerate(n for n, e in OBSERVERS.items() if e.kernel)}
+
+
+def observer_help() -> str:
+    """The ``observer`` parameter's help: each registered observer and what it is."""
+    return "; ".join(f"'{name}' {entry.description}" for name, entry in OBSERVERS.items())
 
 
 def core_class(name: str) -> type:

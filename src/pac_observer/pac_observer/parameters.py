@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from pac_common.parameters import ParameterSet, parameter
 
-from .observers import OBSERVERS
+from .observers import OBSERVERS, observer_help
 
 #: What each observer gives a law besides z_hat (``observer`` chooses one; the registry's, observers.py).
 #: A fixed-gain law (pid, lqr) reads F_hat in the first form its observer gives
@@ -21,11 +21,7 @@ class ObserverParameters(ParameterSet):
 
     observer: str = parameter(
         "adaptive",
-        "'adaptive' the paper's observer, eq. (17) (theta_hat, F_hat = k_hat z1); 'contact_force' a "
-        "Kalman filter on the nominal pantograph with F as a random-walk state (no F = k z1; no "
-        "theta_hat: for laws line_adaptive, pid, lqr (on its F_hat) or passive); 'head_balance' F "
-        "from the head's equation of motion with its accelerometer (a train's sensors: "
-        "sensors:=train or train_load_cell; pac_observer.head_balance)",
+        observer_help(),
         choices=tuple(OBSERVER_GIVES),
     )
     force_process_noise: float = parameter(

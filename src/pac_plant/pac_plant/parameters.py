@@ -9,7 +9,7 @@ from pac_common.parameters import ParameterError, ParameterSet, parameter
 from .hardware.actuators import ACTUATORS
 from .hardware.car_body import CAR_BODIES, TRACKS
 from .hardware.sensors import SENSORS
-from .plants import PLANTS, plant_kind, several_pantograph_models
+from .plants import PLANTS, plant_help, plant_kind, several_pantograph_models
 
 #: Pantographs on one FE line, and the largest distance between the first and the last [m]: the
 #: moving window grows by that distance (its cost with it).
@@ -46,9 +46,7 @@ class PlantOptions(ParameterSet):
     )
     catenary_model: str = parameter(
         "lumped",
-        "catenary: 'lumped' k(t) = k0 (1 + alpha cos(omega t - beta)) of eq. (7); 'fe' the "
-        "finite-element line of the file 'catenary' (docs/catenary.md; endless moving window; "
-        "ignores k0/alpha/beta/span_length and contact_model: its contact is always unilateral)",
+        plant_help(),
         choices=tuple(PLANTS),
     )
     catenary: str = parameter(

@@ -34,6 +34,8 @@ class PlantKind:
     several_pantographs: bool
     #: Its pantograph must have the paper's 2-DOF shape (eq. (5)): a file is checked against Table 1.
     paper_pantograph_shape: bool
+    #: What it is, for the ``catenary_model`` parameter's help ("'name' description; ...").
+    description: str
     #: The module of its compiled parts (plant_kernels' protocol: ``<name>_output``, ``_advance``,
     #: ``_pack``), which the compiled loop reaches through the generated ``plant_dispatch``; None:
     #: it runs in the Python loop only (``closed_loop.run_cores``).
@@ -49,14 +51,36 @@ class PlantKind:
 PLANTS: dict[str, PlantKind] = {
     kind.name: kind
     for kind in (
-        PlantKind("lumped", "pac_plant.plant:Plant", False, False, True, "pac_plant.lumped_kernels"),
-        PlantKind("fe", "pac_plant.fe_plant:FEPlant", True, True, False, "pac_plant.fe_kernels"),
+        PlantKind(
+            "lumped",
+            "pac_plant.plant:Plant",
+            False,
+            False,
+            True,
+            "k(t) = k0 (1 + alpha cos(omega t - beta)) of eq. (7)",
+            "pac_plant.lumped_kernels",
+        ),
+        PlantKind(
+            "fe",
+            "pac_plant.fe_plant:FEPlant",
+            True,
+            True,
+            False,
+            "the finite-element line of the file 'catenary' (docs/catenary.md; endless moving window; "
+            "ignores k0/alpha/beta/span_length and contact_model: its contact is always unilateral)",
+            "pac_plant.fe_kernels",
+        ),
     )
 }
 
 #: Plant name -> its code in the compiled loop's ``PLANT_PARAMS.kind`` (the registry's order,
 #: compiled plants only).
 PLANT_CODES = {name: code for code, name in enumerate(n for n, kind in PLANTS.items() if kind.kernel)}
+
+
+def plant_help() -> str:
+    """The ``catenary_model`` parameter's help: each registered plant and what it is."""
+    return "catenary: " + "; ".join(f"'{name}' {kind.description}" for name, kind in PLANTS.items())
 
 
 def plant_kind(catenary_model: str) -> PlantKind:
