@@ -10,7 +10,7 @@ import pytest
 from scipy import signal
 from scipy.integrate import quad, solve_ivp
 
-from pac_plant.hardware.actuators import ACTUATORS, IDEAL, Actuator, actuator_model
+from pac_plant.hardware.actuators import ACTUATOR_STEPS, ACTUATORS, Actuator, actuator_model
 
 pytestmark = pytest.mark.unit
 
@@ -113,7 +113,7 @@ def test_range_and_rate_hold_for_any_command():
 def test_ideal_passes_the_command_unchanged():
     """Today's actuator: the mean force is the command itself, bit for bit."""
     ideal = Actuator(actuator_model("ideal"), F0, DT)
-    assert ideal.ideal and ACTUATORS["ideal"].kind == IDEAL
+    assert ideal.ideal and ACTUATORS["ideal"].step == "ideal"
     commands = np.random.default_rng(3).normal(100.0, 300.0, 500)
     means, _ = run(ideal, commands)
     assert np.array_equal(means, commands)
@@ -151,3 +151,31 @@ def test_the_loop_applies_the_actuators_force():
     assert np.array_equal(applied[1:], means)  # truth at tick k: the force over [t_k-1, t_k]
     assert np.max(np.abs(sent[:-1] - means)) > 10.0  # the square wave's steps: the lag shows
     assert 0.0 <= applied.min() and applied.max() <= 200.0
+
+
+def test_the_step_dispatch_in_use_is_what_the_registry_gives():
+    """actuator_dispatch.py (the installed copy) is written from ACTUATOR_STEPS; a change there without
+    ``python -m pac_plant.hardware.actuator_dispatch_source --write`` fails here."""
+    from pathlib import Path
+
+    from pac_plant.hardware import actuator_dispatch, actuator_dispatch_source
+
+    text = actuator_dispatch_source.actuator_dispatch_source(ACTUATOR_STEPS)
+    assert Path(actuator_dispatch.__file__).read_text() == text
+    assert actuator_dispatch.ACTUATOR_STEP_CODES == {name: code for code, name in enumerate(ACTUATOR_STEPS)}
+
+
+@pytest.mark.parametrize("name", list(ACTUATORS))
+def test_each_variant_names_a_registered_step_and_its_records_carry_its_code(name):
+    model = ACTUATORS[name]
+    assert model.step in ACTUATOR_STEPS
+    actuator = Actuator(model, F0, DT)
+    assert actuator.params[0]["kind"] == list(ACTUATOR_STEPS).index(model.step)
+
+
+def test_an_unknown_step_code_gives_a_nan_force():
+    from pac_plant.hardware.actuators import actuator_apply_one
+
+    actuator = Actuator(actuator_model("electromechanical"), F0, DT)
+    actuator.params[0]["kind"] = len(ACTUATOR_STEPS)
+    assert np.isnan(actuator_apply_one(actuator.params, actuator.state, F0))

@@ -48,7 +48,8 @@ from pac_observer.head_balance import HeadBalanceObserver
 from pac_observer.observer import AdaptiveObserver
 from pac_observer.observer_dispatch import observer_update
 from pac_observer.observers import compiled_observer_classes
-from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE, actuator_apply
+from pac_plant.hardware.actuator_dispatch import actuator_apply
+from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE
 from pac_plant.hardware.car_body import TERMS, roof_at, roof_force
 from pac_plant.hardware.sensors import SENSOR_PARAMS, SENSOR_STATE, sensor_step
 from pac_plant.parameters import MAX_PANTOGRAPHS
@@ -85,7 +86,7 @@ PLANT_PARAMS = np.dtype(
         (
             "actuator",
             ACTUATOR_PARAMS,
-        ),  # the actuator's (Plant.actuator; kind IDEAL: the command is the force)
+        ),  # the actuator's (Plant.actuator; step ideal: the command is the force)
         # The moving roof (Plant.roof; roof False: a fixed base): its cosines and the roof spring and
         # damper of the actuator's mass
         ("roof", "b1"),

@@ -13,7 +13,7 @@ The controller's command u_k is held over [t_k, t_k+1] (the loop's zero-order ho
 
 Over an interval of constant demand d that ODE has a closed form (a ramp at +-r while
 |d - f| > r tau, then the exponential d - (d - f) exp(-t / tau)), so the step is exact, not an
-integration: :func:`lag_rate` gives the force at the interval's end and its integral. The plant
+integration: ``actuator_steps.lag_rate`` gives the force at the interval's end and its integral. The plant
 gets the *mean* force over the tick (the impulse the actuator delivers, which the plant's
 zero-order-hold step then applies), and that is ``u_applied``: what a load cell in the actuator
 reads, averaged over the sample period.
@@ -23,9 +23,10 @@ ramp that stops at the demand, never overshoots). The rate limit holds because |
 everywhere.
 
 Variants are entries of :data:`ACTUATORS` (name -> :class:`ActuatorModel`): parameters, which
-compiled step (``kind``) and the sources of every number. ``ideal`` is today's actuator: the
-command passes unchanged (its step is never called, so every run without an actuator is the same
-bit for bit).
+compiled step (``step``, an entry of :data:`ACTUATOR_STEPS`) and the sources of every number.
+``ideal`` is today's actuator: its step passes the command unchanged, so every run without an
+actuator is the same bit for bit. The steps are ``actuator_steps``; the branch on a record's step
+is ``actuator_dispatch``, generated from :data:`ACTUATOR_STEPS` (``actuator_dispatch_source``).
 """
 
 from __future__ import annotations
@@ -38,8 +39,18 @@ from numba import njit
 
 from pac_common.parameters import ParameterError
 
-#: ActuatorModel.kind: IDEAL passes the command through; LAG is the delay, range, rate and lag above.
-IDEAL, LAG = 0, 1
+from .actuator_dispatch import actuator_apply
+
+#: The compiled steps by name -> the module of their ``<step>_apply`` (actuator_steps): ideal passes
+#: the command through; lag is the delay, range, rate and lag above. A new kind of actuator that is
+#: not a lag is its step and one line here, then ``python -m
+#: pac_plant.hardware.actuator_dispatch_source --write``.
+ACTUATOR_STEPS: dict[str, str] = {
+    "ideal": "pac_plant.hardware.actuator_steps",
+    "lag": "pac_plant.hardware.actuator_steps",
+}
+#: Step name -> its code in ``ACTUATOR_PARAMS.kind`` (the registry's order).
+ACTUATOR_STEP_CODES = {name: code for code, name in enumerate(ACTUATOR_STEPS)}
 #: Most ticks of transport delay the compiled state holds (256 ms at the default 1 kHz).
 MAX_ACTUATOR_DELAY_TICKS = 256
 _RING = MAX_ACTUATOR_DELAY_TICKS + 2  # u_(k-n-1) .. u_k
@@ -68,10 +79,11 @@ ACTUATOR_STATE = np.dtype(
 
 @dataclass(frozen=True)
 class ActuatorModel:
-    """One actuator variant: its compiled step (``kind``), its numbers and where they come from."""
+    """One actuator variant: its compiled step (an :data:`ACTUATOR_STEPS` name), its numbers and
+    where they come from."""
 
     name: str
-    kind: int
+    step: str
     #: R: the force it can add to or take from the static force F0 [N] (inf: unlimited).
     force_range: float
     #: r [N/s] (inf: unlimited).
@@ -85,11 +97,11 @@ class ActuatorModel:
 
 
 #: The actuator variants by name (the ``actuator`` parameter). A new one is a line here (and its
-#: compiled step in :func:`actuator_apply` if it is not a lag with rate limit and delay).
+#: step in :data:`ACTUATOR_STEPS` if it is not a lag with rate limit and delay).
 ACTUATORS: dict[str, ActuatorModel] = {
     "ideal": ActuatorModel(
         "ideal",
-        IDEAL,
+        "ideal",
         math.inf,
         math.inf,
         0.0,
@@ -99,7 +111,7 @@ ACTUATORS: dict[str, ActuatorModel] = {
     ),
     "electromechanical": ActuatorModel(
         "electromechanical",
-        LAG,
+        "lag",
         100.0,
         5000.0,
         0.020,
@@ -113,7 +125,7 @@ ACTUATORS: dict[str, ActuatorModel] = {
     ),
     "pneumatic": ActuatorModel(
         "pneumatic",
-        LAG,
+        "lag",
         100.0,
         500.0,
         0.200,
@@ -151,7 +163,7 @@ def actuator_records(
         )
     params = np.zeros(1, ACTUATOR_PARAMS)
     p = params[0]
-    p["kind"], p["dt"] = model.kind, sample_period
+    p["kind"], p["dt"] = ACTUATOR_STEP_CODES[model.step], sample_period
     p["low"], p["high"] = static_force - model.force_range, static_force + model.force_range
     p["rate"], p["tau"] = model.rate_limit, model.time_constant
     fraction = ticks - n
@@ -163,62 +175,8 @@ def actuator_records(
 
 
 @njit(cache=True, error_model="numpy")
-def lag_rate(f0: float, d: float, h: float, tau: float, rate: float) -> tuple[float, float]:
-    """(f(h), integral of f over [0, h]) for df/dt = clip((d - f) / tau, -rate, rate), f(0) = f0.
-
-    While |d - f| > rate tau the rate limit binds (a ramp); from there the lag's own rate is below
-    it and f = d - (d - f1) exp(-t / tau). tau = 0: a ramp to d, then d. rate = inf: no ramp.
-    """
-    e = d - f0
-    sign = 1.0 if e >= 0.0 else -1.0
-    knee = rate * tau if rate < np.inf else np.inf
-    integral = 0.0
-    rest = h
-    f = f0
-    if abs(e) > knee:
-        ramp = (abs(e) - knee) / rate  # time until the lag takes over
-        if ramp >= h:
-            return f0 + sign * rate * h, f0 * h + 0.5 * sign * rate * h * h
-        integral = f0 * ramp + 0.5 * sign * rate * ramp * ramp
-        f = d - sign * knee
-        rest = h - ramp
-        e = d - f
-    if tau > 0.0:
-        g = math.exp(-rest / tau)
-        return d - e * g, integral + d * rest - e * tau * (1.0 - g)
-    return d, integral + d * rest
-
-
-@njit(cache=True, error_model="numpy")
-def actuator_apply(p, s, u: float) -> float:
-    """The mean force over this tick for the command ``u`` held over it; advances ``s``.
-
-    IDEAL returns ``u`` itself (not u * h / h): today's numbers, bit for bit.
-    """
-    if p.kind == IDEAL:
-        return u
-    ring = s.ring
-    size = ring.shape[0]
-    s.head = (s.head + 1) % size
-    ring[s.head] = u
-    n = p.delay_ticks
-    h = p.dt
-    late = min(max(ring[(s.head - n) % size], p.low), p.high)  # u_(k-n), clipped to the range
-    f, total = s.force, 0.0
-    if p.delay_fraction > 0.0:
-        early = min(max(ring[(s.head - n - 1) % size], p.low), p.high)  # u_(k-n-1)
-        h1 = p.delay_fraction * h
-        f, part = lag_rate(f, early, h1, p.tau, p.rate)
-        total += part
-        h -= h1
-    f, part = lag_rate(f, late, h, p.tau, p.rate)
-    s.force = f
-    return (total + part) / p.dt
-
-
-@njit(cache=True, error_model="numpy")
 def actuator_apply_one(params, state, u: float) -> float:
-    """:func:`actuator_apply` on 1-element record arrays (how Python hands them over)."""
+    """``actuator_apply`` (actuator_dispatch) on 1-element record arrays (how Python hands them over)."""
     return actuator_apply(params[0], state[0], u)
 
 
@@ -231,7 +189,7 @@ class Actuator:
 
     @property
     def ideal(self) -> bool:
-        return int(self.params[0]["kind"]) == IDEAL
+        return self.model.step == "ideal"
 
     @property
     def force(self) -> float:
