@@ -56,7 +56,8 @@ from numba.extending import is_jitted
 from pac_common.parameters import ParameterError
 from pac_model.parameters import PantographParameters, TrackParameters
 
-from .kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, MODES, new_state, safety_chain
+from .kernel_common import ACTIVE
+from .kernels import CONTROLLER_PARAMS, CONTROLLER_STATE, new_state, safety_chain
 from .parameters import ControllerParameters, LawParameters, ReferenceParameters
 
 #: What a law file's NEEDS may name: the estimate's parts (ObserverEstimate's fields).
@@ -312,13 +313,10 @@ def _numba_reason(exc: NumbaError) -> str:
     return (told or lines or [type(exc).__name__])[0]
 
 
-#: The mode code of a user law's commands: always active (kernels.MODES).
-_ACTIVE = MODES.index("active")
-
-
 @njit(cache=True)
 def _user_mode(p, s) -> int:
-    return _ACTIVE
+    """The mode code of a user law's commands: always active."""
+    return ACTIVE
 
 
 def compiled_chain(restart: Callable, output: Callable, commit: Callable) -> tuple[Callable, Callable]:
