@@ -33,11 +33,14 @@ test-fast: setup
 	bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 
 # The fast tests on another CPU's arithmetic (docs/numerics.md, "Tests that pass on any machine"):
-# numpy's SIMD loops narrowed to its x86-64-v2 baseline (AVX-512 and AVX2/FMA off), then numba
+# numpy's SIMD loops narrowed to its x86-64-v2 baseline (AVX-512 and AVX2/FMA off), OpenBLAS on
+# another core type's kernels than the one it chose here (scripts/other_openblas_core.py), then numba
 # compiling for a generic x86-64 (no FMA, no AVX; its machine code goes beside the host's in the cache).
 PORTABLE_NUMPY := X86_V4 AVX512_ICL AVX512_SPR X86_V3
 test-portable: setup
 	NPY_DISABLE_CPU_FEATURES="$(PORTABLE_NUMPY)" bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+	core="$$(scripts/with_env.sh python scripts/other_openblas_core.py)"; echo "OpenBLAS core type: $${core:-unchanged}"; \
+	  OPENBLAS_CORETYPE="$$core" bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 	NUMBA_CPU_NAME=generic scripts/with_env.sh python -m pac_rig.warm
 	NUMBA_CPU_NAME=generic bash scripts/run_tests.sh -m "$(FAST_TESTS)"
 

@@ -427,7 +427,10 @@ def test_a_step_whose_active_set_does_not_settle_keeps_the_set_it_solved_for(mon
         assert fast.active_set_unconverged == 1 and fast.in_contact == in_contact
         # The penetration the kept set's solution has: into the wire when the contact was kept
         # off, out of it when kept on; reported as at most zero while off.
-        assert fast.delta == (0.0 if not in_contact else ref.delta) and (ref.delta < 0.0) == in_contact
+        # Off: exactly 0 (a clamp). On: the numpy step's, to the rounding of two implementations
+        # (the same tolerance as every other field, _assert_same_state).
+        kept = 0.0 if not in_contact else pytest.approx(ref.delta, rel=COMPILED_TOLERANCE, abs=1e-15)
+        assert fast.delta == kept and (ref.delta < 0.0) == in_contact
 
 
 def test_the_contact_point_is_found_in_the_element_that_holds_it_at_both_ends_of_the_line():
