@@ -98,6 +98,63 @@ def test_line_adaptive_brings_its_observer_and_the_fe_line_its_span():
 
 
 @pytest.mark.unit
+def test_what_a_law_is_told_of_the_line_and_the_actuator_follows_its_registry_line(monkeypatch):
+    """The design layout of a whole line and a design for an actuator as hardware reach a law by its
+    registry line (``LawEntry.line_layout``, ``actuator_as_hardware``), not by its name: a law that
+    declares them gets them, one that does not gets neither, and a value the user names is kept."""
+    import dataclasses
+
+    run = {"scenario": "realistic_electromechanical", "force_amplitude": 157.3}
+    declared = dataclasses.replace(
+        LAWS["passive"], line_layout=True, actuator_as_hardware=(("line_effort_weight", 0.3),)
+    )
+    monkeypatch.setitem(LAWS, "declares_both", declared)
+    values, notes = composition.derive({**run, "law": "declares_both"})
+    layout, _ = composition.derive({**run, "law": "line_adaptive"})
+    assert values["line_supports"] == layout["line_supports"] and len(values["line_supports"]) > 50
+    assert values["line_position_start"] == layout["line_position_start"]
+    assert values["line_effort_weight"] == 0.3
+    assert any("law declares_both's design for the electromechanical actuator" in n for n in notes)
+    for name in ("line_max_frequency", "line_model_below"):  # line_adaptive's design, not this law's
+        assert name not in values
+    passive, _ = composition.derive({**run, "law": "passive"})
+    assert not {"line_supports", "line_position_start", "line_effort_weight"} & set(passive)
+    named, _ = composition.derive({**run, "law": "declares_both", "line_effort_weight": 0.1})
+    assert named["line_effort_weight"] == 0.1
+    ideal, _ = composition.derive({**run, "law": "declares_both", "actuator": "ideal"})
+    assert "line_effort_weight" not in ideal  # the ideal actuator keeps the law's defaults
+
+
+@pytest.mark.unit
+def test_an_observer_that_reads_a_channel_the_sensors_lack_is_refused_and_stands_in_where_they_have_it(
+    monkeypatch,
+):
+    """``ObserverEntry.reads`` and ``on_richer_sensors``, on an observer that is not pac's: one that
+    reads the head's load cell is refused on sensors without one (one line: the observer, the
+    channel, the suites that have it, the observers that would fit), and a law's observer that
+    names it as its stand-in gives way to it only where the sensors have a load cell."""
+    import dataclasses
+
+    from pac_observer.observers import OBSERVERS
+
+    reads_cell = dataclasses.replace(OBSERVERS["head_balance"], reads=(("head_force", "a head load cell"),))
+    monkeypatch.setitem(OBSERVERS, "load_cell", reads_cell)
+    composition.check_pair("passive", "load_cell", None, "train_load_cell")
+    with pytest.raises(CompositionError) as info:
+        composition.check_pair("passive", "load_cell", None, "train")
+    message = str(info.value)
+    assert "\n" not in message
+    assert "observer 'load_cell' reads a head load cell, which sensors 'train' do not have" in message
+    assert "sensors:=train_load_cell" in message and "head_balance" in message
+    yields = dataclasses.replace(OBSERVERS["contact_force"], on_richer_sensors="load_cell")
+    monkeypatch.setitem(OBSERVERS, "contact_force", yields)
+    values, notes = composition.derive({"law": "line_adaptive", "sensors": "train_load_cell"})
+    assert values["observer"] == "load_cell" and "a head load cell" in notes[0]
+    values, _ = composition.derive({"law": "line_adaptive", "sensors": "train"})
+    assert values["observer"] == "contact_force"  # no load cell: the law's own observer
+
+
+@pytest.mark.unit
 def test_the_controller_is_told_its_actuators_range():
     """An actuator with a range R about its static force F0: the controller's limits are F0 -+ R
     (from the actuator's table, not a copy of its number), so a command beyond it is clipped

@@ -28,7 +28,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
-from .line_adaptive import LineAdaptiveLaw
+from .line_adaptive import DESIGN_FOR_ACTUATOR_AS_HARDWARE, LineAdaptiveLaw
 from .lqr import LqrLaw, design_lqr
 from .parameters import FORCE_ESTIMATES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
@@ -101,6 +101,13 @@ class LawEntry:
     #: A kernel law's compiled parts: the module of its four functions (kernel_common), which the
     #: generated ``law_dispatch`` calls under the code the registry's order gives; None: not one.
     kernel: str | None = None
+    #: Whether the law is told the design layout of a whole line (``line_supports``: the supports an
+    #: infrastructure manager publishes, not the drawn deviation; ``line_position_start``: where its
+    #: contact point starts), which the run derives from the line the plant runs (pac_rig.composition).
+    line_layout: bool = False
+    #: The law's design values, (parameter, value) pairs, where the actuator is hardware (limited range
+    #: and rate), each derived where the user names it not; empty: the law's defaults serve any actuator.
+    actuator_as_hardware: tuple[tuple[str, float], ...] = ()
 
     def needs_of(self, force_estimate: str) -> frozenset[str]:
         """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
@@ -181,6 +188,8 @@ LAWS: dict[str, LawEntry] = {
         frozenset({"contact_force_hat"}),
         observer="contact_force",
         kernel="pac_controller.line_adaptive_kernels",
+        line_layout=True,
+        actuator_as_hardware=DESIGN_FOR_ACTUATOR_AS_HARDWARE,
     ),
     "skyhook": law_module("pac_controller.skyhook"),
 }

@@ -30,6 +30,12 @@ class ObserverEntry:
     #: What it is, for the ``observer`` parameter's help ("'name' description; ...").
     description: str
     kernel: str | None = None
+    #: The sensor channels it reads besides the frame positions, (channel, what it is) pairs with
+    #: ``pac_plant.hardware.sensors`` channel names: a run whose sensors lack one is refused.
+    reads: tuple[tuple[str, str], ...] = ()
+    #: The observer that stands in for this one where the run's sensors have what that one reads:
+    #: a run that takes this observer from its law (none named) takes that one there.
+    on_richer_sensors: str | None = None
 
 
 #: The paper's observer gives the catenary parameters theta_hat, and with them F_hat = k_hat z1
@@ -48,6 +54,9 @@ OBSERVERS: dict[str, ObserverEntry] = {
         "a Kalman filter on the nominal pantograph with F as a random-walk state (no F = k z1; no "
         "theta_hat: for laws line_adaptive, pid, lqr (on its F_hat) or passive)",
         "pac_observer.contact_force",
+        # A train's sensors: the head's own balance, not the filter that differentiates their noise
+        # twice (pac_observer.head_balance, docs/laws.md).
+        on_richer_sensors="head_balance",
     ),
     "head_balance": ObserverEntry(
         frozenset({"contact_force_hat"}),
@@ -55,6 +64,7 @@ OBSERVERS: dict[str, ObserverEntry] = {
         "F from the head's equation of motion with its accelerometer (a train's sensors: "
         "sensors:=train or train_load_cell; pac_observer.head_balance)",
         "pac_observer.head_balance",
+        reads=(("head_acceleration", "a head accelerometer"),),
     ),
 }
 

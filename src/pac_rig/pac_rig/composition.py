@@ -4,22 +4,27 @@ refuses before it starts.
 A law states what it needs of the estimate besides z_hat (``pac_controller.laws.LAWS``:
 ``needs``; a fixed-gain law, pid or lqr, needs what its form of F_hat needs,
 ``FORCE_ESTIMATE_NEEDS``) and the observer it runs on when none is named (``observer``); an
-observer states what it gives (``pac_observer.parameters.OBSERVER_GIVES``). From them:
+observer states what it gives (``pac_observer.observers.OBSERVERS``: ``gives``). From them:
 
 - **derived**, where the user named nothing: ``law:=line_adaptive`` alone runs on the observer it
-  needs (``observer:=contact_force``); a fixed-gain law feeds back F_hat in the first form its
-  observer gives (``force_estimate``: k_hat z1 on the paper's observer, the filter's own F_hat on
-  ``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the observer and
-  the controller are told the span of the line the plant runs (its catenary file's mean span),
-  not the 65 m default of the lumped model, and a fixed-gain law is designed at the line's
+  needs (``observer:=contact_force``), or on the one that stands in for it where the run's sensors
+  have what that one reads (``ObserverEntry.on_richer_sensors``: ``head_balance`` with a head
+  accelerometer); a law that takes a line layout (``LawEntry.line_layout``) is told the design
+  layout of the whole line the plant runs; a law's design for an actuator as hardware
+  (``LawEntry.actuator_as_hardware``) where the actuator is one; a fixed-gain law feeds back F_hat
+  in the first form its observer gives (``force_estimate``: k_hat z1 on the paper's observer, the
+  filter's own F_hat on ``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the
+  observer and the controller are told the span of the line the plant runs (its catenary file's mean
+  span), not the 65 m default of the lumped model, and a fixed-gain law is designed at the line's
   equivalent stiffness (``design_stiffness``: its mean static stiffness over a period of the design
   spans, ``pac_plant.fe_plant.equivalent_contact_stiffness``), not the lumped model's k0; an
   actuator as hardware works about the run's reference (``actuator_static_force`` =
-  ``force_amplitude``) and the controller is told its range (``u_min``, ``u_max`` = that force
-  -+ the range);
+  ``force_amplitude``) and the controller is told its range (``u_min``, ``u_max`` = that force -+
+  the range);
 - **refused**, with one line naming both parts and what would fit: a law that needs what its
   observer does not give (``adaptive_backstepping`` on ``observer:=contact_force`` would run on
-  theta_hat = 0; so would ``pid`` told ``force_estimate:=k_hat_z1`` there).
+  theta_hat = 0; so would ``pid`` told ``force_estimate:=k_hat_z1`` there), and an observer that
+  reads a sensor channel the run's sensors lack (``ObserverEntry.reads``).
 
 Every offline entry point applies both: ``simulate`` and campaign points derive
 (:func:`derive`), and :func:`check_pair` runs wherever the cores are built
@@ -69,7 +74,8 @@ def derive(
     elsewhere (the rig launcher: the observer node's parameters), consulted like ``values``."""
     from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS
     from pac_controller.parameters import ControllerParameters, LawParameters
-    from pac_observer.parameters import OBSERVER_GIVES, ObserverParameters
+    from pac_observer.observers import OBSERVERS
+    from pac_observer.parameters import ObserverParameters
     from pac_plant.parameters import PlantOptions
     from pac_plant.plants import plant_kind
 
@@ -83,23 +89,18 @@ def derive(
     if "observer" not in given and entry is not None and entry.observer is not None:
         out["observer"] = entry.observer
         why = f"what law {law} runs on"
-        if entry.observer == "contact_force" and _head_accelerometer(given):
-            # A train's sensors: the head's own balance, not the filter that differentiates their
-            # noise twice (pac_observer.head_balance, docs/laws.md).
-            out["observer"], why = "head_balance", f"the F_hat law {law} runs on, from the head accelerometer"
+        richer = OBSERVERS[entry.observer].on_richer_sensors
+        if richer is not None and not _sensors_lack(OBSERVERS[richer].reads, given):
+            read = " and ".join(what for _, what in OBSERVERS[richer].reads)
+            out["observer"], why = richer, f"what law {law} runs on, where the sensors have {read}"
         notes.append(f"observer:={out['observer']} ({why})")
     observer = str(out.get("observer", given.get("observer", ObserverParameters().observer)))
     plant_defaults = PlantOptions()  # one construction: it reads the default catenary file
     fe_line = plant_kind(str(given.get("catenary_model", plant_defaults.catenary_model))).line_from_file
     catenary = str(given.get("catenary", plant_defaults.catenary))
-    if (
-        entry is not None
-        and entry.fixed_gain
-        and "force_estimate" not in given
-        and observer in OBSERVER_GIVES
-    ):
+    if entry is not None and entry.fixed_gain and "force_estimate" not in given and observer in OBSERVERS:
         form = next(
-            (f for f, needs in FORCE_ESTIMATE_NEEDS.items() if needs <= OBSERVER_GIVES[observer]), None
+            (f for f, needs in FORCE_ESTIMATE_NEEDS.items() if needs <= OBSERVERS[observer].gives), None
         )
         if form is not None and form != LawParameters().force_estimate:
             out["force_estimate"] = form
@@ -111,8 +112,8 @@ def derive(
 
         out["span_length"] = load_catenary(catenary).data.span
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
-    if fe_line and law == "line_adaptive" and "line_supports" not in given:
-        notes += _line_map(given, out, catenary)
+    if fe_line and entry is not None and entry.line_layout and "line_supports" not in given:
+        notes += _line_layout(given, out, catenary)
     static_force = actuator_static_force(given)
     if static_force is not None:
         out["actuator_static_force"] = static_force
@@ -123,8 +124,11 @@ def derive(
     actuator = str(given.get("actuator", "ideal"))
     if actuator != "ideal" and "u_min" not in given and "u_max" not in given:
         notes.extend(_actuator_limits(actuator, {**given, **out}, out))
-    if law == "line_adaptive" and actuator != "ideal":
-        notes.extend(_line_design_for_actuator(actuator, given, out))
+    if entry is not None and actuator != "ideal":
+        for name, value in entry.actuator_as_hardware:
+            if name not in given:
+                out[name] = value
+                notes.append(f"{name}:={value:g} (law {law}'s design for the {actuator} actuator)")
     return out, notes
 
 
@@ -162,40 +166,17 @@ def _fe_line_design(
     return notes
 
 
-#: line_adaptive's design for an actuator as hardware, which the rig's realistic scenarios pair with
-#: a whole drawn line and the 3-mass pantograph on its identified 2-DOF (docs/laws.md, "On the
-#: realistic line"): the command's harmonics weighted more (mu), for the actuator's range; only the
-#: harmonics up to 4 Hz, because above the 3-mass frame's first anti-resonance (4.9 Hz) the head
-#: balance's F_hat errs by as much as the force there once the law commands (10.9 N against 2.2 N
-#: passive at 4-8 Hz, measured), so the law cannot see what its harmonics do; and every harmonic the
-#: line model calls weak (response below 1) on the model, because on spans that differ the secant
-#: identifies a weak harmonic on the span-to-span differences, not on its own step. Chosen on design
-#: lines of the realistic scenario (line seeds 0-19), not on the lines reported (100-119).
-LINE_DESIGN_FOR_ACTUATOR = {"line_effort_weight": 0.05, "line_max_frequency": 4.0, "line_model_below": 1.0}
-
-
-def _line_design_for_actuator(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
-    """line_adaptive with an actuator of limited range and rate: ``LINE_DESIGN_FOR_ACTUATOR`` where
-    the user named nothing (the ideal actuator keeps the law's defaults, which its +-500 N allow)."""
-    notes = []
-    for name, value in LINE_DESIGN_FOR_ACTUATOR.items():
-        if name not in given:
-            out[name] = value
-            notes.append(f"{name}:={value:g} (line_adaptive's design for the {actuator} actuator)")
-    return notes
-
-
-def _head_accelerometer(given: Mapping[str, Any]) -> bool:
-    """Whether the run's sensor suite has a head accelerometer."""
+def _sensors_lack(reads: tuple[tuple[str, str], ...], given: Mapping[str, Any]) -> list[str]:
+    """What of the channels ``reads`` ((channel, what it is) pairs) the run's sensor suite lacks."""
     from pac_plant.hardware.sensors import SENSORS
     from pac_plant.parameters import PlantOptions
 
     suite = SENSORS.get(str(given.get("sensors", PlantOptions().sensors)))
-    return suite is not None and suite.head_acceleration is not None
+    return [what for channel, what in reads if suite is None or getattr(suite, channel) is None]
 
 
-def _line_map(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -> list[str]:
-    """line_adaptive told the design layout of a whole line (the line map a train carries: its
+def _line_layout(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -> list[str]:
+    """A law told the design layout of a whole line (the line map a train carries: its
     supports, not the drawn deviation) and where its contact point starts on it (the plant's start:
     the first interior support with every pantograph on the line, ``pac_plant.fe_plant``), into
     ``out``; nothing on a period (the law learns over the nominal span's period there)."""
@@ -250,30 +231,39 @@ def check_pair(
     does not give (a fixed-gain law: with F_hat in the form ``force_estimate``, None: the
     parameter's default); one line naming both and what would fit. A user's law file is loaded
     here (refused in one line if it cannot be). ``sensors`` (the plant's suite; None: not
-    checked): the observer ``head_balance`` reads a head accelerometer, which it must have."""
-    if sensors is not None and observer == "head_balance":
+    checked): it must have what the observer reads (``ObserverEntry.reads``)."""
+    from pac_observer.observers import OBSERVERS
+
+    lacking = [] if sensors is None else _sensors_lack(OBSERVERS[observer].reads, {"sensors": sensors})
+    if lacking:
         from pac_plant.hardware.sensors import SENSORS
 
-        with_one = [name for name, suite in SENSORS.items() if suite.head_acceleration is not None]
-        if sensors in SENSORS and SENSORS[sensors].head_acceleration is None:
-            raise CompositionError(
-                "observer",
-                observer,
-                f"observer 'head_balance' reads a head accelerometer, which sensors '{sensors}' do not "
-                f"have: sensors:={' or '.join(with_one)}, or observer:=contact_force",
-            )
+        reads = OBSERVERS[observer].reads
+        with_them = [n for n, kit in SENSORS.items() if all(getattr(kit, c) is not None for c, _ in reads)]
+        others = [
+            name
+            for name, other in OBSERVERS.items()
+            if name != observer
+            and other.gives >= OBSERVERS[observer].gives
+            and not _sensors_lack(other.reads, {"sensors": sensors})
+        ]
+        raise CompositionError(
+            "observer",
+            observer,
+            f"observer '{observer}' reads {' and '.join(lacking)}, which sensors '{sensors}' do not "
+            f"have: sensors:={' or '.join(with_them)}, or observer:={' or '.join(others)}",
+        )
     from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS, law_entry
     from pac_controller.parameters import LawParameters
-    from pac_observer.parameters import OBSERVER_GIVES
 
     form = force_estimate or LawParameters().force_estimate
     entry = law_entry(law)
-    needs, gives = entry.needs_of(form), OBSERVER_GIVES[observer]
+    needs, gives = entry.needs_of(form), OBSERVERS[observer].gives
     missing = needs - gives
     if not missing:
         return
     fitting_laws = [name for name, other in LAWS.items() if other.needs_of(form) <= gives]
-    fitting_observers = [name for name, offers in OBSERVER_GIVES.items() if needs <= offers]
+    fitting_observers = [name for name, other in OBSERVERS.items() if needs <= other.gives]
     fitting_forms = (
         [f for f in FORCE_ESTIMATE_NEEDS if entry.needs_of(f) <= gives] if entry.fixed_gain else []
     )
