@@ -36,12 +36,10 @@ functions: numba does not cache them on disk). ``f_r`` is then a tuple of four, 
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import importlib
-import importlib.util
 import math
-import sys
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +51,7 @@ from numba import njit
 from numba.core.errors import NumbaError
 from numba.extending import is_jitted
 
+from pac_common import user_file
 from pac_common.parameters import ParameterError
 from pac_model.parameters import PantographParameters, TrackParameters
 
@@ -122,12 +121,7 @@ def refuse(path: str, why: str) -> ParameterError:
 
 def file_digest(path: str) -> str:
     """SHA-256 of the text of law file ``path``; ParameterError (one line) when it cannot be read."""
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except FileNotFoundError:
-        raise refuse(path, "no such file") from None
-    except OSError as exc:
-        raise refuse(path, f"cannot read it ({exc.strerror or exc})") from None
+    return user_file.file_digest(path, functools.partial(refuse, path))
 
 
 #: Loaded files by absolute path: a file is imported once per process (a campaign builds many
@@ -138,18 +132,8 @@ _LOADED: dict[str, LawFile] = {}
 def load_law_file(path: str) -> LawFile:
     """The law of file ``path``, imported from the file (not from ``sys.path``) and checked;
     ParameterError, one line, for a missing file, one that fails to import, one without the
-    protocol, and one whose text changed since this process imported it: a law is fixed for a run,
-    so an edit is not taken up silently (by a node's retune, or a campaign worker's next point)."""
-    digest = file_digest(path)
-    key = str(Path(path).resolve())
-    loaded = _LOADED.get(key)
-    if loaded is None:
-        loaded = _LOADED[key] = _check(path, digest, _import(path, digest))
-    elif loaded.digest != digest:
-        raise refuse(
-            path, "its text changed since this process imported it (start again to run the new text)"
-        )
-    return loaded
+    protocol, and one whose text changed since this process imported it (a law is fixed for a run)."""
+    return user_file.load_once(path, _LOADED, "pac_user_law", _check, functools.partial(refuse, path))
 
 
 def load_law_module(name: str) -> LawFile:
@@ -163,31 +147,6 @@ def load_law_module(name: str) -> LawFile:
         source = Path(module.__file__).read_bytes() if module.__file__ else name.encode()
         loaded = _LOADED[name] = _check(name, hashlib.sha256(source).hexdigest(), module)
     return loaded
-
-
-def _import(path: str, digest: str) -> ModuleType:
-    """The module of ``path`` under a name of its own (two files both called my_law.py do not meet)."""
-    name = f"pac_user_law_{Path(path).stem}_{digest[:12]}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
-        raise refuse(path, "not a Python module")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # numba and dataclasses look the module up by name
-    try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # noqa: BLE001 - whatever the user's file raises is its refusal, in one line
-        del sys.modules[name]
-        raise refuse(path, f"importing it raised {_where(exc, path)}") from None
-    return module
-
-
-def _where(exc: BaseException, path: str) -> str:
-    """``exc`` in one line, with the line of ``path`` it came from where there is one."""
-    text = f"{type(exc).__name__}: {exc}".splitlines()[0]
-    if isinstance(exc, SyntaxError) and exc.lineno is not None:
-        return f"{text} (line {exc.lineno})"
-    lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename) == Path(path)]
-    return f"{text} (line {lines[-1]})" if lines else text
 
 
 def _check(path: str, digest: str, module: ModuleType) -> LawFile:
@@ -233,7 +192,7 @@ class UserLaw:
         try:  # its own copy, as flat floats (what the compiled chain takes)
             self.consts = np.array(law.design(setup), dtype=np.float64).reshape(-1)
         except Exception as exc:  # noqa: BLE001 - the user's design failing is a refusal of the file
-            raise refuse(law.path, f"design raised {_where(exc, law.path)}") from None
+            raise refuse(law.path, f"design raised {user_file.where(exc, law.path)}") from None
         self.state = np.zeros(law.state_size)
         self.uses_estimate = bool(law.needs & {"z_hat", "theta_hat"})
         self.uses_contact_force = "contact_force_hat" in law.needs
