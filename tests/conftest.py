@@ -205,6 +205,51 @@ def assert_lockstep_equals_offline(
     return offline
 
 
+def lockstep_run_equals_offline(rigs, name: str, params: dict, values: dict, offline_path: Path) -> Path:
+    """Run the four processes in lock step for ``values['duration']`` with the nodes' ``params``;
+    every process must exit 0 and the bag equal the offline simulator's run of ``values`` bit for
+    bit (:func:`assert_lockstep_equals_offline`). Returns the bag's path."""
+    from pac_rig.launcher import NODES
+
+    rig = rigs(name, duration=values["duration"], timing_mode="lockstep", params=params)
+    rig.start()
+    rig.wait_finished(timeout=120)
+    assert rig.exit_codes() == dict.fromkeys(NODES, 0), {n: p.log()[-500:] for n, p in rig.processes.items()}
+    assert_lockstep_equals_offline(rig.bag_path, values, offline_path)
+    return rig.bag_path
+
+
+def assert_simulate_refuses_the_file(
+    tmp_path: Path, capsys, parameter: str, text: str | None, expected: str, *args: str
+) -> None:
+    """``simulate -p PARAMETER:=FILE ARGS`` with FILE holding ``text`` (None: no such file) exits 2 with
+    one line naming the parameter and the file and saying ``expected``, and writes no bag."""
+    from pac_rig import simulate
+
+    path = tmp_path / f"{parameter}.py"
+    if text is not None:
+        path.write_text(text)
+    code = simulate.main([str(tmp_path / "bag"), "-p", f"{parameter}:={path}", *args])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, lines
+    assert lines[0].startswith(f"simulate: invalid parameter '{parameter}' = '{path}'"), lines
+    assert expected in lines[0], lines
+    assert not (tmp_path / "bag").exists()
+
+
+def assert_imported_once_and_an_edit_refused(path: Path, text: str, load) -> None:
+    """A user's file (``text`` written to ``path``) is imported once per process by ``load``, and an
+    edit after that is refused (what it defines is fixed for a run; pac_common.user_file)."""
+    from pac_common.parameters import ParameterError
+
+    path.write_text(text)
+    first = load(str(path))
+    assert load(str(path)) is first
+    path.write_text(text + "\n# edited\n")
+    with pytest.raises(ParameterError, match="its text changed since this process imported it"):
+        load(str(path))
+
+
 def assert_starts_and_stops_cleanly(
     cmd: list[str], ready_text: str, env: dict[str, str], log: Path, stop: int = signal.SIGINT
 ) -> str:

@@ -14,12 +14,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import ROOT, ROS2, assert_lockstep_equals_offline, first_per_tick, stop
+from conftest import (
+    ROOT,
+    ROS2,
+    assert_imported_once_and_an_edit_refused,
+    assert_simulate_refuses_the_file,
+    first_per_tick,
+    lockstep_run_equals_offline,
+    stop,
+)
 
 from pac_analysis.metrics import compute_metrics
 from pac_bag.reader import read_bag
 from pac_common import messages
-from pac_common.parameters import ParameterError
 from pac_controller import user_law
 from pac_controller.controller import Controller
 from pac_controller.laws import make_controller
@@ -30,7 +37,7 @@ from pac_experiments.campaign import spec as campaign_spec
 from pac_model.parameters import PantographParameters, TrackParameters
 from pac_rig import simulate
 from pac_rig.closed_loop import build_cores, run, run_cores
-from pac_rig.launcher import NODES, node_env
+from pac_rig.launcher import node_env
 from pac_rig.loop import compile_loop
 from pac_rig.simulate import scenario_from_flat, simulate_to_bag
 
@@ -249,12 +256,10 @@ def test_the_example_runs_in_controller_node_from_its_file(rigs, tmp_path, compi
     law = str(compiled_copy(tmp_path) if compiled else EXAMPLE)
     values = {"law": law, "duration": 1.0, **LIMITS}
     controller = {"law": law, **LIMITS}
-    rig = rigs("own_law", duration=1.0, timing_mode="lockstep", params={"controller": controller})
-    rig.start()
-    rig.wait_finished(timeout=120)
-    assert rig.exit_codes() == dict.fromkeys(NODES, 0), {n: p.log()[-500:] for n, p in rig.processes.items()}
-    assert_lockstep_equals_offline(rig.bag_path, values, tmp_path / "offline")
-    assert_bag_ran_the_law(rig.bag_path, values)
+    bag = lockstep_run_equals_offline(
+        rigs, "own_law", {"controller": controller}, values, tmp_path / "offline"
+    )
+    assert_bag_ran_the_law(bag, values)
 
 
 # -- refusals: one line, naming the file and what is wrong --------------------------------------
@@ -285,14 +290,7 @@ BAD_FILES = [
 
 @pytest.mark.parametrize(("text", "expected"), BAD_FILES)
 def test_simulate_refuses_a_bad_law_file_in_one_line(tmp_path, capsys, text, expected):
-    law = tmp_path / "law.py"
-    if text is not None:
-        law.write_text(text)
-    code = simulate.main([str(tmp_path / "bag"), "-p", f"law:={law}"])
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(lines) == 1, lines
-    assert lines[0].startswith(f"simulate: invalid parameter 'law' = '{law}'") and expected in lines[0], lines
-    assert not (tmp_path / "bag").exists()
+    assert_simulate_refuses_the_file(tmp_path, capsys, "law", text, expected)
 
 
 def test_a_law_on_an_observer_without_what_it_needs_is_refused(tmp_path, capsys):
@@ -346,13 +344,7 @@ def test_a_file_is_imported_once_and_an_edit_after_is_refused(tmp_path, monkeypa
     """A law is fixed for a run: a process that imported a file does not take up an edit of it
     (a node's retune builds the law again from the file)."""
     monkeypatch.setattr(user_law, "_LOADED", {})
-    law = tmp_path / "law.py"
-    law.write_text(EXAMPLE.read_text())
-    first = load_law_file(str(law))
-    assert load_law_file(str(law)) is first
-    law.write_text(EXAMPLE.read_text() + "\n# edited\n")
-    with pytest.raises(ParameterError, match="its text changed since this process imported it"):
-        load_law_file(str(law))
+    assert_imported_once_and_an_edit_refused(tmp_path / "law.py", EXAMPLE.read_text(), load_law_file)
 
 
 @pytest.mark.live

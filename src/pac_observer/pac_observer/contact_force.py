@@ -55,6 +55,7 @@ from pac_common.divergence import CONTACT_FORCE_NOT_FINITE
 from pac_model import model
 from pac_model.parameters import PantographParameters, TrackParameters, positive_period
 
+from .choice import observer_builder
 from .observer import (
     OBSERVER_CONSTS,
     OBSERVER_STATE,
@@ -63,7 +64,7 @@ from .observer import (
     ObserverDivergedError,
     force_estimate,
 )
-from .observers import OBSERVER_CODES, core_class
+from .observers import OBSERVER_CODES
 from .parameters import ObserverParameters
 
 #: State size: (z1, z2, z1', z2', F).
@@ -333,5 +334,5 @@ def make_observer(
     pantograph: PantographParameters, track: TrackParameters, params: ObserverParameters, sample_period: float
 ):
     """The observer ``params.observer`` names (the registry, observers.py): the paper's (eq. (17)),
-    the contact-force filter or the head balance."""
-    return core_class(params.observer)(pantograph, track, params, sample_period)
+    the contact-force filter, the head balance, or a user's observer file (user_observer)."""
+    return observer_builder(params.observer)(pantograph, track, params, sample_period)

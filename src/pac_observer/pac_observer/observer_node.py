@@ -89,7 +89,9 @@ class ObserverNode(PacNode):
             self.parameters(ObserverParameters),
             self.loop.sample_period,
         )
-        self.core.warm_up()  # the compiled code loaded before the loop, not at its first tick
+        warm_up = getattr(self.core, "warm_up", None)  # optional for a user's observer file
+        if warm_up is not None:
+            warm_up()  # the compiled code loaded before the loop, not at its first tick
         self.estimate_pub = self.create_publisher(
             self.factory.cls(messages.OBSERVER_ESTIMATE), "estimate", PUBLISH_QOS
         )

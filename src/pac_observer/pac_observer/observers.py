@@ -73,8 +73,9 @@ OBSERVER_CODES = {name: code for code, name in enumerate(n for n, e in OBSERVERS
 
 
 def observer_help() -> str:
-    """The ``observer`` parameter's help: each registered observer and what it is."""
-    return "; ".join(f"'{name}' {entry.description}" for name, entry in OBSERVERS.items())
+    """The ``observer`` parameter's help: each registered observer and what it is, and the file."""
+    described = "; ".join(f"'{name}' {entry.description}" for name, entry in OBSERVERS.items())
+    return f"{described}; or the path of your own observer's Python file (docs/laws.md, 'Your own observer')"
 
 
 def core_class(name: str) -> type:

@@ -23,6 +23,7 @@ class ObserverParameters(ParameterSet):
         "adaptive",
         observer_help(),
         choices=tuple(OBSERVER_GIVES),
+        or_file=".py",
     )
     force_process_noise: float = parameter(
         2e4,

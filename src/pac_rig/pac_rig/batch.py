@@ -23,6 +23,7 @@ from numba import njit
 
 from pac_common import divergence
 from pac_controller.laws import law_entry
+from pac_observer.choice import observer_entry
 
 from .closed_loop import BLOCK, Scenario, build_cores
 from .loop import MAX_DELAY, TICK, CompiledLoop, compile_loop, loop_tick
@@ -150,7 +151,11 @@ def batchable(s: Scenario) -> bool:
     """What the compiled loop runs (:func:`pac_rig.loop.compile_loop` is not None), told from the
     parameters without building the cores: every line, observer, law and sensor suite; the delay
     it holds."""
-    return law_entry(s.controller.effective_law).compiled and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
+    return (
+        law_entry(s.controller.effective_law).compiled
+        and observer_entry(s.observer.observer).kernel is not None
+        and 0 <= s.loop.command_delay_ticks <= MAX_DELAY
+    )
 
 
 def run_batch(scenarios: Sequence[Scenario], threads: int = 1) -> BatchResult:

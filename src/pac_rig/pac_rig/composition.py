@@ -74,6 +74,7 @@ def derive(
     elsewhere (the rig launcher: the observer node's parameters), consulted like ``values``."""
     from pac_controller.laws import FORCE_ESTIMATE_NEEDS, LAWS
     from pac_controller.parameters import ControllerParameters, LawParameters
+    from pac_observer.choice import observer_entry
     from pac_observer.observers import OBSERVERS
     from pac_observer.parameters import ObserverParameters
     from pac_plant.parameters import PlantOptions
@@ -98,10 +99,10 @@ def derive(
     plant_defaults = PlantOptions()  # one construction: it reads the default catenary file
     fe_line = plant_kind(str(given.get("catenary_model", plant_defaults.catenary_model))).line_from_file
     catenary = str(given.get("catenary", plant_defaults.catenary))
-    if entry is not None and entry.fixed_gain and "force_estimate" not in given and observer in OBSERVERS:
-        form = next(
-            (f for f, needs in FORCE_ESTIMATE_NEEDS.items() if needs <= OBSERVERS[observer].gives), None
-        )
+    known = observer in OBSERVERS or observer.endswith(".py")
+    if entry is not None and entry.fixed_gain and "force_estimate" not in given and known:
+        gives = observer_entry(observer).gives
+        form = next((f for f, needs in FORCE_ESTIMATE_NEEDS.items() if needs <= gives), None)
         if form is not None and form != LawParameters().force_estimate:
             out["force_estimate"] = form
             notes.append(f"force_estimate:={form} (the F_hat observer {observer} gives law {law})")
@@ -229,22 +230,24 @@ def check_pair(
 ) -> None:
     """Refuse (CompositionError) law ``law`` on observer ``observer`` if it needs what that one
     does not give (a fixed-gain law: with F_hat in the form ``force_estimate``, None: the
-    parameter's default); one line naming both and what would fit. A user's law file is loaded
-    here (refused in one line if it cannot be). ``sensors`` (the plant's suite; None: not
-    checked): it must have what the observer reads (``ObserverEntry.reads``)."""
+    parameter's default); one line naming both and what would fit. A user's law file and observer
+    file are loaded here (each refused in one line if it cannot be). ``sensors`` (the plant's
+    suite; None: not checked): it must have what the observer reads (``ObserverEntry.reads``)."""
+    from pac_observer.choice import observer_entry
     from pac_observer.observers import OBSERVERS
 
-    lacking = [] if sensors is None else _sensors_lack(OBSERVERS[observer].reads, {"sensors": sensors})
+    chosen = observer_entry(observer)
+    lacking = [] if sensors is None else _sensors_lack(chosen.reads, {"sensors": sensors})
     if lacking:
         from pac_plant.hardware.sensors import SENSORS
 
-        reads = OBSERVERS[observer].reads
+        reads = chosen.reads
         with_them = [n for n, kit in SENSORS.items() if all(getattr(kit, c) is not None for c, _ in reads)]
         others = [
             name
             for name, other in OBSERVERS.items()
             if name != observer
-            and other.gives >= OBSERVERS[observer].gives
+            and other.gives >= chosen.gives
             and not _sensors_lack(other.reads, {"sensors": sensors})
         ]
         raise CompositionError(
@@ -258,7 +261,7 @@ def check_pair(
 
     form = force_estimate or LawParameters().force_estimate
     entry = law_entry(law)
-    needs, gives = entry.needs_of(form), OBSERVERS[observer].gives
+    needs, gives = entry.needs_of(form), chosen.gives
     missing = needs - gives
     if not missing:
         return

@@ -22,7 +22,7 @@ import numpy as np
 
 from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
 from pac_common.contact_statistics import ContactStatistics, en50367_criteria, lowpass, statistics
-from pac_experiments.campaign.spec import Point, law_file_sha256
+from pac_experiments.campaign.spec import Point, law_file_sha256, observer_file_sha256
 from pac_rig.batch import batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run_blocks, run_cores
 from pac_rig.loop import TICK, compile_loop
@@ -157,6 +157,9 @@ def run_point(point: Point, bag_dir: str | None = None) -> dict[str, Any]:
         row.update(scenario_to_flat(scenario))
         if law_file_sha256(scenario) != point.law_file_sha256:  # the key says which text ran
             raise ValueError(f"the law file {point.values['law']} changed since the campaign was checked")
+        if observer_file_sha256(scenario) != point.observer_file_sha256:
+            observer = scenario.observer.observer
+            raise ValueError(f"the observer file {observer} changed since the campaign was checked")
         if bag_dir is None:
             traces, diverged = run_traces(scenario)
         else:

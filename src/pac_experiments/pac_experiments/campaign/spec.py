@@ -40,6 +40,8 @@ from pac_common.parameters import ParameterError
 from pac_controller.laws import LAWS
 from pac_controller.parameters import LawParameters
 from pac_controller.user_law import file_digest
+from pac_observer.observers import OBSERVERS
+from pac_observer.user_observer import load_observer_file
 from pac_plant.catenary.catenary_file import load_catenary
 from pac_plant.plants import plant_kind
 from pac_rig import composition
@@ -145,6 +147,8 @@ class Point:
     statistics: str = "raw"
     #: A user's law file (``law``): the SHA-256 of its text, which the key holds and the run checks
     law_file_sha256: str = ""
+    #: A user's observer file (``observer``): the SHA-256 of its text, likewise
+    observer_file_sha256: str = ""
     #: The scenario ``values`` give, as the SPEC's check built it (None: built from ``values`` when run)
     scenario: Scenario | None = field(default=None, compare=False, repr=False)
 
@@ -304,6 +308,12 @@ def law_file_sha256(scenario: Scenario) -> str:
     return "" if law in LAWS else file_digest(law)
 
 
+def observer_file_sha256(scenario: Scenario) -> str:
+    """The SHA-256 of the text of the scenario's observer file; "" for one of pac's observers."""
+    observer = scenario.observer.observer
+    return "" if observer in OBSERVERS else load_observer_file(observer).digest
+
+
 def point_key(scenario: Scenario, window: tuple[float, float], statistics: str = "raw") -> str:
     """A stable hash of every parameter of the scenario (validated, normalised), the window,
     (when not the default) the statistics and (for a user's law file) the text of the file."""
@@ -321,6 +331,9 @@ def point_key(scenario: Scenario, window: tuple[float, float], statistics: str =
     law_text = law_file_sha256(scenario)
     if law_text:  # a user's law file: its text, so the results of an edited file do not mix
         content["law_file_sha256"] = law_text
+    observer_text = observer_file_sha256(scenario)
+    if observer_text:  # a user's observer file: likewise
+        content["observer_file_sha256"] = observer_text
     if statistics != "raw":
         content["statistics"] = statistics
     text = json.dumps(content, sort_keys=True, default=list)
@@ -437,7 +450,8 @@ def _grid_points(spec: Spec, errors: list[str] | None = None) -> Iterator[Point]
                 errors += exc.errors
                 continue
             key = point_key(scenario, window, spec.statistics)
-            yield Point(key, values, gi, window, spec.statistics, law_file_sha256(scenario), scenario)
+            texts = law_file_sha256(scenario), observer_file_sha256(scenario)
+            yield Point(key, values, gi, window, spec.statistics, *texts, scenario)
 
 
 def expand(spec: Spec) -> list[Point]:
