@@ -316,7 +316,7 @@ def observer_file_sha256(scenario: Scenario) -> str:
 
 def point_key(scenario: Scenario, window: tuple[float, float], statistics: str = "raw") -> str:
     """A stable hash of every parameter of the scenario (validated, normalised), the window,
-    (when not the default) the statistics and (for a user's law file) the text of the file."""
+    (when not the default) the statistics and (for a user's law or observer file) the file's text."""
     parameters = scenario_to_flat(scenario)
     law_defaults = LawParameters()
     for law, prefix in LAW_OWN_PREFIXES.items():
