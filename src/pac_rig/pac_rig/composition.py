@@ -242,7 +242,7 @@ def check_pair(
         from pac_plant.hardware.sensors import SENSORS
 
         reads = chosen.reads
-        with_them = [n for n, kit in SENSORS.items() if all(getattr(kit, c) is not None for c, _ in reads)]
+        with_them = [name for name in SENSORS if not _sensors_lack(reads, {"sensors": name})]
         others = [
             name
             for name, other in OBSERVERS.items()
