@@ -122,9 +122,66 @@ def test_a_fixed_base_has_no_roof():
     assert plant._with_roof(12.5) == 12.5
 
 
-def test_roof_motion_with_several_pantographs_is_refused_in_one_line():
-    with pytest.raises(ParameterError, match="invalid parameter 'roof_motion' = 'german_low'"):
-        PlantOptions(catenary_model="fe", pantographs=(0.0, 200.0), roof_motion="german_low")
+#: Two benchmark-like 3-mass pantographs 200 m apart on the FE line's endless window at 300 km/h.
+PAIR = {
+    "catenary_model": "fe",
+    "speed_kmh": SPEED_KMH,
+    "pantograph": "three_mass",
+    "passive_pantograph": "three_mass",
+    "pantographs": (0.0, 200.0),
+    "duration": 1.0,
+}
+
+
+def _pair_forces(ticks: int, **values: object) -> np.ndarray:
+    """Each pantograph's contact force (ticks x 2, in the order of ``pantographs``) of the FE plant
+    of PAIR with ``values``, the controlled one pressed by its own uplift through the ideal
+    actuator: the force each passive one gets, so that which one is controlled changes nothing of
+    the physics."""
+    from pac_rig.closed_loop import build_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    plant = build_cores(scenario_from_flat({**PAIR, **values}))[0]
+    forces = np.empty((ticks, 2))
+    for k in range(ticks):
+        forces[k] = [p.contact_force for p in plant.pantograph_truths()]  # type: ignore[attr-defined]
+        plant.advance(plant.own_uplift)
+    return forces
+
+
+@pytest.mark.offline
+def test_each_pantograph_of_a_train_rides_on_the_roof_at_its_own_place():
+    """Every car of the train runs over the same track: the pantograph 200 m behind rides on the
+    roof motion the first one had 200 m earlier, whether it is the rig's controlled one or a passive
+    one. Two runs of the same train, the first pantograph controlled in one and the second in the
+    other, give each pantograph the same force to rounding (the DOFs are stacked in another order);
+    a passive pantograph on a fixed roof, or on the controlled one's roof, fails by newtons."""
+    ticks = 1000
+    first = _pair_forces(ticks, roof_motion="german_high", roof_seed=2, controlled_pantograph=0)
+    second = _pair_forces(ticks, roof_motion="german_high", roof_seed=2, controlled_pantograph=1)
+    fixed = _pair_forces(ticks, controlled_pantograph=0)
+    scale = np.max(np.abs(first))
+    np.testing.assert_allclose(second, first, rtol=0, atol=1e-9 * scale)
+    # The roof is felt by both (not a vacuous comparison): newtons on each pantograph.
+    assert np.all(np.max(np.abs(first - fixed), axis=0) > 1.0)
+
+
+@pytest.mark.offline
+def test_the_compiled_loop_moves_the_roof_under_the_passive_pantographs(tmp_path):
+    """simulate's compiled loop and the core objects stepped tick by tick (``compiled=False``) write
+    the same bag, byte for byte, on a train of two pantographs with the roof moving: the loop gives
+    the passive one its roof force as FEPlant.advance does."""
+    from test_loop import messages_of
+
+    from pac_rig.simulate import scenario_from_flat, simulate_to_bag
+
+    s = scenario_from_flat({**PAIR, "duration": 0.3, "roof_motion": "german_high", "law": "passive"})
+    fast = simulate_to_bag(s, tmp_path / "fast")
+    slow = simulate_to_bag(s, tmp_path / "slow", compiled=False)
+    assert (fast.ticks, fast.diverged) == (slow.ticks, slow.diverged) == (300, None)
+    got, want = messages_of(tmp_path / "fast"), messages_of(tmp_path / "slow")
+    assert sum(topic == "/pantograph_truth" for topic, _, _ in got) == fast.ticks
+    assert got == want
 
 
 @pytest.mark.offline

@@ -11,6 +11,7 @@ from pac_common.divergence import OFF_LINE
 from .catenary import step
 from .catenary.packing import unpack
 from .fe_plant import several_pantographs
+from .hardware.car_body import roof_force
 from .plant_kernels import no_pantographs
 
 
@@ -55,6 +56,17 @@ def fe_advance(k, pp, ps, fe_args, force) -> int:
     """One period of the FE line (``fe_substeps`` Newmark steps); OFF_LINE past the line's end."""
     cf, ci, cl, sf, si, sl, flexibility, readings = fe_args
     c, st = unpack(cf, ci, cl, sf, si, sl)
+    t0 = k * pp.dt
+    for j in range(pp.passive_roofs):  # each passive pantograph's roof force (FEPlant.advance)
+        st.base_force[pp.passive_roof_contact[j]] = roof_force(
+            pp.roof_amplitude,
+            pp.roof_frequency,
+            pp.passive_roof_phase[j],
+            pp.passive_roof_k[j],
+            pp.passive_roof_c[j],
+            t0,
+            t0 + pp.dt,
+        )
     if step.fe_advance(c, st, force, pp.substeps, flexibility, readings) != step.STEP_OK:
         return OFF_LINE
     return 0
@@ -67,6 +79,14 @@ def fe_pack(plant, record) -> tuple:
     record["static_wire"], record["datum"] = plant.options.fe_datum == "static_wire", plant.datum
     contacts = plant.contact_of if several_pantographs(plant) else []  # pantograph_truth's
     record["pantographs"], record["contact_of"][: len(contacts)] = len(contacts), contacts
+    roofs = plant.passive_roofs
+    record["passive_roofs"] = len(roofs)
+    for j, roof in enumerate(roofs):
+        # One track under one kind of car: the controlled roof's cosines but for their phases.
+        assert plant.roof is not None and np.array_equal(roof.motion.frequency, plant.roof.frequency)
+        assert np.array_equal(roof.motion.amplitude, plant.roof.amplitude)
+        record["passive_roof_contact"][j], record["passive_roof_phase"][j] = roof.contact, roof.motion.phase
+        record["passive_roof_k"][j], record["passive_roof_c"][j] = roof.stiffness, roof.damping
     cf, ci, cl, sf, si, sl = plant.sim.packed
     flexibility = np.ascontiguousarray(plant.flexibility, dtype=np.float64)
     return (cf, ci, cl, sf.copy(), si.copy(), sl, flexibility, plant.readings)

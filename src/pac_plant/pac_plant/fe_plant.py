@@ -51,6 +51,7 @@ from .catenary.step import (
     SUPPORT_UPLIFT,
     pantograph_contact,
 )
+from .hardware.car_body import CAR_BODIES, TRACKS, RoofMotion, roof_attachment, roof_force, roof_motion
 from .parameters import PlantOptions
 from .plant import Plant, Truth
 
@@ -125,6 +126,17 @@ class PantographTruth:
     controlled: bool
 
 
+@dataclasses.dataclass(frozen=True)
+class PassiveRoof:
+    """The moving roof under a passive pantograph: its contact in the simulation, the roof's motion
+    there, and the roof spring and damper [N/m, N s/m] it reaches the pantograph's actuator mass by."""
+
+    contact: int
+    motion: RoofMotion
+    stiffness: float
+    damping: float
+
+
 class FEPlant(Plant):
     """Same interface as ``Plant``: tick, time, measurement(), truth(), advance(u), sample_period."""
 
@@ -193,7 +205,26 @@ class FEPlant(Plant):
         self.tick = 0
         self.u_applied = 0.0
         self._init_roof(chain, track.speed_kmh, spacings[ctrl])
+        self.passive_roofs = self._passive_roofs(options, spacings, track.speed_kmh)
         self._init_sensor()
+
+    def _passive_roofs(
+        self, options: PlantOptions, spacings: tuple[float, ...], speed_kmh: float
+    ) -> tuple[PassiveRoof, ...]:
+        """The roof under each passive pantograph where the roof moves: the same drawn track as the
+        controlled one's, under a car as far behind the first as the pantograph is (every car of
+        the train runs over the same track), through the passive pantograph file's own roof spring
+        and damper; () on a fixed roof."""
+        if self.roof is None:
+            return ()
+        track, car = TRACKS[options.roof_motion], CAR_BODIES[options.car_body]
+        k, c = roof_attachment(load_pantograph_file(options.passive_pantograph, "passive_pantograph"))
+        speed, seed = speed_kmh / 3.6, options.roof_seed
+        return tuple(
+            PassiveRoof(self.contact_of[j], roof_motion(track, car, speed, seed, behind), k, c)
+            for j, behind in enumerate(spacings)
+            if j != options.controlled_pantograph
+        )
 
     @property
     def z(self) -> np.ndarray:
@@ -280,6 +311,13 @@ class FEPlant(Plant):
         if self.sensors is not None:
             self._sense()  # every tick is sensed once (the suite's filters step per tick)
         applied = self._actuate(u)
+        if self.passive_roofs:  # each passive pantograph's roof force, its mean over the tick
+            t0, t1, base = self.time, self.time + self.sample_period, self.sim.state.base_force
+            for roof in self.passive_roofs:
+                m = roof.motion
+                base[roof.contact] = roof_force(
+                    m.amplitude, m.frequency, m.phase, roof.stiffness, roof.damping, t0, t1
+                )
         # The wind acts with u on the actuator's mass (the pantograph's own uplift is part of u).
         self.sim.advance(
             self._with_roof(applied + self.uplift), self.options.fe_substeps, self._flex, self._readings

@@ -91,7 +91,8 @@ class PlantOptions(ParameterSet):
         "",
         "the car body moves: the pantograph's base rides on the roof of a car body in bounce and pitch "
         "over a seeded track of this irregularity class ('german_low' or 'german_high'); '' = a fixed "
-        "base (today's rig). docs/vehicle_and_hardware.md gives the model and its numbers",
+        "base (today's rig); with several pantographs each rides on a car as far behind the first as it "
+        "is, over the same track. docs/vehicle_and_hardware.md gives the model and its numbers",
         choices=("", *TRACKS),
     )
     roof_seed: int = parameter(0, "seed of the track under the car body (roof_motion)", low=0)
@@ -216,12 +217,6 @@ class PlantOptions(ParameterSet):
                 "controlled_pantograph",
                 self.controlled_pantograph,
                 f"an index into pantographs, an integer in [0, {len(spacings) - 1}]",
-            )
-        if len(spacings) > 1 and self.roof_motion:
-            raise ParameterError(
-                "roof_motion",
-                self.roof_motion,
-                "'' with several pantographs (the roof motion under the passive ones is not wired yet)",
             )
         if len(spacings) > 1:
             load_pantograph_file(self.passive_pantograph, "passive_pantograph")

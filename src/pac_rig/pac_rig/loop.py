@@ -95,6 +95,14 @@ PLANT_PARAMS = np.dtype(
         ("roof_amplitude", "f8", TERMS),
         ("roof_frequency", "f8", TERMS),
         ("roof_phase", "f8", TERMS),
+        # The roof under each passive pantograph of an FE line (FEPlant.passive_roofs; 0 of them: a
+        # fixed roof): its contact, spring and damper, and its cosines' phases (the amplitudes and
+        # frequencies are the controlled one's: the same track under the same kind of car)
+        ("passive_roofs", "i8"),
+        ("passive_roof_contact", "i8", MAX_PANTOGRAPHS),
+        ("passive_roof_k", "f8", MAX_PANTOGRAPHS),
+        ("passive_roof_c", "f8", MAX_PANTOGRAPHS),
+        ("passive_roof_phase", "f8", (MAX_PANTOGRAPHS, TERMS)),
         # The turbulent uplift (Plant.gusts; gusts False: none): its cosines [N]
         ("gusts", "b1"),
         ("gust_amplitude", "f8", TERMS),

@@ -261,6 +261,7 @@ class ContactSimulation:
             deltas=np.zeros(n_contacts),
             touching=np.zeros(n_contacts, dtype=np.int64),
             yc_range=np.zeros((n_contacts, 2), dtype=np.int64),
+            base_force=np.zeros(n_contacts),
         )
         # One flat float and one int buffer each: a call from Python then types 10 arguments, not 38.
         self._cf, self._ci, self._cl, views = pack(tuple(self.constants), CONSTANT_KINDS)

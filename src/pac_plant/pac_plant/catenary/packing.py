@@ -18,7 +18,7 @@ CONSTANT_KINDS = (
 )  # fmt: skip
 STATE_KINDS = (
     "f1", "f1", "f1", "f1", "f1", "f1", "f1", "f1", "i1", "i1", "f3", "i1", "f2", "f2", "f2",
-    "f1", "i1", "i2",
+    "f1", "i1", "i2", "f1",
 )  # fmt: skip
 _ALIGN = 8  # elements: every packed array starts on a 64-byte boundary
 
@@ -80,7 +80,7 @@ def unpack(
         _v1(sf, sl, 0), _v1(sf, sl, 1), _v1(sf, sl, 2), _v1(sf, sl, 3), _v1(sf, sl, 4), _v1(sf, sl, 5),
         _v1(sf, sl, 6), _v1(sf, sl, 7), _v1(si, sl, 8), _v1(si, sl, 9), _v3(sf, sl, 10), _v1(si, sl, 11),
         _v2(sf, sl, 12), _v2(sf, sl, 13), _v2(sf, sl, 14), _v1(sf, sl, 15), _v1(si, sl, 16),
-        _v2(si, sl, 17),
+        _v2(si, sl, 17), _v1(sf, sl, 18),
     )  # fmt: skip
     return c, s
 

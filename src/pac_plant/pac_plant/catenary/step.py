@@ -81,7 +81,9 @@ class StepState(NamedTuple):
     ``work`` (1 + contacts, n): scratch and A^-1 g_k of contact k in row 1 + k, not zero on
     ``yc_range[k]`` only; ``padded`` (2, n + 2 KD), ``chunk_work``: scratch. ``deltas[k]``,
     ``touching[k]``: penetration and contact of contact k (the controlled one's also in
-    scalars[DELTA], counters[IN_CONTACT]).
+    scalars[DELTA], counters[IN_CONTACT]). ``base_force[k]``: the force a moving roof passes to
+    passive contact k's input over the step, added to its held uplift (0: a fixed roof; the
+    controlled one's comes with ``input_force``).
     """
 
     d: np.ndarray
@@ -102,6 +104,7 @@ class StepState(NamedTuple):
     deltas: np.ndarray
     touching: np.ndarray
     yc_range: np.ndarray
+    base_force: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -287,7 +290,7 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         fi = c.p_ground[i] * s.roof_rest[i]
         for k in range(npc):
             if i == c.p_inputs[k]:
-                fi += input_force if k == ctrl else c.p_uplift[k]
+                fi += input_force if k == ctrl else c.p_uplift[k] + s.base_force[k]
         acc1 = 0.0
         acc2 = 0.0
         for j in range(npn):
