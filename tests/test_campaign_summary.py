@@ -84,6 +84,32 @@ def test_against_pairs_each_run_with_the_reference_run_of_its_line():
     assert pid.sigma_change.largest == pytest.approx(max(expected))
 
 
+def test_against_an_axis_value_pairs_the_runs_that_differ_only_there(tmp_path):
+    """``--against catenary=as_designed``: each law's run on the installed line against the same law's
+    run on the designed one of the same seed (pid against pid, passive against passive, never
+    across laws); an axis the results do not have is refused in one line (exit 2)."""
+    from pac_experiments.campaign.summary import compare
+
+    data = []
+    for catenary, shift in (("as_designed", 0.0), ("installed", 2.0)):
+        for r in rows()[:10]:
+            data.append({"catenary": catenary, **r, "en50318_contact_loss_percent": "0"})
+            data[-1]["en50318_contact_force_std"] = str(float(r["en50318_contact_force_std"]) + shift)
+    got = {c.group["law"]: c for c in compare(data, "line_seed", "catenary=as_designed")}
+    assert set(got) == {"passive", "pid"} and all(c.group["catenary"] == "installed" for c in got.values())
+    for law, base in (("passive", 50.0), ("pid", 40.0)):
+        expected = [100.0 * 2.0 / (base + s) for s in range(5)]
+        assert got[law].pairs == 5 and got[law].unpaired == 0
+        assert got[law].sigma_change.mean == pytest.approx(np.mean(expected))
+    with (tmp_path / "results.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(data[0]))
+        writer.writeheader()
+        writer.writerows(data)
+    assert main([str(tmp_path), "--against", "catenary=as_designed"]) == 0
+    assert "# Against `catenary=as_designed`" in (tmp_path / "against.md").read_text()
+    assert main([str(tmp_path), "--against", "track=flat"]) == 2
+
+
 def test_draws_within_a_line_are_averaged_before_the_interval_over_the_lines(tmp_path):
     """With draws (``--draws roof_seed``) the interval is Student's t over the lines' means, not over
     the runs (two runs on one line are not independent draws of the line); the worst change, the

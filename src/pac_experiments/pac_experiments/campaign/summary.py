@@ -14,6 +14,8 @@ scenario; the observer may differ), and ``DIR/against.md`` / ``against.json`` gi
 change of sigma [%] (mean with its 95 % interval over the pairs, and the worst: the largest), the
 runs with more contact loss than their reference run, and the paired runs' Fm, Fm - 3 sigma, largest
 |u| and F_hat error. A run without its reference run is left out (and counted).
+``--against AXIS=VALUE`` does the same for any axis of the grid: ``--against
+catenary=realistic_3km_as_designed`` compares each other catenary with that one, run by run.
 
 ``--draws AXIS[,AXIS...]`` names axes that are draws *within* a line (the car body's track, the
 turbulence, the noise: another run of the same train on the same line): they are not groups. Each
@@ -138,22 +140,32 @@ class Comparison:
     measures: dict[str, Interval]
 
 
+def reference_of(against: str) -> tuple[str, str]:
+    """(axis, value) of an ``--against`` argument: ``LAW`` (the axis ``law``) or ``AXIS=VALUE``."""
+    axis, _, value = against.rpartition("=")
+    return axis or "law", value
+
+
 def compare(
     rows: list[dict[str, str]], over: str, reference: str, draws: tuple[str, ...] = ()
 ) -> list[Comparison]:
     """Every law but ``reference`` against it, pair by pair (module docstring), grouped by every axis
-    but ``over`` and the ``draws`` (runs that are not ``ok`` are left out, with their pairs)."""
+    but ``over`` and the ``draws`` (runs that are not ``ok`` are left out, with their pairs).
+    ``reference`` ``AXIS=VALUE``: every other value of that axis against VALUE instead, each run
+    paired with the run that has VALUE there and the same value on every other axis."""
+    axis, value = reference_of(reference)
     ok = [r for r in rows if r.get("status") == "ok"]
     if not ok:
         return []
     columns = list(rows[0])
     head = columns[: columns.index("status")] if "status" in columns else columns
     axes = [c for c in head if c not in NOT_AXES]
-    pair_axes = [a for a in axes if a not in PAIR_FREE]
-    references = {tuple(r[a] for a in pair_axes): r for r in ok if r["law"] == reference}
+    free = PAIR_FREE if axis == "law" else (axis,)
+    pair_axes = [a for a in axes if a not in free]
+    references = {tuple(r[a] for a in pair_axes): r for r in ok if r[axis] == value}
     groups: dict[tuple[str, ...], list[tuple[dict[str, str], dict[str, str] | None]]] = {}
     for row in ok:
-        if row["law"] == reference:
+        if row[axis] == value:
             continue
         key = tuple(row[a] for a in axes if a != over and a not in draws)
         groups.setdefault(key, []).append((row, references.get(tuple(row[a] for a in pair_axes))))
@@ -250,7 +262,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="campaign_summary", description=__doc__)
     parser.add_argument("out", type=Path, help="a campaign's output directory (with results.csv)")
     parser.add_argument("--over", default="line_seed", help="the axis summarised over (default line_seed)")
-    parser.add_argument("--against", metavar="LAW", help="also compare every other law with LAW, run by run")
+    parser.add_argument(
+        "--against",
+        metavar="LAW|AXIS=VALUE",
+        help="also compare every other law with LAW (or every other value of AXIS with VALUE), run by run",
+    )
     parser.add_argument(
         "--draws",
         default="",
@@ -286,6 +302,10 @@ def main(argv: list[str] | None = None) -> int:
     jsonio.write(args.out / "summary.json", data)  # strict JSON: a NaN (no interval) as null
     print(text)
     if args.against:
+        axis, _ = reference_of(args.against)
+        if axis not in rows[0]:
+            print(f"campaign_summary: {path} has no column '{axis}' to compare against", file=sys.stderr)
+            return 2
         comparisons = compare(rows, args.over, args.against, draws)
         if not comparisons:
             print(f"campaign_summary: no run of {path} pairs with a {args.against} run", file=sys.stderr)
