@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-deviation realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -138,6 +138,13 @@ realistic-experiment: setup
 realistic-draws: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_draws.yaml --out reports/realistic/draws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/draws --against passive --draws roof_seed,aero_turbulence_seed,noise_seed
+
+# What the drawn contact-wire deviation does: the passive 3-mass pantograph on the 20 report lines as
+# installed (realistic_3km) and as designed (realistic_3km_as_designed), each run against its line
+# as designed (config/campaigns/realistic_deviation.yaml -> reports/realistic/deviation/).
+realistic-deviation: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_deviation.yaml --out reports/realistic/deviation $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/deviation --against catenary=realistic_3km_as_designed
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair
 # (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py).

@@ -206,6 +206,22 @@ def test_the_realistic_preset_follows_its_layout_rule() -> None:
     assert f.line(2) != data and f.line(1) == data  # line_seed
 
 
+@pytest.mark.parametrize("seed", [100, 117])
+def test_the_line_as_designed_is_the_installed_line_without_its_deviation(seed: int) -> None:
+    """realistic_3km_as_designed draws the layout of realistic_3km for the same seed (spans, system
+    heights): the two differ only in the deviation, which moves droppers and pre-sag, never a span
+    or a height; the deviation drawn on the designed line (its stream of the seed) is the installed one."""
+    installed = load_catenary("realistic_3km")
+    designed = load_catenary("realistic_3km_as_designed")
+    assert designed.drawing is not None and designed.drawing.deviation is None
+    assert installed.drawing is not None and installed.drawing.deviation is not None
+    a, d = installed.line(seed), designed.line(seed)
+    assert [(s.length, s.encumbrance) for s in a.spans] == [(s.length, s.encumbrance) for s in d.spans]
+    assert a.spans != d.spans
+    redrawn = apply_deviation(d, installed.drawing.deviation, d.n_spans, np.random.default_rng([seed, 1]))
+    assert redrawn.spans == a.spans  # (name and source are the files')
+
+
 def test_reflect_keeps_the_height_in_its_range() -> None:
     assert reflect(1.65, 1.1, 1.6) == pytest.approx(1.55)
     assert reflect(1.0, 1.1, 1.6) == pytest.approx(1.2)
