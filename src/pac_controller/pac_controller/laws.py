@@ -108,6 +108,10 @@ class LawEntry:
     #: The law's design values, (parameter, value) pairs, where the actuator is hardware (limited range
     #: and rate), each derived where the user names it not; empty: the law's defaults serve any actuator.
     actuator_as_hardware: tuple[tuple[str, float], ...] = ()
+    #: The law's parameter that holds its passive run-in in spans (where its guard measures the
+    #: passive reference), if it has one: on a train, a pantograph with another ahead of it runs
+    #: passive until that one's wave has reached it (derived by pac_rig.composition).
+    runin_spans: str | None = None
 
     def needs_of(self, force_estimate: str) -> frozenset[str]:
         """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
@@ -190,6 +194,7 @@ LAWS: dict[str, LawEntry] = {
         kernel="pac_controller.line_adaptive_kernels",
         line_layout=True,
         actuator_as_hardware=DESIGN_FOR_ACTUATOR_AS_HARDWARE,
+        runin_spans="line_runin_spans",
     ),
     "skyhook": law_module("pac_controller.skyhook"),
 }

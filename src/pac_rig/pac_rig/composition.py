@@ -10,7 +10,9 @@ observer states what it gives (``pac_observer.observers.OBSERVERS``: ``gives``).
   needs (``observer:=contact_force``), or on the one that stands in for it where the run's sensors
   have what that one reads (``ObserverEntry.on_richer_sensors``: ``head_balance`` with a head
   accelerometer); a law that takes a line layout (``LawEntry.line_layout``) is told the design
-  layout of the whole line the plant runs; a law's design for an actuator as hardware
+  layout of the whole line the plant runs; a law that names its passive run-in
+  (``LawEntry.runin_spans``), on a pantograph with others ahead of it, runs passive until the wave
+  of the farthest one ahead has reached it; a law's design for an actuator as hardware
   (``LawEntry.actuator_as_hardware``) where the actuator is one; a fixed-gain law feeds back F_hat
   in the first form its observer gives (``force_estimate``: k_hat z1 on the paper's observer, the
   filter's own F_hat on ``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the
@@ -115,6 +117,8 @@ def derive(
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
     if fe_line and entry is not None and entry.line_layout and "line_supports" not in given:
         notes += _line_layout(given, out, catenary)
+    if fe_line and entry is not None and entry.runin_spans is not None and entry.runin_spans not in given:
+        notes += _runin_behind(entry.runin_spans, law, given, out, catenary)
     static_force = actuator_static_force(given)
     if static_force is not None:
         out["actuator_static_force"] = static_force
@@ -200,6 +204,42 @@ def _line_layout(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -
     return [
         f"line_supports:=({len(supports)} supports of the design layout of {catenary}, line seed {seed}), "
         f"line_position_start:={out['line_position_start']:g} (where the contact point starts)"
+    ]
+
+
+def _runin_behind(
+    name: str, law: str, given: Mapping[str, Any], out: dict[str, Any], catenary: str
+) -> list[str]:
+    """The law's passive run-in (its parameter ``name``), on a pantograph with others ahead of it on
+    the train, lengthened by the spans it runs before the wave of the farthest one ahead reaches it,
+    into ``out``: the law's guard measures its passive reference in the run-in, and it should measure
+    it on the wire the law will act on. Every pantograph is set down at once; the wave of one d ahead
+    runs back along the contact wire at c = sqrt(T / rho) over ground while this one runs forward at
+    v, so it arrives after d / (c + v). Nothing for a pantograph with none ahead: what one behind it
+    sends forward closes in at c - v only (docs/realistic_scenario.md, "Two pantographs")."""
+    import math
+
+    from pac_controller.parameters import LawParameters
+    from pac_model.parameters import TrackParameters
+    from pac_plant.catenary.catenary_file import load_catenary
+    from pac_plant.parameters import PlantOptions
+
+    defaults = PlantOptions()
+    spacings = [float(s) for s in given.get("pantographs", defaults.pantographs)]
+    controlled = int(given.get("controlled_pantograph", defaults.controlled_pantograph))
+    if not 0 <= controlled < len(spacings):
+        return []  # refused by name where the plant is built
+    ahead = max((spacings[controlled] - s for s in spacings if s < spacings[controlled]), default=0.0)
+    if ahead <= 0.0:
+        return []
+    line = load_catenary(catenary).data
+    v = float(given.get("speed_kmh", TrackParameters().speed_kmh)) / 3.6
+    arrival = ahead / (line.contact.wave_speed + v)
+    spans = math.ceil(v * arrival / line.span)
+    out[name] = int(getattr(LawParameters(), name)) + spans
+    return [
+        f"{name}:={out[name]} (law {law}'s run-in and {spans} spans more: the wave of the pantograph "
+        f"{ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
     ]
 
 
