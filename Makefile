@@ -146,8 +146,9 @@ realistic-deviation: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_deviation.yaml --out reports/realistic/deviation $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/deviation --against catenary=realistic_3km_as_designed
 
-# Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair
-# (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py).
+# Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair, at
+# 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;
+# ARGS="--speeds 300" for one speed, "--add-to CSV" to add speeds to an earlier run's results).
 realistic-pair: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair $(ARGS)
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_experiments.realistic.pair import PAIR_EFFORT_WEIGHT, write_report
+from pac_experiments.realistic.pair import PAIR_EFFORT_WEIGHT, main, read_results, write_report
 
 pytestmark = pytest.mark.unit
 
@@ -61,15 +61,64 @@ def test_each_pantograph_is_compared_with_the_passive_pair_on_its_own_line(tmp_p
         )
     text = write_report(rows, tmp_path)
     expected = np.mean([100.0 * ((30.0 + s) / (50.0 + s) - 1.0) for s in range(4)])
-    line = next(row for row in text.splitlines() if row.startswith("| active leading | leading (active)"))
+    line = next(
+        row for row in text.splitlines() if row.startswith("| 300 | active leading | leading (active)")
+    )
     assert f"{expected:+.1f} [" in line
-    trailing = next(row for row in text.splitlines() if row.startswith("| active leading | trailing |"))
+    trailing = next(row for row in text.splitlines() if row.startswith("| 300 | active leading | trailing |"))
     assert "+10.0 [" in trailing and trailing.rstrip(" |").endswith("3")  # 3 lines lose more contact
     spared = [
-        row for row in text.splitlines() if row.startswith(f"| active leading, mu {PAIR_EFFORT_WEIGHT:g} |")
+        row
+        for row in text.splitlines()
+        if row.startswith(f"| 300 | active leading, mu {PAIR_EFFORT_WEIGHT:g} |")
     ]
-    assert [row.split(" | ")[1] for row in spared] == ["leading (active)", "trailing"]
+    assert [row.split(" | ")[2] for row in spared] == ["leading (active)", "trailing"]
     assert " | +0.0 [" in spared[1] and spared[1].rstrip(" |").endswith("0")
-    active = [row.split(" | ")[1] for row in text.splitlines() if row.startswith("| active trailing |")]
+    active = [row.split(" | ")[2] for row in text.splitlines() if row.startswith("| 300 | active trailing |")]
     assert active == ["leading", "trailing (active)"]
     assert (tmp_path / "results.csv").read_text().count("\n") == 17
+
+
+def _pair_rows(speed: float, passive_sigma: float, active_sigma: float) -> list[dict]:
+    rows = []
+    for seed in range(3):
+        base = {"line_seed": seed, "speed_kmh": speed, "leading_mean": 155.0, "trailing_mean": 155.0}
+        for config, active, sigma in (
+            ("passive pair", "", passive_sigma),
+            ("active leading", "leading", active_sigma),
+        ):
+            rows.append(
+                {
+                    **base,
+                    "config": config,
+                    "active": active,
+                    "leading_sigma": sigma + seed,
+                    "trailing_sigma": 70.0,
+                    "leading_loss_percent": 0.0,
+                    "trailing_loss_percent": 5.0,
+                }
+            )
+    return rows
+
+
+def test_each_speed_is_compared_with_the_passive_pair_at_that_speed_and_a_report_adds_to_its_csv(tmp_path):
+    """Two speeds: each run against the passive pair on its line at its own speed (not the other
+    speed's); read_results gives write_report's rows back as numbers, so a run at another speed can
+    be added to an earlier report (``--add-to``); a line and speed already there is refused in one
+    line, exit 2, as is a file that cannot be read."""
+    first = _pair_rows(250.0, 30.0, 24.0)
+    write_report(first, tmp_path / "a")
+    earlier = read_results(tmp_path / "a" / "results.csv")
+    assert earlier == first
+    text = write_report(earlier + _pair_rows(300.0, 50.0, 35.0), tmp_path / "b")
+    at = {
+        row.split(" | ")[0].lstrip("| "): row
+        for row in text.splitlines()
+        if " | active leading | leading (active) |" in row
+    }
+    for speed, passive, active in (("250", 30.0, 24.0), ("300", 50.0, 35.0)):
+        expected = np.mean([100.0 * ((active + s) / (passive + s) - 1.0) for s in range(3)])
+        assert f"{expected:+.1f} [" in at[speed]
+    assert "250, 300 km/h" in text
+    assert main(["--add-to", str(tmp_path / "a" / "results.csv"), "--speeds", "250", "--seeds", "1"]) == 2
+    assert main(["--add-to", str(tmp_path / "none.csv"), "--speeds", "300", "--seeds", "1"]) == 2

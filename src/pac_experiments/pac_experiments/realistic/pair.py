@@ -4,7 +4,8 @@ passive, against a passive pair (``make realistic-pair``).
 Every run: ``realistic_electromechanical`` with two benchmark-like 3-mass pantographs 200 m apart
 (``pantographs: [0, 200]``), each on the roof of its own car: the scenario's track under the
 leading car, the same track 200 m later under the trailing one (``--fixed-roof``: both roofs fixed,
-``roof_motion: ''``), F_r the EN 50367 target at each pantograph. Four runs per line: both
+``roof_motion: ''``), F_r the EN 50367 target at each pantograph, at each speed of ``SPEEDS``
+(``--speeds``). Four runs per line and speed: both
 passive (law ``passive`` on the leading one), the
 leading one active (law ``line_adaptive``, ``controlled_pantograph: 0``), the leading one active
 with the effort weight that spares its follower (``PAIR_EFFORT_WEIGHT``), the trailing one active
@@ -14,7 +15,8 @@ Each pantograph's EN 50318 statistics (20 Hz low-pass, contact loss
 on the raw force) over the same stretch of line: from the support ``FIRST_SPAN`` to ``LAST_SPAN``
 of the design layout counted from the start of the leading pantograph, which both pass.
 
-Writes ``reports/realistic/pair/`` (pair.md, results.csv).
+Writes ``reports/realistic/pair/`` (pair.md, results.csv; ``--add-to CSV`` keeps an earlier run's
+rows and adds these, each run against the passive pair on its line at its speed).
 """
 
 from __future__ import annotations
@@ -35,6 +37,8 @@ from pac_experiments.campaign.summary import Interval
 
 SEEDS = tuple(range(100, 120))
 SPEED = 300.0
+#: The speeds of ``make realistic-pair``: the realistic experiment's.
+SPEEDS = (250.0, 300.0, 320.0, 350.0)
 SPACING = 200.0
 FIRST_SPAN, LAST_SPAN = 10, 30  # supports counted from the leading pantograph's start
 #: line_adaptive's effort weight mu for a leading pantograph that spares its follower: chosen on
@@ -131,34 +135,44 @@ def _seed_text(seeds: list[int]) -> str:
     return ", ".join(map(str, seeds))
 
 
+def read_results(path: Path) -> list[dict[str, Any]]:
+    """The rows of a results.csv that :func:`write_report` wrote, with their numbers as numbers."""
+    with path.open(newline="") as f:
+        rows: list[dict[str, Any]] = list(csv.DictReader(f))
+    for row in rows:
+        for key, value in row.items():
+            if key == "line_seed":
+                row[key] = int(value)
+            elif key not in ("config", "active"):
+                row[key] = float(value)
+    return rows
+
+
 def write_report(rows: list[dict[str, Any]], out: Path, fixed_roof: bool = False) -> str:
-    """pair.md: per configuration and pantograph, sigma and loss over the lines, and the change of
-    each pantograph's sigma against the passive pair on the same line."""
+    """pair.md: per speed, configuration and pantograph, sigma and loss over the lines, and the
+    change of each pantograph's sigma against the passive pair on the same line at the same speed."""
     out.mkdir(parents=True, exist_ok=True)
     with (out / "results.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    passive = {r["line_seed"]: r for r in rows if r["config"] == "passive pair"}
+    passive = {(r["line_seed"], r["speed_kmh"]): r for r in rows if r["config"] == "passive pair"}
     table = []
-    for config in dict.fromkeys(r["config"] for r in rows):  # in the order of the runs
-        members = [r for r in rows if r["config"] == config]
+    groups = dict.fromkeys((r["speed_kmh"], r["config"]) for r in rows)  # in the order of the runs
+    for speed, config in sorted(groups, key=lambda g: g[0]):  # stable: each speed's runs in order
+        members = [r for r in rows if r["config"] == config and r["speed_kmh"] == speed]
         for name in PANTOGRAPHS:
             sigma = Interval.of([r[f"{name}_sigma"] for r in members])
-            paired = [r for r in members if r["line_seed"] in passive]
-            change = Interval.of(
-                [
-                    100.0 * (r[f"{name}_sigma"] / passive[r["line_seed"]][f"{name}_sigma"] - 1.0)
-                    for r in paired
-                ]
-            )
-            more = sum(
-                r[f"{name}_loss_percent"] > passive[r["line_seed"]][f"{name}_loss_percent"] for r in paired
-            )
+            paired = [
+                (r, passive[r["line_seed"], speed]) for r in members if (r["line_seed"], speed) in passive
+            ]
+            change = Interval.of([100.0 * (r[f"{name}_sigma"] / p[f"{name}_sigma"] - 1.0) for r, p in paired])
+            more = sum(r[f"{name}_loss_percent"] > p[f"{name}_loss_percent"] for r, p in paired)
             loss = stats_lib.fmean(r[f"{name}_loss_percent"] for r in members)
             active = members[0]["active"] == name
             table.append(
                 [
+                    f"{speed:g}",
                     config,
                     name + (" (active)" if active else ""),
                     str(len(members)),
@@ -172,6 +186,7 @@ def write_report(rows: list[dict[str, Any]], out: Path, fixed_roof: bool = False
                 ]
             )
     header = [
+        "v [km/h]",
         "configuration",
         "pantograph",
         "lines",
@@ -180,11 +195,12 @@ def write_report(rows: list[dict[str, Any]], out: Path, fixed_roof: bool = False
         "mean loss [%]",
         "more loss than passive pair",
     ]
+    speeds = ", ".join(f"{v:g}" for v in sorted({r["speed_kmh"] for r in rows}))
     roof = "with the roof fixed" if fixed_roof else "with each pantograph on its own car's moving roof"
     text = (
         "# Two pantographs 200 m apart on the realistic line\n\n"
         f"Generated by `make realistic-pair` (src/pac_experiments/pac_experiments/realistic/pair.py): "
-        f"realistic_electromechanical {roof}, {SPEED:g} km/h, line seeds "
+        f"realistic_electromechanical {roof}, {speeds} km/h, line seeds "
         f"{_seed_text(sorted({r['line_seed'] for r in rows}))}, "
         "EN 50318 statistics of each pantograph over supports "
         f"{FIRST_SPAN}-{LAST_SPAN} of the leading one's start. "
@@ -201,6 +217,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     parser.add_argument("--seeds", type=int, nargs="+", default=list(SEEDS), help="line seeds")
     parser.add_argument(
+        "--speeds", type=float, nargs="+", default=list(SPEEDS), help="km/h (default: %(default)s)"
+    )
+    parser.add_argument(
+        "--add-to",
+        type=Path,
+        metavar="CSV",
+        help="an earlier run's results.csv: its rows are kept and these runs added (one report of both)",
+    )
+    parser.add_argument(
         "--effort-weights",
         type=float,
         nargs="+",
@@ -212,14 +237,27 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     configs = configurations(tuple(args.effort_weights))
+    try:
+        earlier = read_results(args.add_to) if args.add_to else []
+    except (OSError, KeyError, ValueError) as error:
+        print(f"realistic_pair: cannot read {args.add_to}: {error}", file=sys.stderr)
+        return 2
+    again = {(r["line_seed"], r["speed_kmh"]) for r in earlier} & {
+        (s, v) for s in args.seeds for v in args.speeds
+    }
+    if again:
+        seed, speed = min(again)
+        print(f"realistic_pair: {args.add_to} has line {seed} at {speed:g} km/h already", file=sys.stderr)
+        return 2
     jobs = [
-        (seed, name, config, SPEED, args.fixed_roof)
+        (seed, name, config, speed, args.fixed_roof)
+        for speed in args.speeds
         for seed in args.seeds
         for name, config in configs.items()
     ]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(_run, jobs))
-    print(write_report(rows, args.out, args.fixed_roof))
+    print(write_report(earlier + rows, args.out, args.fixed_roof))
     return 0
 
 
