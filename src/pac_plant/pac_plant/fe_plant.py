@@ -43,6 +43,7 @@ from .catenary.imperfections import apply_imperfections
 from .catenary.integrator import ContactSimulation, PassivePantograph, rear_periods
 from .catenary.line import Line
 from .catenary.pantographs import LumpedPantograph, head_first, lumped, plant_chain
+from .catenary.sections import SectionedLine
 from .catenary.step import (
     CONTACT_UPLIFT,
     STATIC_HEIGHT,
@@ -87,7 +88,7 @@ def line_and_flexibility(
     function of the data, built once per process and shared by every plant on it (nothing writes
     to them after this); they are most of an FE plant's set-up (~0.7 s of CPU), which a campaign
     would otherwise pay per run."""
-    line = Line(data, numerics, n_spans=n_spans)
+    line = SectionedLine(data, numerics) if data.sections else Line(data, numerics, n_spans=n_spans)
     return line, line.element_flexibility()
 
 

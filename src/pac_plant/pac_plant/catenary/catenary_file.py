@@ -23,7 +23,7 @@ from pac_common.data_file import DataFileError, Map, Presets, Reader, Seq
 
 from .data import GRAVITY, CatenaryData, NumericalOptions, SpanData, StitchData, WireData
 from .deviation import DeviationModel, apply_deviation
-from .layout_rule import LayoutRule, draw_spans
+from .layout_rule import LayoutRule, draw_sections, draw_spans
 
 #: The shipped presets, in the repository (found from this file's location, installed or not).
 PRESET_FOLDER = Path("config") / "catenaries"
@@ -88,7 +88,27 @@ class LineDrawing:
             data = apply_deviation(data, self.deviation, n, np.random.default_rng([seed, 1]))
             if self.layout is None:  # a deviated period, cycled over the section as before
                 data = dataclasses.replace(data, n_spans=max(data.n_spans, n))
+        if self.layout is not None and self.layout.section_spans_min:
+            data = self._sections(data, spans, seed)
         return data
+
+    def _sections(self, data: CatenaryData, design: tuple[SpanData, ...], seed: int) -> CatenaryData:
+        """``data`` as tension sections (``sections.SectionedLine``): each section the drawn line's
+        spans, but the incoming wire over an overlap has a deviation of its own (a further
+        stream of the seed); the outgoing wire and every span outside overlaps are the line the
+        same seed draws without sections."""
+        assert self.layout is not None
+        rule, n_o = self.layout, self.layout.overlap_spans
+        split = draw_sections(len(data.spans), rule, np.random.default_rng([seed, 2]))
+        sections = []
+        for s, (first, count) in enumerate(split):
+            own = data.spans[first : first + count]
+            if s > 0 and self.deviation is not None:
+                wire = dataclasses.replace(data, spans=design[first : first + n_o])
+                fresh = apply_deviation(wire, self.deviation, n_o, np.random.default_rng([seed, 3, s]))
+                own = fresh.spans + own[n_o:]
+            sections.append((first, tuple(own)))
+        return dataclasses.replace(data, sections=tuple(sections), overlap_lift=rule.overlap_lift)
 
 
 TOP_KEYS = (
@@ -129,7 +149,9 @@ LAYOUT_KEYS = (
     "droppers",
     "end_dropper",
     "presag_per_length",
+    "sections",
 )
+SECTION_KEYS = ("spans_min", "spans_max", "overlap_lift")
 DEVIATION_KEYS = ("model", "vertical_sigma", "correlation_length", "longitudinal_sigma", "spans")
 LAYOUT_RULES = ("uniform_spans",)
 DEVIATION_MODELS = ("exponential_psd",)
@@ -256,6 +278,24 @@ def _layout(r: Reader, raw: Map) -> LayoutRule:
         end_dropper=r.number(m, "end_dropper", p, "m", 0.0, 0.25 * span_min),
         presag_per_length=r.number(m, "presag_per_length", p, "", 0.0, 0.005, low_open=False),
     )
+    if m.get("sections") is not None:
+        sm, q = r.mapping(m, "sections", p, SECTION_KEYS), f"{p}sections."
+        lift = r.numbers(sm, "overlap_lift", q, "m", 0.0, 2.0, low_open=False, count=None)
+        if not 2 <= len(lift) <= 4 or lift[0] != 0.0 or lift[-1] <= 0.0:
+            raise r.fail(
+                f"{q}overlap_lift",
+                list(lift),
+                "2 to 4 lifts (an overlap of 1 to 3 spans), the first 0, the last > 0",
+                sm.marks["overlap_lift"],
+            )
+        n_o = len(lift) - 1
+        lo = _count(r, sm, "spans_min", q, 2 * n_o + 1, 200)
+        rule = dataclasses.replace(
+            rule,
+            section_spans_min=lo,
+            section_spans_max=_count(r, sm, "spans_max", q, lo, 200),
+            overlap_lift=lift,
+        )
     if (rule.span_min - 2.0 * rule.end_dropper) / (rule.droppers - 1) < 1.0:
         raise r.fail(
             "layout.droppers",

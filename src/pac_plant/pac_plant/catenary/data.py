@@ -82,6 +82,13 @@ class CatenaryData:
     #: ``spans`` is one whole line (a layout rule drew it), not a period: the plant runs it as a
     #: fixed line from end to end, not as an endless window.
     whole_line: bool = False
+    #: A whole line of several tension sections (``catenary/sections.py``): each section's first
+    #: span in ``spans`` and its own spans (the wires it hangs: an overlap's spans are in two
+    #: sections, each with its own deviation). Empty: one contact wire from end to end.
+    sections: tuple[tuple[int, tuple[SpanData, ...]], ...] = ()
+    #: The outgoing wire's lift above the contact-wire height at each support of an overlap [m]
+    #: (the incoming wire's is the same, reversed); the overlap spans len(overlap_lift) - 1 spans.
+    overlap_lift: tuple[float, ...] = ()
 
     @property
     def period(self) -> float:

@@ -135,7 +135,13 @@ class ContactSimulation:
         heads = self.dof_start + np.array([q.head for q in self.pantographs], dtype=np.int64)
         inputs = self.dof_start + np.array([q.input for q in self.pantographs], dtype=np.int64)
         self.uplifts = np.array([0.0] + [float(q.uplift) for q in passive])
-        n_contacts = len(self.pantographs)
+        # A line of tension sections: each pantograph has a contact on either wire set (an
+        # overlap's two wires), the second one without an input of its own (step.StepConstants).
+        n_pantographs = len(self.pantographs)
+        wires = min(2, len(line.sections))
+        n_contacts = wires * n_pantographs
+        contact_heads = np.tile(heads, wires)
+        contact_inputs = np.concatenate([inputs, np.full((wires - 1) * n_pantographs, -1, dtype=np.int64)])
         self.dt = dt
         self.speed = speed
         self.kp = line.options.contact_stiffness
@@ -232,14 +238,19 @@ class ContactSimulation:
                     DOFS_PER_NODE * line.nodes_per_period,
                     self._drop_per_span,
                     0,  # the controlled contact
+                    n_pantographs,
                 ],
                 dtype=np.int64,
             ),
-            p_heads=heads,
-            p_inputs=inputs,
-            p_lag=self.lags.copy(),
-            p_uplift=self.uplifts.copy(),
+            p_heads=contact_heads,
+            p_inputs=contact_inputs,
+            p_lag=np.tile(self.lags, wires),
+            p_uplift=np.tile(self.uplifts, wires),
             y_rest=self._rest_solution(),
+            sections=np.ascontiguousarray(line.sections, dtype=np.int64),
+            section_x=np.ascontiguousarray(line.section_x, dtype=float),
+            lift=np.ascontiguousarray(line.lift, dtype=float),
+            p_wire=np.repeat(np.arange(wires, dtype=np.int64), n_pantographs),
         )
         # State: the arrays the compiled step mutates in place (the attributes below are views).
         self.state = StepState(
@@ -322,7 +333,7 @@ class ContactSimulation:
     # both where the compiled loop reads them).
     @property
     def delta(self) -> float:
-        return float(self.state.deltas[0])
+        return float(self.state.scalars[DELTA])
 
     @delta.setter
     def delta(self, value: float) -> None:
@@ -330,7 +341,7 @@ class ContactSimulation:
 
     @property
     def in_contact(self) -> bool:
-        return bool(self.state.touching[0])
+        return bool(self.state.counters[IN_CONTACT])
 
     @in_contact.setter
     def in_contact(self, value: bool) -> None:
@@ -425,8 +436,10 @@ class ContactSimulation:
             raise ValueError("static uplift slackens a dropper: start from rest instead")
         self._place_pantographs(heads, forces)
         self.input_force = force
-        self.state.touching[:] = 1
-        self.state.deltas[:] = forces / self.kp
+        self.state.touching[:] = 0
+        self.state.deltas[:] = 0.0
+        self.state.touching[: len(forces)] = 1  # (each on the wire it was placed on: the first set)
+        self.state.deltas[: len(forces)] = forces / self.kp
         self.in_contact = True
         self.delta = force / self.kp
 
@@ -519,9 +532,8 @@ class ContactSimulation:
         """Solve the contact columns (A^-1 e_i, 2 solves per node) of the stretch the contact points
         sweep while x runs over [x_from, x_to] now: a run over it then never pays them (``step``
         otherwise does at each node's first use)."""
-        e_from, _ = self.line.locate(max(x_from - float(self.lags.max()), 0.0))
-        e_to, _ = self.line.locate(x_to)
-        prepare_unit_patches(self.constants, self.state, e_from, e_to + 1)
+        for e_from, e_to in self.line.node_ranges(max(x_from - float(self.lags.max()), 0.0), x_to):
+            prepare_unit_patches(self.constants, self.state, e_from, e_to)
 
     def readings_at(self, flexibility: np.ndarray, x: float, readings: np.ndarray) -> None:
         """``step.readings_at`` window position x (a contact point: x - lag) into ``readings``."""

@@ -34,6 +34,16 @@ class LayoutRule:
     end_dropper: float  # m, first and last dropper from the masts
     presag_per_length: float  # mid-span design pre-sag / span length
     rule: str = "uniform_spans"
+    #: Tension sections (``sections``): spans per section, drawn uniform in [min, max]; 0: one
+    #: tension length over the whole line.
+    section_spans_min: int = 0
+    section_spans_max: int = 0
+    #: The outgoing wire's lift at the supports of an overlap [m] (``CatenaryData.overlap_lift``).
+    overlap_lift: tuple[float, ...] = ()
+
+    @property
+    def overlap_spans(self) -> int:
+        return max(len(self.overlap_lift) - 1, 0)
 
 
 def dropper_layout(length: float, rule: LayoutRule) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -67,3 +77,24 @@ def draw_spans(rule: LayoutRule, rng: np.random.Generator) -> tuple[SpanData, ..
             rule.height_max,
         )
     return tuple(spans)
+
+
+def draw_sections(n_spans: int, rule: LayoutRule, rng: np.random.Generator) -> list[tuple[int, int]]:
+    """(first span, spans) of each tension section of a line of ``n_spans`` spans: lengths uniform in
+    [``section_spans_min``, ``section_spans_max``], consecutive sections sharing the overlap's
+    spans. Where a draw would leave a rest shorter than the minimum, what is left is halved, or
+    is one section (longer than the maximum) where halves would be too short."""
+    lo, hi, n_o = rule.section_spans_min, rule.section_spans_max, rule.overlap_spans
+    out: list[tuple[int, int]] = []
+    first = 0
+    while n_spans - first > hi:
+        rest = n_spans - first
+        count = int(rng.integers(lo, hi + 1))
+        if rest - count + n_o < lo:  # the rest would be too short
+            if rest + n_o < 2 * lo:
+                break
+            count = (rest + n_o + 1) // 2
+        out.append((first, count))
+        first += count - n_o
+    out.append((first, n_spans - first))
+    return out

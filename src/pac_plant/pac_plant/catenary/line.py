@@ -220,6 +220,10 @@ class Line:
             stiffness=data.dropper_ea / layout.dropper_height,
             elongation0=np.zeros(nd),
         )
+        # One tension section: every node on one wire, nowhere lifted (``sections.SectionedLine``).
+        self.sections = np.array([[0, self.n_nodes]], dtype=np.int64)
+        self.section_x = np.array([[0.0, self.length]])
+        self.lift = np.zeros(self.n_nodes)
         self._assemble_wires()
         self.solve_dropper_lengths()
 
@@ -380,6 +384,10 @@ class Line:
         # A dropper that would have to push hangs slack instead (the taut state, untouched, where none does).
         rest = tension_only_equilibrium(self.solve_static, w_taut, e_taut, dr.wc, dr.wm, dr.stiffness)
         self.w_static, dr.elongation0, self.rest_slack = rest.w, rest.elongation, rest.slack
+
+    def node_ranges(self, x_from: float, x_to: float) -> list[tuple[int, int]]:
+        """(first, last) node of the stretch that contact points on [x_from, x_to] use."""
+        return [(self.locate(x_from)[0], self.locate(x_to)[0] + 1)]
 
     def rest_load(self) -> np.ndarray:
         """The constant load that keeps the taut-dropper K in equilibrium at the tension-only rest

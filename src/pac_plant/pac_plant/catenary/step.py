@@ -41,6 +41,11 @@ class StepConstants(NamedTuple):
     ``p_heads[k]`` / ``p_inputs[k]`` its head and input DOF, ``p_lag[k]`` its distance behind x
     [m], ``p_uplift[k]`` the force held on its input (ignored for the controlled one) [N].
     ``y_rest`` = A^-1 ``Line.rest_load()`` where droppers hang slack at rest, else empty.
+    Tension sections (``sections.SectionedLine``; one on any other line): ``sections[q]`` the
+    node range of section q, ``section_x[q]`` its extent along the line [m], ``lift`` every node's
+    reference lift [m]. ``indices[6]`` = the pantographs P; on a line of several sections contact
+    P + k is pantograph k's on the other wire set (``p_wire``: 0 touches sections 0, 2, ...; 1
+    the odd ones), with no input of its own (``p_inputs`` -1).
     """
 
     m_pad: np.ndarray
@@ -69,6 +74,10 @@ class StepConstants(NamedTuple):
     p_lag: np.ndarray
     p_uplift: np.ndarray
     y_rest: np.ndarray
+    sections: np.ndarray
+    section_x: np.ndarray
+    lift: np.ndarray
+    p_wire: np.ndarray
 
 
 class StepState(NamedTuple):
@@ -107,11 +116,22 @@ class StepState(NamedTuple):
     base_force: np.ndarray
 
 
+#: Where a contact has no wire over it (one wire set outside an overlap): its wire is put this far
+#: above the head [m], so it never touches.
+NO_WIRE = 1.0e3
+
+
 @numba.njit(cache=True)
 def hermite_weights(x_nodes: np.ndarray, x: float) -> tuple[int, np.ndarray]:
     """(element, Hermite weights) of position x: ``Line.locate`` + ``hermite_shape`` (x on the line)."""
-    e = int(np.searchsorted(x_nodes, x, side="right")) - 1
-    e = min(max(e, 0), x_nodes.shape[0] - 2)
+    return hermite_in(x_nodes, 0, x_nodes.shape[0], x)
+
+
+@numba.njit(cache=True)
+def hermite_in(x_nodes: np.ndarray, lo: int, hi: int, x: float) -> tuple[int, np.ndarray]:
+    """``hermite_weights`` on the nodes lo .. hi - 1 (one tension section)."""
+    e = lo + int(np.searchsorted(x_nodes[lo:hi], x, side="right")) - 1
+    e = min(max(e, lo), hi - 2)
     h = x_nodes[e + 1] - x_nodes[e]
     xi = (x - x_nodes[e]) / h
     x2, x3 = xi * xi, xi * xi * xi
@@ -121,6 +141,39 @@ def hermite_weights(x_nodes: np.ndarray, x: float) -> tuple[int, np.ndarray]:
     n[2] = 3 * x2 - 2 * x3
     n[3] = h * (x3 - x2)
     return e, n
+
+
+@numba.njit(cache=True)
+def contact_section(c: StepConstants, x: float, wire: int) -> int:
+    """The section of wire set ``wire`` (sections wire, wire + 2, ...) over x; -1 if none."""
+    for q in range(wire, c.sections.shape[0], 2):
+        if c.section_x[q, 0] <= x <= c.section_x[q, 1]:
+            return q
+    return -1
+
+
+@numba.njit(cache=True)
+def node_lift(c: StepConstants, e: int, x: float) -> float:
+    """The reference lift [m] at x in element e (linear between its nodes)."""
+    xi = (x - c.x_nodes[e]) / (c.x_nodes[e + 1] - c.x_nodes[e])
+    return (1.0 - xi) * c.lift[e] + xi * c.lift[e + 1]
+
+
+@numba.njit(cache=True)
+def running_section(c: StepConstants, x: float) -> int:
+    """``SectionedLine.running_section``: the lower wire over x at rest, the earlier where level."""
+    if c.sections.shape[0] == 1:
+        return 0
+    best, best_height = 0, np.inf
+    for q in range(c.sections.shape[0]):
+        if c.section_x[q, 0] <= x <= c.section_x[q, 1]:
+            e, n = hermite_in(c.x_nodes, c.sections[q, 0], c.sections[q, 1], x)
+            hq = node_lift(c, e, x)
+            for i in range(4):
+                hq += n[i] * c.w_static[4 * e + (i % 2) + 4 * (i // 2)]
+            if hq < best_height:
+                best, best_height = q, hq
+    return best
 
 
 @numba.njit(cache=True)
@@ -254,8 +307,18 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     elem = np.empty(npc, dtype=np.int64)
     nsh = np.empty((npc, 4))
     dofs = np.empty((npc, 4), dtype=np.int64)
+    sectioned = c.sections.shape[0] > 1
+    lifted = np.zeros(npc)
     for k in range(npc):
-        e, w = hermite_weights(c.x_nodes, x_new - c.p_lag[k])
+        xk = x_new - c.p_lag[k]
+        q = contact_section(c, xk, c.p_wire[k])
+        if q < 0:  # no wire of this set over the head: a stand-in element, its wire far above
+            q = c.p_wire[k]
+            xk = min(max(xk, c.section_x[q, 0]), c.section_x[q, 1])
+            lifted[k] = NO_WIRE
+        e, w = hermite_in(c.x_nodes, c.sections[q, 0], c.sections[q, 1], xk)
+        if sectioned and lifted[k] == 0.0:
+            lifted[k] = node_lift(c, e, xk)
         elem[k] = e
         nsh[k] = w
         dofs[k, 0], dofs[k, 1], dofs[k, 2], dofs[k, 3] = 4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5
@@ -318,6 +381,8 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
             gc_y[k] -= nsh[k, i] * y_l[dofs[k, i]]
             for j in range(npc):
                 gc_yc[k, j] -= nsh[k, i] * s.work[1 + j, dofs[k, i]]
+        if sectioned:
+            ws_x[k] += lifted[k]
     gd_y = np.empty(nd)
     for j in range(nd):
         for k in range(npc):
@@ -413,6 +478,13 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         s.deltas[k] = delta[k] if touch[k] else min(delta[k], 0.0)
     s.counters[IN_CONTACT] = s.touching[ctrl]  # the controlled contact's, where the loop reads them
     s.scalars[DELTA] = s.deltas[ctrl]
+    twin = ctrl + c.indices[6]
+    if twin < npc:  # its contact on the other wire: the pantograph's penetration is the sum
+        if s.touching[twin]:
+            s.scalars[DELTA] = s.deltas[twin] + (s.deltas[ctrl] if s.touching[ctrl] else 0.0)
+            s.counters[IN_CONTACT] = 1
+        elif not s.touching[ctrl]:
+            s.scalars[DELTA] = max(s.deltas[ctrl], s.deltas[twin])
     s.slack[:ns] = slack
     s.counters[N_SLACK] = ns
     s.scalars[INPUT_FORCE] = input_force
@@ -434,8 +506,12 @@ def contact_readings(c: StepConstants, s: StepState, flexibility: np.ndarray, ou
 def pantograph_contact(c: StepConstants, s: StepState, k: int) -> tuple[float, float]:
     """Contact k (pantograph k's head): its penalty force kp delta_k where it touches, else 0 [N],
     and its contact point's distance from the line's start (x plus what an endless line shifted,
-    minus its lag) [m]. The one home of both: the compiled loop and ``ContactSimulation`` call it."""
+    minus its lag) [m]. The one home of both: the compiled loop and ``ContactSimulation`` call it.
+    On a line of tension sections the force is the sum over the wires the head touches."""
     force = c.numbers[4] * s.deltas[k] if s.touching[k] != 0 else 0.0
+    for j in range(k + c.indices[6], c.p_lag.shape[0], c.indices[6]):
+        if s.touching[j] != 0:
+            force += c.numbers[4] * s.deltas[j]
     return force, s.scalars[X] + s.scalars[OFFSET] - c.p_lag[k]
 
 
@@ -445,7 +521,9 @@ def readings_at(c: StepConstants, s: StepState, flexibility: np.ndarray, x: floa
     uplift there and at the nearest support [m], the static point stiffness 1 / (N^T F_e N)
     from the element's 4x4 flexibility block [N/m], the static wire height [m] and slope."""
     span = c.numbers[8]
-    e, n = hermite_weights(c.x_nodes, x)
+    q = running_section(c, x)
+    lo, hi = c.sections[q, 0], c.sections[q, 1]
+    e, n = hermite_in(c.x_nodes, lo, hi, x)
     dofs = np.array([4 * e, 4 * e + 1, 4 * e + 4, 4 * e + 5])
     up, ws, nfn = 0.0, 0.0, 0.0
     for i in range(4):
@@ -462,7 +540,10 @@ def readings_at(c: StepConstants, s: StepState, flexibility: np.ndarray, x: floa
     slope = 0.0
     for i in range(4):
         slope += dn[i] * c.w_static[dofs[i]]
-    es, ns = hermite_weights(c.x_nodes, np.rint(x / span) * span)
+    if c.sections.shape[0] > 1:  # the running wire's lift (a whole line: no span to round to)
+        ws += node_lift(c, e, x)
+        slope += (c.lift[e + 1] - c.lift[e]) / h
+    es, ns = hermite_in(c.x_nodes, lo, hi, np.rint(x / span) * span)
     sup = 0.0
     for i in range(4):
         sup += ns[i] * s.d[4 * es + (i % 2) + 4 * (i // 2)]
