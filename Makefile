@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-deviation realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-deviation realistic-sections realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -145,6 +145,15 @@ realistic-draws: setup
 realistic-deviation: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_deviation.yaml --out reports/realistic/deviation $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/deviation --against catenary=realistic_3km_as_designed
+
+# Tension sections joined by overlaps: the passive pantograph with and without them, then passive
+# against line_adaptive on realistic_electromechanical over them, and the force over the first overlap.
+realistic-sections: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_sections.yaml --out reports/realistic/sections $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/sections --against catenary=realistic_3km
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_sections_laws.yaml --out reports/realistic/sections_laws $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/sections_laws --against law=passive
+	scripts/with_env.sh ros2 run pac_experiments realistic_overlap_figure --out reports/realistic/sections_laws
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair, at
 # 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;

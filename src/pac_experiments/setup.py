@@ -38,6 +38,7 @@ setup(
             "realistic_pair = pac_experiments.realistic.pair:main",
             "realistic_passes = pac_experiments.realistic.passes:main",
             "realistic_laws_figures = pac_experiments.realistic.laws_figures:main",
+            "realistic_overlap_figure = pac_experiments.realistic.overlap_figure:main",
             "line_response = pac_experiments.catenary.line_response:main",
         ],
     },

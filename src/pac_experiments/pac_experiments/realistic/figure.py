@@ -59,6 +59,7 @@ def force_series(values: dict, spans: tuple[float, float]) -> dict[str, np.ndarr
         "filtered": filtered[window],
         "uplift_mm": 1e3 * np.asarray(uplift)[window],
         "supports": seen - start,
+        "start": np.asarray(start),  # the run's first contact position [m from the line's start]
     }
 
 
