@@ -406,8 +406,13 @@ class Line:
         """Element index and local coordinate xi in [0, 1] of position x on the line."""
         if not (0.0 <= x <= self.length):
             raise ValueError(f"position {x!r} m is off the line [0, {self.length}] m")
-        e = int(np.searchsorted(self.x, x, side="right")) - 1
-        e = min(max(e, 0), self.n_nodes - 2)
+        return self._locate_in(0, x)
+
+    def _locate_in(self, s: int, x: float) -> tuple[int, float]:
+        """``locate`` on the nodes of tension section s (``sections``; a plain line has one)."""
+        lo, hi = (int(v) for v in self.sections[s])
+        e = lo + int(np.searchsorted(self.x[lo:hi], x, side="right")) - 1
+        e = min(max(e, lo), hi - 2)
         return e, (x - self.x[e]) / self.h[e]
 
     def contact_dofs(self, e: int) -> np.ndarray:

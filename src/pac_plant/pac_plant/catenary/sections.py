@@ -139,12 +139,6 @@ class SectionedLine(Line):
         """The sections whose wire runs over x (two in an overlap), ascending."""
         return [s for s, (a, b) in enumerate(self.section_x) if a <= x <= b]
 
-    def _locate_in(self, s: int, x: float) -> tuple[int, float]:
-        lo, hi = self.sections[s]
-        e = int(lo) + int(np.searchsorted(self.x[lo:hi], x, side="right")) - 1
-        e = min(max(e, int(lo)), int(hi) - 2)
-        return e, (x - self.x[e]) / self.h[e]
-
     def lift_at(self, x: float, s: int | None = None) -> float:
         """The reference lift [m] of section s's wire at x (default: the running wire's)."""
         s = self.running_section(x) if s is None else s
