@@ -174,13 +174,19 @@ class ControllerNode(PacNode):
             )
         )
 
+    def plausible_tick(self, tick: int) -> bool:
+        """Not further ahead of the last accepted estimate than the loop can have gone."""
+        # The wall-clock allowance only where the plain limit is passed (not on every 1 kHz tick).
+        ahead = tick - self.last_estimate_tick
+        if self.last_estimate_tick < 0 or ahead <= self.limits.max_tick_jump:
+            return True
+        return ahead <= self.allowed_tick_jump()
+
     def plausible(self, tick: int, z_hat: np.ndarray, theta_hat: np.ndarray) -> bool:
         lim = self.limits
         if not (np.isfinite(z_hat).all() and np.isfinite(theta_hat).all()):
             return False
-        # The wall-clock allowance only where the plain limit is passed (not on every 1 kHz tick).
-        ahead = tick - self.last_estimate_tick
-        if self.last_estimate_tick >= 0 and ahead > lim.max_tick_jump and ahead > self.allowed_tick_jump():
+        if not self.plausible_tick(tick):
             return False
         return bool(
             np.all(np.abs(z_hat[:2]) <= lim.estimate_position_limit)
@@ -193,8 +199,12 @@ class ControllerNode(PacNode):
         ticks a real-time plant can have advanced since that estimate arrived. Without the
         wall-clock part, an observer restarted after more than max_tick_jump ticks (a slow
         process start on a loaded machine) would be refused for ever: its ticks are the plant's."""
+        return self.limits.max_tick_jump + int(math.ceil(1.05 * self.ticks_since_accepted()))
+
+    def ticks_since_accepted(self) -> float:
+        """Periods of wall time since the last accepted estimate arrived (0 before the first)."""
         since = 0.0 if self.last_accepted_wall is None else time.monotonic() - self.last_accepted_wall
-        return self.limits.max_tick_jump + int(math.ceil(1.05 * since / self.loop.sample_period))
+        return since / self.loop.sample_period
 
     def on_estimate(self, msg) -> None:
         start_ns = time.monotonic_ns()
@@ -208,6 +218,10 @@ class ControllerNode(PacNode):
                 f"tick {tick}: non-finite or implausible estimate: fallback command",
                 throttle_duration_sec=1.0,
             )
+            # Its tick only where that tick is plausible: a garbage tick far ahead would let the
+            # slew limit allow any jump (the limit is per tick) and stamp the command with it.
+            if not self.plausible_tick(tick):
+                tick = self.last_estimate_tick + int(self.ticks_since_accepted())
             self.publish(self.core.fallback(max(tick, self.core.last_tick + 1)), 0)
             return
         if tick == 0 and self.last_estimate_tick > 0:
