@@ -173,3 +173,87 @@ def test_a_run_that_starts_past_a_spans_middle_counts_its_spans_from_the_next():
         piece = n - start
         assert not _trips_on_a_biased_start(start, piece + n)
         assert _trips_on_a_biased_start(start, piece + 2 * n)
+
+
+def _overlap_law(overlaps: tuple[float, ...]) -> LineAdaptiveLaw:
+    """Ten spans of 50 m at 100 m/s (N = 500 ticks a span, no command delay), with ``overlaps``."""
+    laws = LawParameters(
+        line_supports=tuple(50.0 * np.arange(11)), line_overlaps=overlaps, design_delay_ticks=0
+    )
+    return LineAdaptiveLaw(TrackParameters(speed_kmh=360.0, span_length=50.0), laws, DT)
+
+
+@pytest.mark.unit
+def test_the_learned_harmonics_are_off_over_an_overlap_and_faded_next_to_it():
+    """An overlap over spans 5 and 6 (250..350 m): the feedforward's harmonics are 0 there, a raised
+    cosine down over span 4 and up over span 7, whole elsewhere. Judged against the same law told no
+    overlap, with the window computed here from the position, not by the law's lookup."""
+    plain, windowed = _overlap_law((0.0,)), _overlap_law((250.0, 350.0))
+    rng = np.random.default_rng(3)
+    harmonics = rng.normal(size=plain.harmonics) + 1j * rng.normal(size=plain.harmonics)
+    for law in (plain, windowed):
+        law.memory[0] = 20.0 * harmonics  # U_FF: row 0
+    checked = {"off": 0, "faded": 0, "whole": 0}
+    for tick in range(0, 10 * 500, 7):
+        x = 0.1 * tick
+        span, fraction = int(x // 50.0), (x % 50.0) / 50.0
+        share = 1.0
+        if span in (5, 6):
+            share = 0.0
+        elif span == 4:
+            share = 0.5 * (1.0 + math.cos(math.pi * fraction))
+        elif span == 7:
+            share = 0.5 * (1.0 - math.cos(math.pi * fraction))
+        # the law evaluates its window at the middle of the tick's phase cell, at most 1/(2N) of a
+        # span away, where the cosine's slope is at most pi/2 per span
+        whole = plain.feedforward(tick)
+        bound = math.pi / 2 * 0.5 / plain.period_ticks * abs(whole) + 1e-9
+        assert windowed.feedforward(tick) == pytest.approx(share * whole, abs=bound)
+        checked["off" if share == 0.0 else "whole" if share == 1.0 else "faded"] += 1
+    assert min(checked.values()) > 50 and np.abs(harmonics).max() > 0.5
+
+
+@pytest.mark.unit
+def test_the_spans_of_an_overlap_and_next_to_it_teach_nothing():
+    """An error the law learns from on every span: its harmonics change at the end of each learning
+    span but not at the ends of spans 4-7 (the overlap over 5 and 6 and the faded spans beside it)."""
+    law = _overlap_law((250.0, 350.0))
+    reference = np.array([150.0, 0.0, 0.0, 0.0])
+    changed = {}
+    before = law.memory[0].copy()
+    for k in range(10 * 500 - 1):
+        x = 0.1 * k
+        error = 10.0 * math.cos(2 * math.pi * (x % 50.0) / 50.0)
+        u, _ = law.output(k, k * DT, reference, np.zeros(4), np.zeros(3), 150.0 - error)
+        law.commit(k, u)
+        if k % 500 == 499:
+            changed[k // 500] = not np.array_equal(law.memory[0], before)
+            before = law.memory[0].copy()
+    assert not law.tripped
+    learning = [span for span in range(LawParameters().line_runin_spans - 1, 9) if span not in (4, 5, 6, 7)]
+    assert learning and all(changed[span] for span in learning)
+    assert not any(changed[span] for span in (4, 5, 6, 7))
+
+
+@pytest.mark.unit
+def test_the_overlaps_derived_are_those_of_the_line_the_plant_runs():
+    """On a line of tension sections (realistic_3km_sections) the derived overlaps are where the
+    plant's sections overlap (to 1 mm); a line of one tension length derives none."""
+    from pac_rig.closed_loop import build_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    given = {
+        "law": "line_adaptive",
+        "catenary_model": "fe",
+        "catenary": "realistic_3km_sections",
+        "line_seed": 118,
+    }
+    values, notes = composition.derive(given)
+    assert any("line_overlaps" in note for note in notes)
+    plant, _, _ = build_cores(scenario_from_flat({**values, "duration": 0.01}))
+    extent = plant.line.section_x
+    overlaps = np.column_stack((extent[1:, 0], extent[:-1, 1]))
+    assert len(overlaps) >= 2
+    np.testing.assert_allclose(np.reshape(values["line_overlaps"], (-1, 2)), overlaps, rtol=0, atol=5e-4)
+    single, _ = composition.derive({**given, "catenary": "realistic_3km"})
+    assert "line_overlaps" not in single

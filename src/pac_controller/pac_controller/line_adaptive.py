@@ -99,6 +99,13 @@ off, the harmonics U_h halved, and the ``line_guard_strikes``-th time fall back.
 the feedforward as learned out over one span, u_ff (1 - (k - k_trip) / N), then U = 0: stepped
 off, the feedforward would itself kick the head off the wire.
 
+Overlaps of tension sections (``line_overlaps``, the design's section plan): over an overlap's
+spans the contact passes from one wire to the other, nothing like the spans the harmonics were
+learned on. There the harmonics are off (U_0 + C stay), faded by a raised cosine over the span
+before and the span after (``overlap_window``), and those spans neither teach nor are judged. Told
+nothing, the law lowered its command just past the overlap's inner supports and lost contact
+there more than passive on 11 of 20 report lines at 300 km/h (docs/laws.md, point 8).
+
 State: the law's numbers are fields of the controller's records (``kernels.CONTROLLER_PARAMS`` /
 ``CONTROLLER_STATE``, the ``line_`` fields), its per-harmonic arrays rows of two complex tables
 (``table``: the basis and the hold's advance; ``memory``: U_h, E_h, ...).  The arithmetic is the
@@ -191,6 +198,17 @@ def line_model_rows(pantograph: PantographParameters, omega: np.ndarray, dt: flo
     return np.array([c, b, a * b - c * c, hold + 0j, omega + 0j])
 
 
+def overlap_spans(supports: np.ndarray, overlaps: tuple) -> np.ndarray:
+    """1.0 for each span of the layout ``supports`` whose middle lies inside one of the (start, end)
+    pairs ``overlaps`` (flat, ``line_overlaps``; fewer than two values: none), else 0.0."""
+    if len(supports) < 2 or len(overlaps) < 2:
+        return np.zeros(max(len(supports) - 1, 0))
+    pairs = np.asarray(overlaps, dtype=float).reshape(-1, 2)
+    middle = 0.5 * (supports[:-1] + supports[1:])
+    inside = (middle[:, None] > pairs[:, 0]) & (middle[:, None] < pairs[:, 1])
+    return inside.any(axis=1).astype(float)
+
+
 class LineAdaptiveLaw(KernelLaw):
     """The law of the module docstring: its numbers in the controller's records, its arrays in
     ``table`` / ``memory``, its arithmetic the compiled functions above (through
@@ -225,6 +243,10 @@ class LineAdaptiveLaw(KernelLaw):
             pantograph or PantographParameters(), orders * w, dt
         )
         table[n + TABLE_EXTRA_ROWS :].real.flat[: len(supports)] = supports
+        # Span m in an overlap of two tension sections (line_overlaps): 1 in the imaginary part of support m.
+        table[n + TABLE_EXTRA_ROWS :].imag.flat[: max(len(supports) - 1, 0)] = overlap_spans(
+            supports, laws.line_overlaps
+        )
         self.table = table
         self.supports = supports  # the design layout (line_supports; empty: none)
         self.memory = np.zeros((memory_rows(len(supports)), h), dtype=np.complex128)
@@ -340,7 +362,8 @@ class LineAdaptiveLaw(KernelLaw):
         )  # fmt: skip
 
     def feedforward(self, tick: int) -> float:
-        """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
+        """U_0 + C + w Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick`` (w:
+        the overlap window, 1 off overlaps)."""
         return _feedforward_one(self.params, self.state, self.table, self.memory, int(tick))
 
 

@@ -211,16 +211,56 @@ def locate(p, table, tick: int, guess: int) -> tuple[int, int]:
     return m, min(max(phase, 0), n - 1)
 
 
+@njit(cache=True, inline="always")
+def _in_overlap(p, table, m: int) -> bool:
+    """Whether span m of the design layout lies in an overlap of two tension sections (the
+    imaginary part of support m's entry, ``line_overlaps``)."""
+    if not 0 <= m < p.line_supports - 1:
+        return False
+    h = p.line_harmonics
+    return table[p.line_period + TABLE_EXTRA_ROWS + m // h, m % h].imag != 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def overlap_window(p, table, m: int, phase: int) -> float:
+    """The share of the learned harmonics kept at phase index ``phase`` of span m: 0 over an overlap
+    of two tension sections (the contact passes from one wire to the other there: nothing like the
+    spans the harmonics were learned on), a raised cosine down over the span before it and up over
+    the span after (stepped, the harmonics would kick the head as a stepped fallback does), else 1."""
+    if p.line_supports < 2:
+        return 1.0
+    if _in_overlap(p, table, m):
+        return 0.0
+    frac = (phase + 0.5) / p.line_period
+    share = 1.0
+    if _in_overlap(p, table, m + 1):
+        share = 0.5 * (1.0 + math.cos(math.pi * frac))
+    if _in_overlap(p, table, m - 1):
+        share = min(share, 0.5 * (1.0 - math.cos(math.pi * frac)))
+    return share
+
+
+@njit(cache=True, inline="always")
+def _windowed(p, table, m: int) -> bool:
+    """Whether ``overlap_window`` is below 1 anywhere on span m of the layout."""
+    return _in_overlap(p, table, m) or _in_overlap(p, table, m - 1) or _in_overlap(p, table, m + 1)
+
+
 @njit(cache=True, error_model="numpy")
 def line_feedforward(p, s, table, memory, tick: int) -> float:
-    """U_0 + C + Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick``."""
+    """U_0 + C + w Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick`` (w: the
+    overlap window of the design layout, ``overlap_window``; 1 without one)."""
     n, h = p.line_period, p.line_harmonics
-    _, phase = locate(p, table, tick + p.line_delay, s.line_cursor)
+    m, phase = locate(p, table, tick + p.line_delay, s.line_cursor)
+    share = overlap_window(p, table, m, phase)
+    if share <= 0.0:
+        return s.line_u_mean + s.line_clip_offset
     for j in range(h):
         ur, ui = _cmul(memory[U_FF, j].real, memory[U_FF, j].imag, table[n, j].real, table[n, j].imag)
         pr, pi = _cmul(ur, ui, table[phase, j].real, table[phase, j].imag)
         memory[SCRATCH, j] = complex(pr, pi)
-    return s.line_u_mean + s.line_clip_offset + _sum_real(memory[SCRATCH], h)
+    harmonics = _sum_real(memory[SCRATCH], h)
+    return s.line_u_mean + s.line_clip_offset + (harmonics if share == 1.0 else share * harmonics)
 
 
 @njit(cache=True, error_model="numpy")
@@ -353,6 +393,14 @@ def _clear_sums(s, memory) -> None:
 def _end_of_span(p, s, table, memory, span: int) -> None:
     if span == s.line_tainted_span:
         s.line_tainted_span = -1
+        _clear_sums(s, memory)
+        return
+    if _windowed(p, table, s.line_first_span + span):
+        # An overlap or a span next to one: the harmonics faded there and the contact passes between
+        # two wires; what it applied and saw teaches nothing and is not judged (a map's next span
+        # still loads).
+        if p.line_map:
+            _load_map(p, s, memory, s.line_first_span + span + 1)
         _clear_sums(s, memory)
         return
     if p.line_supports >= 2 and s.line_span_ticks != p.line_period and s.line_span_ticks > 0:

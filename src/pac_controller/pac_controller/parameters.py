@@ -370,6 +370,18 @@ class LawParameters(ParameterSet):
         high=1e6,
         max_length=MAX_LINE_SUPPORTS,
     )
+    line_overlaps: tuple = parameter(
+        (0.0,),
+        "line_adaptive: where the design layout's tension sections overlap, (start, end) pairs along the "
+        "line, flat (design data, as line_supports). Over a span inside an overlap the learned harmonics "
+        "are off (the contact passes between two wires), faded out over the span before it and back in "
+        "over the span after; those spans teach nothing. Fewer than two values: none (derived on a "
+        "whole FE line, docs/laws.md)",
+        "m",
+        low=0.0,
+        high=1e6,
+        max_length=MAX_LINE_SUPPORTS,
+    )
     line_position_start: float = parameter(
         0.0,
         "line_adaptive: the contact point's position along the line at the first tick (derived with "
@@ -393,3 +405,12 @@ class LawParameters(ParameterSet):
         "frozen at the map's; it must fit this run's layout, speed and rate; '' none (docs/laws.md, "
         "'A map learned over passes')",
     )
+
+    def check_consistency(self) -> None:
+        overlaps = self.line_overlaps
+        if len(overlaps) >= 2 and (
+            len(overlaps) % 2 or any(not overlaps[i] < overlaps[i + 1] for i in range(0, len(overlaps), 2))
+        ):
+            raise ParameterError(
+                "line_overlaps", overlaps, "(start, end) pairs, start < end, flat: an even count of values"
+            )

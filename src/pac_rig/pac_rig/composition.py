@@ -192,19 +192,25 @@ def _line_layout(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -
 
     defaults = PlantOptions()
     seed = int(given.get("line_seed", defaults.line_seed))
-    supports = load_catenary(catenary).design_supports(None if seed < 0 else seed)
+    drawn = load_catenary(catenary)
+    supports = drawn.design_supports(None if seed < 0 else seed)
     if supports is None:
         return []
+    overlaps = drawn.design_overlaps(None if seed < 0 else seed)
     spacings = tuple(float(s) for s in given.get("pantographs", defaults.pantographs))
     controlled = int(given.get("controlled_pantograph", defaults.controlled_pantograph))
     start = max(1, int(np.searchsorted(supports, spacings[-1])))
     # To 1 mm: values that do not move with the last bits of a sum (campaign keys hash them).
     out["line_supports"] = tuple(round(float(x), 3) for x in supports)
     out["line_position_start"] = round(float(supports[start]) - spacings[controlled], 3)
-    return [
+    notes = [
         f"line_supports:=({len(supports)} supports of the design layout of {catenary}, line seed {seed}), "
         f"line_position_start:={out['line_position_start']:g} (where the contact point starts)"
     ]
+    if len(overlaps) and "line_overlaps" not in given:
+        out["line_overlaps"] = tuple(round(float(x), 3) for x in overlaps.ravel())
+        notes.append(f"line_overlaps:=({len(overlaps)} overlaps of its tension sections)")
+    return notes
 
 
 def _runin_behind(

@@ -91,6 +91,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "line_guard_strikes": 3,
     "line_guard_loss_margin": 0.05,
     "line_supports": (0.0,),
+    "line_overlaps": (0.0,),
     "line_position_start": 0.0,
     "line_position_error": 0.0,
     "line_map": "",

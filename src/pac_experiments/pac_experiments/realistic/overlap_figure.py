@@ -29,10 +29,11 @@ FROM_SPAN = 8.0
 
 def first_overlap(seed: int) -> tuple[float, float, float]:
     """(start of the line's first overlap, its end [m from the line's start], mean span [m])."""
-    data = load_catenary(CATENARY).line(seed)
-    masts = np.concatenate([[0.0], np.cumsum([s.length for s in data.spans])])
-    first, spans = data.sections[1][0], len(data.overlap_lift) - 1
-    return float(masts[first]), float(masts[first + spans]), float(np.mean(np.diff(masts)))
+    drawn = load_catenary(CATENARY)
+    masts = drawn.design_supports(seed)
+    assert masts is not None  # a whole line: its layout rule draws the masts
+    start, end = drawn.design_overlaps(seed)[0]
+    return float(start), float(end), float(np.mean(np.diff(masts)))
 
 
 def main(argv: list[str] | None = None) -> int:

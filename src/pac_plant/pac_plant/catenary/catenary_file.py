@@ -65,6 +65,23 @@ class CatenaryFile:
         )
         return np.concatenate(([0.0], np.cumsum(lengths)))
 
+    def design_overlaps(self, seed: int | None = None) -> np.ndarray:
+        """Where the line's tension sections overlap as designed: (start, end) rows [m from its
+        start], the supports that bound each overlap's spans on :meth:`design_supports` (where
+        the infrastructure manager's section plan puts them). No rows without sections."""
+        supports = self.design_supports(seed)
+        layout = None if self.drawing is None else self.drawing.layout
+        if supports is None or layout is None or not layout.section_spans_min:
+            return np.zeros((0, 2))
+        split = (
+            self.data.sections
+            if seed is None
+            else draw_sections(len(supports) - 1, layout, np.random.default_rng([seed, 2]))
+        )
+        firsts = [first for first, _ in split]
+        n_o = layout.overlap_spans
+        return np.array([[supports[first], supports[first + n_o]] for first in firsts[1:]]).reshape(-1, 2)
+
 
 @dataclass(frozen=True)
 class LineDrawing:
