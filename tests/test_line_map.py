@@ -44,11 +44,15 @@ def _map(harmonics: int, rng: np.random.Generator, supports=SUPPORTS, u_mean: fl
     )  # fmt: skip
 
 
-def _law(path: str | Path = "", supports=SUPPORTS) -> LineAdaptiveLaw:
+def _law(path: str | Path = "", supports=SUPPORTS, overlaps: tuple[float, ...] = (0.0,)) -> LineAdaptiveLaw:
     # x = 0.05 + 0.1 k: half a tick past each support, so span m is ticks 500 m .. 500 m + 499 and the
     # phase index is k mod 500 exactly (no position lands on a support).
     laws = LawParameters(
-        line_supports=supports, line_position_start=0.05, design_delay_ticks=0, line_map=str(path)
+        line_supports=supports,
+        line_position_start=0.05,
+        design_delay_ticks=0,
+        line_map=str(path),
+        line_overlaps=overlaps,
     )
     return LineAdaptiveLaw(TrackParameters(speed_kmh=3.6 * SPEED, span_length=SPAN), laws, DT)
 
@@ -159,6 +163,83 @@ def test_the_next_map_is_the_laws_step_on_each_spans_own_error(tmp_path):
         np.testing.assert_allclose(following.harmonics[m], expected, rtol=0, atol=1e-9)
     assert following.passes == 2
     np.testing.assert_allclose(following.response_z, learned.response_z, rtol=0, atol=0)  # frozen
+
+
+#: Two tension sections overlapping over spans 2 and 3 (100..200 m): spans 1 to 4 are the overlap's
+#: and those beside it, where a first pass fades its harmonics out and learns nothing.
+OVERLAP = (100.0, 200.0)
+
+
+@pytest.mark.unit
+def test_a_pass_on_a_map_runs_an_overlaps_spans_on_their_own_harmonics(tmp_path):
+    """On a map each span of an overlap and beside it runs its own harmonics of the map (learned
+    there on an earlier pass), not the first pass's window of 0; over the overlap (spans 2 and 3)
+    their positive part only: they raise the command, never lower it."""
+    learned = _map(_harmonics(), np.random.default_rng(7))
+    write_line_map(learned, tmp_path / "map.json")
+    law = _law(tmp_path / "map.json", overlaps=OVERLAP)
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    lowered: dict[int, bool] = {}
+    for k in range(6 * N - 1):
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R)
+        law.commit(k, u)
+        ff = _feedforward(learned.harmonics[k // N], k)
+        expected = F_R + learned.u_mean + (max(ff, 0.0) if k // N in (2, 3) else ff)
+        assert u == pytest.approx(expected, rel=0, abs=1e-9), k
+        lowered[k // N] = lowered.get(k // N, False) or ff < -1.0
+    assert all(lowered[m] for m in range(1, 6))  # the map would lower the command in spans 1-5 (0: W = 0)
+    assert not law.tripped
+
+
+def _run_with_error(law: LineAdaptiveLaw, amplitude: float, harmonic: int, spans: int = 6) -> None:
+    """``spans`` spans (the last one not closed) with F_hat = F_r - amplitude cos(harmonic phase)."""
+    f_r = np.array([F_R, 0.0, 0.0, 0.0])
+    for k in range(spans * N - 1):
+        error = amplitude * math.cos(harmonic * 2.0 * math.pi * (k % N) / N)
+        u, _ = law.output(k, k * DT, f_r, np.zeros(4), np.zeros(3), F_R - error)
+        law.commit(k, u)
+
+
+@pytest.mark.unit
+def test_a_pass_on_a_map_records_an_overlaps_spans_for_the_next_map(tmp_path):
+    """The spans of an overlap and beside it teach a pass nothing within the pass, but it records
+    them: the next map takes the law's step on each one's own error there, as on any other span
+    (an error of 10 N on harmonic 2, imposed), A_m - gamma (conj(D) E_m + mu A_m) / (|D|^2 + mu)
+    from what it applied, A_m: W_m beside the overlap, over it the harmonics of W_m's positive part
+    (computed here from the commands' formula by a discrete Fourier sum)."""
+    h = _harmonics()
+    learned = _map(h, np.random.default_rng(4))
+    write_line_map(learned, tmp_path / "map.json")
+    law = _law(tmp_path / "map.json", overlaps=OVERLAP)
+    laws = LawParameters()
+    gamma, mu, a, h0 = laws.line_learning_gain, laws.line_effort_weight, 10.0, 2
+    _run_with_error(law, a, h0)
+    following = law.next_map()
+    e = np.zeros(h, dtype=complex)
+    e[h0 - 1] = a
+    phase = 2.0 * math.pi * (np.arange(N) + 0.5) / N
+    for m in (1, 2, 3, 4):
+        w = learned.harmonics[m]
+        if m in (2, 3):  # over the overlap it applied the positive part of its harmonics: theirs
+            ff = np.maximum([_feedforward(w, k) for k in range(N)], 0.0)
+            w = np.array([2.0 / N * np.sum(ff * np.exp(-1j * j * phase)) for j in range(1, h + 1)])
+        expected = w - gamma * (np.conj(RESPONSE) * e + mu * w) / (RESPONSE**2 + mu)
+        np.testing.assert_allclose(following.harmonics[m], expected, rtol=0, atol=1e-9, err_msg=f"span {m}")
+    assert not law.tripped
+
+
+@pytest.mark.unit
+def test_a_first_pass_records_an_overlaps_spans_for_the_next_map():
+    """Nine spans, an overlap over spans 5 and 6 (after the run-in's passive spans 1 and 2): a first
+    pass runs spans 4 to 7 without learning from them, yet records each: the map it writes steps
+    there on the error seen (not 0, the map a first pass is given); span 0 (the start) and span 8
+    (not closed) are not recorded and stay 0."""
+    law = _law(supports=tuple(SPAN * np.arange(10)), overlaps=(250.0, 350.0))
+    _run_with_error(law, 10.0, 2, spans=9)
+    following = law.next_map()
+    for m in (4, 5, 6, 7):
+        assert np.abs(following.harmonics[m]).max() > 1.0, m
+    assert np.abs(following.harmonics[[0, 8]]).max() == 0.0
 
 
 @pytest.mark.unit

@@ -226,8 +226,11 @@ def overlap_window(p, table, m: int, phase: int) -> float:
     """The share of the learned harmonics kept at phase index ``phase`` of span m: 0 over an overlap
     of two tension sections (the contact passes from one wire to the other there: nothing like the
     spans the harmonics were learned on), a raised cosine down over the span before it and up over
-    the span after (stepped, the harmonics would kick the head as a stepped fallback does), else 1."""
-    if p.line_supports < 2:
+    the span after (stepped, the harmonics would kick the head as a stepped fallback does), else 1;
+    1 everywhere on a learned map (``line_map``)."""
+    if p.line_supports < 2 or p.line_map:
+        # On a learned map every span's harmonics are its own, an overlap's too (learned from the
+        # error an earlier pass recorded over it, ``_end_of_span``): no window.
         return 1.0
     if _in_overlap(p, table, m):
         return 0.0
@@ -249,7 +252,8 @@ def _windowed(p, table, m: int) -> bool:
 @njit(cache=True, error_model="numpy")
 def line_feedforward(p, s, table, memory, tick: int) -> float:
     """U_0 + C + w Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick`` (w: the
-    overlap window of the design layout, ``overlap_window``; 1 without one)."""
+    overlap window of the design layout, ``overlap_window``; 1 without one); on a learned map, over
+    an overlap, the sum's positive part only."""
     n, h = p.line_period, p.line_harmonics
     m, phase = locate(p, table, tick + p.line_delay, s.line_cursor)
     share = overlap_window(p, table, m, phase)
@@ -260,6 +264,10 @@ def line_feedforward(p, s, table, memory, tick: int) -> float:
         pr, pi = _cmul(ur, ui, table[phase, j].real, table[phase, j].imag)
         memory[SCRATCH, j] = complex(pr, pi)
     harmonics = _sum_real(memory[SCRATCH], h)
+    if p.line_map and _in_overlap(p, table, m):
+        # Over an overlap a map's harmonics only raise the command: lowered there, where the incoming
+        # wire takes the head, the contact was lost (docs/laws.md, "A map learned over passes").
+        harmonics = max(harmonics, 0.0)
     return s.line_u_mean + s.line_clip_offset + (harmonics if share == 1.0 else share * harmonics)
 
 
@@ -395,14 +403,6 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         s.line_tainted_span = -1
         _clear_sums(s, memory)
         return
-    if _windowed(p, table, s.line_first_span + span):
-        # An overlap or a span next to one: the harmonics faded there and the contact passes between
-        # two wires; what it applied and saw teaches nothing and is not judged (a map's next span
-        # still loads).
-        if p.line_map:
-            _load_map(p, s, memory, s.line_first_span + span + 1)
-        _clear_sums(s, memory)
-        return
     if p.line_supports >= 2 and s.line_span_ticks != p.line_period and s.line_span_ticks > 0:
         # A span of the layout lasts its own number of ticks, not N: the sums were weighted by 1/N.
         scale = p.line_period / s.line_span_ticks
@@ -411,6 +411,16 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
             memory[A_ACC, j] = complex(scale * memory[A_ACC, j].real, scale * memory[A_ACC, j].imag)
         s.line_a_mean *= scale
         s.line_e_mean *= scale
+    if _windowed(p, table, s.line_first_span + span):
+        # An overlap or a span next to one: the contact passes between two wires there, nothing
+        # like the spans the harmonics are learned on, so what it applied and saw teaches this pass
+        # nothing and is not judged (a map's next span still loads). It is recorded: the next
+        # pass's map takes a step on the span's own error (``line_next_map``).
+        _record_span(p, s, table, memory, s.line_first_span + span, span >= 1)
+        if p.line_map:
+            _load_map(p, s, memory, s.line_first_span + span + 1)
+        _clear_sums(s, memory)
+        return
     if p.line_supports >= 2:
         _record_span(p, s, table, memory, s.line_first_span + span, span >= 1)
     # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
