@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-deviation realistic-sections realistic-passes line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -165,6 +165,13 @@ realistic-pair: setup
 # (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic/passes.py).
 realistic-passes: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_passes $(ARGS)
+
+# The same over tension sections and their overlaps (realistic_3km_sections, the window and statistics
+# of realistic_sections_laws.yaml), electromechanical: reports/realistic/passes_sections/passes.md.
+realistic-passes-sections: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_passes --out reports/realistic/passes_sections \
+		--scenarios realistic_electromechanical --catenary realistic_3km_sections \
+		--spec config/campaigns/realistic_sections_laws.yaml $(ARGS)
 
 campaigns: setup
 	set -e; for c in $(CAMPAIGNS); do \
