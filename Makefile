@@ -167,11 +167,13 @@ realistic-passes: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_passes $(ARGS)
 
 # The same over tension sections and their overlaps (realistic_3km_sections, the window and statistics
-# of realistic_sections_laws.yaml), electromechanical: reports/realistic/passes_sections/passes.md.
+# of realistic_sections_laws.yaml): electromechanical at four speeds, pneumatic at 300 km/h added to
+# it (reports/realistic/passes_sections/passes.md).
+PASSES_SECTIONS = scripts/with_env.sh ros2 run pac_experiments realistic_passes --out reports/realistic/passes_sections \
+	--catenary realistic_3km_sections --spec config/campaigns/realistic_sections_laws.yaml
 realistic-passes-sections: setup
-	scripts/with_env.sh ros2 run pac_experiments realistic_passes --out reports/realistic/passes_sections \
-		--scenarios realistic_electromechanical --catenary realistic_3km_sections \
-		--spec config/campaigns/realistic_sections_laws.yaml $(ARGS)
+	$(PASSES_SECTIONS) --scenarios realistic_electromechanical
+	$(PASSES_SECTIONS) --scenarios realistic_pneumatic --speeds 300 --add-to reports/realistic/passes_sections/results.csv
 
 campaigns: setup
 	set -e; for c in $(CAMPAIGNS); do \

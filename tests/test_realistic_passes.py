@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pac_experiments.realistic.passes import RUNS, write_report
+from pac_experiments.realistic.passes import RUNS, main, read_results, write_report
 
 pytestmark = pytest.mark.unit
 
@@ -42,3 +42,43 @@ def test_each_run_is_compared_with_its_own_lines_passive_and_first_pass(tmp_path
     assert off[7:9] == ["3", "1"]  # 3 lines lose more contact than passive B; the guard fell back on 1
     assert "first pass A" not in lines  # pass A's own result is the realistic experiment's row
     assert (tmp_path / "results.csv").read_text().count("\n") == 1 + 4 * len(RUNS)
+
+
+def _rows(seeds: range) -> list[dict]:
+    return [
+        {
+            "scenario": "realistic_electromechanical",
+            "speed_kmh": 300.0,
+            "line_seed": seed,
+            "run": name,
+            "sigma": SIGMA.get(name, 33.0),
+            "mean": 155.0,
+            "loss_percent": 0.0,
+            "u_max_abs": 100.0,
+            "trip": "",
+            "map_scale": 1.0 if name.startswith("map") else "",
+        }  # fmt: skip
+        for seed in seeds
+        for name, *_ in RUNS
+    ]
+
+
+def test_a_report_read_back_is_the_same_report(tmp_path):
+    """read_results gives write_report's rows back with their numbers as numbers: the report written
+    from them again is the same, to the byte (what --add-to builds on)."""
+    text = write_report(_rows(range(3)), tmp_path / "a")
+    rows = read_results(tmp_path / "a" / "results.csv")
+    assert isinstance(rows[0]["sigma"], float) and isinstance(rows[0]["line_seed"], int)
+    assert write_report(rows, tmp_path / "b") == text
+    assert (tmp_path / "b" / "results.csv").read_text() == (tmp_path / "a" / "results.csv").read_text()
+
+
+def test_adding_a_line_the_results_already_hold_is_refused_in_one_line(tmp_path, capsys):
+    write_report(_rows(range(2)), tmp_path)
+    argv = ["--out", str(tmp_path / "out"), "--scenarios", "realistic_electromechanical", "--speeds", "300"]
+    code = main([*argv, "--seeds", "1", "2", "--add-to", str(tmp_path / "results.csv")])
+    err = capsys.readouterr().err.strip().splitlines()
+    csv_path = tmp_path / "results.csv"
+    assert code == 2
+    assert err == [f"realistic_passes: {csv_path} has realistic_electromechanical line 1 at 300 km/h already"]
+    assert not (tmp_path / "out").exists()  # refused before any run

@@ -121,6 +121,18 @@ def _changes(rows: list[dict[str, Any]], run: str, passive: str) -> dict[int, fl
     }
 
 
+def read_results(path: Path) -> list[dict[str, Any]]:
+    """The rows of a results.csv that :func:`write_report` wrote, with their numbers as numbers."""
+    with path.open(newline="") as f:
+        rows: list[dict[str, Any]] = list(csv.DictReader(f))
+    for row in rows:
+        row["line_seed"] = int(row["line_seed"])
+        for key in ("speed_kmh", "sigma", "mean", "loss_percent", "u_max_abs"):
+            row[key] = float(row[key])
+        row["map_scale"] = float(row["map_scale"]) if row["map_scale"] else ""
+    return rows
+
+
 def write_report(
     rows: list[dict[str, Any]], out: Path, spec_path: Path = SPEC, catenary: str | None = None
 ) -> str:
@@ -205,7 +217,25 @@ def main(argv: list[str] | None = None) -> int:
         "--spec", type=Path, default=SPEC, help="campaign SPEC: window, statistics (default: %(default)s)"
     )
     parser.add_argument("--catenary", help="the line (default: the scenario's)")
+    parser.add_argument(
+        "--add-to",
+        type=Path,
+        metavar="CSV",
+        help="an earlier run's results.csv: its rows are kept and these runs added (one report of both)",
+    )
     args = parser.parse_args(argv)
+    try:
+        earlier = read_results(args.add_to) if args.add_to else []
+    except (OSError, KeyError, ValueError) as error:
+        print(f"realistic_passes: cannot read {args.add_to}: {error}", file=sys.stderr)
+        return 2
+    again = {(r["scenario"], r["speed_kmh"], r["line_seed"]) for r in earlier} & {
+        (sc, sp, seed) for sc in args.scenarios for sp in args.speeds for seed in args.seeds
+    }
+    if again:
+        sc, sp, seed = min(again)
+        print(f"realistic_passes: {args.add_to} has {sc} line {seed} at {sp:g} km/h already", file=sys.stderr)
+        return 2
     with tempfile.TemporaryDirectory(prefix="pac_maps_") as maps:
         jobs = [
             (sc, sp, seed, maps, args.spec, args.catenary)
@@ -214,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
             for seed in args.seeds
         ]
         with ProcessPoolExecutor(args.workers) as pool:
-            rows = [row for line in pool.map(_run, jobs) for row in line]
+            rows = earlier + [row for line in pool.map(_run, jobs) for row in line]
     print(write_report(rows, args.out, args.spec, args.catenary))
     return 0
 
