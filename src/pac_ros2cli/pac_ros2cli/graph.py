@@ -68,12 +68,14 @@ class Graph:
 
     def settled(self, snapshot: Callable[[], Any], timeout: float = SPIN_TIME) -> Any:
         """``snapshot()`` once discovery has had MIN_DISCOVERY s and the result has not changed for
-        SETTLE_TIME s; at the latest ``timeout`` s after this process joined the graph."""
+        SETTLE_TIME s; at the latest ``timeout`` s after this process joined the graph. An empty
+        result is not settled before ``timeout``: on a loaded machine the first participants can
+        take longer than MIN_DISCOVERY to show up, and "nothing yet" is not "nothing"."""
         deadline = self.started + max(timeout, MIN_DISCOVERY)
         last, since = snapshot(), time.monotonic()
         while time.monotonic() < deadline:
             now = time.monotonic()
-            if now - since >= SETTLE_TIME and now - self.started >= MIN_DISCOVERY:
+            if last and now - since >= SETTLE_TIME and now - self.started >= MIN_DISCOVERY:
                 break
             time.sleep(0.02)
             current = snapshot()
