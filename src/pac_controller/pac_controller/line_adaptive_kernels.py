@@ -411,18 +411,18 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
             memory[A_ACC, j] = complex(scale * memory[A_ACC, j].real, scale * memory[A_ACC, j].imag)
         s.line_a_mean *= scale
         s.line_e_mean *= scale
+    # Every span of the layout is recorded for the next pass's map (``line_next_map``; nothing
+    # without a layout), an overlap's too.
+    _record_span(p, s, table, memory, s.line_first_span + span, span >= 1)
     if _windowed(p, table, s.line_first_span + span):
         # An overlap or a span next to one: the contact passes between two wires there, nothing
         # like the spans the harmonics are learned on, so what it applied and saw teaches this pass
-        # nothing and is not judged (a map's next span still loads). It is recorded: the next
-        # pass's map takes a step on the span's own error (``line_next_map``).
-        _record_span(p, s, table, memory, s.line_first_span + span, span >= 1)
+        # nothing and is not judged (a map's next span still loads); the next pass's map takes a
+        # step on the span's own error.
         if p.line_map:
             _load_map(p, s, memory, s.line_first_span + span + 1)
         _clear_sums(s, memory)
         return
-    if p.line_supports >= 2:
-        _record_span(p, s, table, memory, s.line_first_span + span, span >= 1)
     # The guard's variance: the span-periodic part of F_hat in the learned band (Parseval on
     # E_h), what the law acts on and the EN 50318 statistics keep. The raw variance of F_hat
     # is blind under sensor noise: 10 um on z1, z2 gave sigma(F_hat) ~210 N for sigma(F) ~35 N.
