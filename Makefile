@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-draws realistic-pair realistic-pair-sections realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -154,12 +154,20 @@ realistic-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_sections_laws.yaml --out reports/realistic/sections_laws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/sections_laws --against law=passive
 	scripts/with_env.sh ros2 run pac_experiments realistic_overlap_figure --out reports/realistic/sections_laws
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_sections_baselines.yaml --out reports/realistic/sections_baselines $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/sections_baselines --against law=passive
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair, at
 # 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;
 # ARGS="--speeds 300" for one speed, "--add-to CSV" to add speeds to an earlier run's results).
 realistic-pair: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair $(ARGS)
+
+# The same over tension sections and their first overlap (realistic_3km_sections, supports 10-40),
+# at 300 km/h (reports/realistic/pair_sections/pair.md).
+realistic-pair-sections: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_pair --catenary realistic_3km_sections --spans 10 40 \
+		--speeds 300 --out reports/realistic/pair_sections $(ARGS)
 
 # line_adaptive on a map learned on an earlier pass, against its first pass, on the realistic line
 # (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic/passes.py).
