@@ -122,3 +122,19 @@ def test_each_speed_is_compared_with_the_passive_pair_at_that_speed_and_a_report
     assert "250, 300 km/h" in text
     assert main(["--add-to", str(tmp_path / "a" / "results.csv"), "--speeds", "250", "--seeds", "1"]) == 2
     assert main(["--add-to", str(tmp_path / "none.csv"), "--speeds", "300", "--seeds", "1"]) == 2
+
+
+def test_the_line_and_the_stretch_are_named_in_the_report_and_an_empty_stretch_is_refused(tmp_path, capsys):
+    """``--catenary`` and ``--spans`` (the pair over tension sections): the report says which line and
+    which supports its statistics cover; a stretch that ends where it starts is refused in one line,
+    exit 2, before any run."""
+    text = write_report(
+        _pair_rows(300.0, 50.0, 35.0), tmp_path, catenary="realistic_3km_sections", spans=(10, 40)
+    )
+    assert "realistic_electromechanical on realistic_3km_sections with each" in text
+    assert "over supports 10-40 of the leading one's start" in text
+    assert "supports 10-30" in write_report(_pair_rows(300.0, 50.0, 35.0), tmp_path / "default")
+    capsys.readouterr()
+    assert main(["--spans", "12", "12", "--seeds", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--spans 12 12" in err[0]
