@@ -156,6 +156,8 @@ realistic-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_overlap_figure --out reports/realistic/sections_laws
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_sections_baselines.yaml --out reports/realistic/sections_baselines $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/sections_baselines --against law=passive
+	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/sections_laws \
+		--also reports/realistic/sections_baselines --sigma-only
 
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair, at
 # 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;

@@ -2,7 +2,8 @@
 against passive per law and speed with its 95 % band, and the force along a stretch of one line,
 passive against line_adaptive.
 
-``ros2 run pac_experiments realistic_laws_figures DIR [--seed N] [--speed KMH] [--spans A B]``
+``ros2 run pac_experiments realistic_laws_figures DIR [--seed N] [--speed KMH] [--spans A B]
+[--also DIR2 ...] [--sigma-only]``
 reads ``DIR/results.csv`` (the campaign config/campaigns/realistic_laws.yaml) and writes
 ``DIR/fig_sigma_change.png`` (one panel per scenario: each law's mean change of the EN 50318 sigma
 against the passive run on the same line, with its 95 % confidence band over the lines, and the
@@ -10,6 +11,12 @@ goals: -30 % at 300 km/h, -20 % at every speed) and ``DIR/fig_force.png`` (law p
 line_adaptive on ``realistic_electromechanical``, line seed N, the 20 Hz force over spans A..B, the
 supports marked). The line has no overlaps or tension sections (docs/catenary.md: a whole line is
 one tension length), so the stretch is of plain spans.
+
+``--also DIR2``: the runs of other campaigns on the same lines join DIR's in the sigma figure (the
+laws over tension sections live in two campaigns, realistic_sections_laws and
+realistic_sections_baselines, each with its passive runs); a run present in both with other
+numbers is refused in one line (exit 2). ``--sigma-only``: no force figure (the one above is of
+the one-tension-length line; the sectioned line has realistic_overlap_figure).
 """
 
 from __future__ import annotations
@@ -62,6 +69,22 @@ def sigma_change_figure(rows: list[dict[str, str]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+def merge_runs(rows: list[dict[str, str]], more: list[dict[str, str]]) -> list[dict[str, str]]:
+    """``rows`` and the runs of ``more`` that are not already there (by the run's ``key``, a hash of
+    its parameters); raises ValueError for a run in both whose measures differ, or a row without a
+    key."""
+    if any("key" not in r for r in (*rows[:1], *more[:1])):
+        raise ValueError("results.csv without a key column")
+    have = {r["key"]: r for r in rows}
+    merged = list(rows)
+    for r in more:
+        if r["key"] not in have:
+            merged.append(r)
+        elif r != have[r["key"]]:
+            raise ValueError(f"run {r['key']} is there with other numbers")
+    return merged
+
+
 def force_figure(seed: int, speed: float, spans: tuple[float, float], path: Path) -> None:
     """The 20 Hz force of law passive and of law line_adaptive over spans a..b of one line."""
     import matplotlib
@@ -96,11 +119,32 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=100)
     parser.add_argument("--speed", type=float, default=300.0)
     parser.add_argument("--spans", type=float, nargs=2, default=(20.0, 30.0))
+    parser.add_argument(
+        "--also",
+        type=Path,
+        nargs="+",
+        default=[],
+        metavar="DIR2",
+        help="other campaigns' runs on the same lines",
+    )
+    parser.add_argument("--sigma-only", action="store_true", help="the sigma figure only, no force figure")
     args = parser.parse_args(argv)
     rows = read_results(args.out, "realistic_laws_figures")
     if rows is None:
         return 2
+    for other in args.also:
+        more = read_results(other, "realistic_laws_figures")
+        if more is None:
+            return 2
+        try:
+            rows = merge_runs(rows, more)
+        except ValueError as error:
+            print(f"realistic_laws_figures: {other}: {error}", file=sys.stderr)
+            return 2
     sigma_change_figure(rows, args.out / "fig_sigma_change.png")
+    if args.sigma_only:
+        print(f"wrote {args.out / 'fig_sigma_change.png'}")
+        return 0
     force_figure(args.seed, args.speed, tuple(args.spans), args.out / "fig_force.png")
     print(f"wrote {args.out / 'fig_sigma_change.png'} and {args.out / 'fig_force.png'}")
     return 0
