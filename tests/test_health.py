@@ -263,9 +263,8 @@ def test_a_managed_lockstep_run_configured_and_activated_by_a_manager_equals_the
         monitor.executor.spin_once(timeout_sec=0.1)
     # The stand-in's verbs see them, unconfigured: nothing runs before the manager says so.
     env = node_env(domain_id)
-    for _ in range(
-        3
-    ):  # a listing is what one process discovers in its bounded wait: as a user would, ask again
+    # A listing is what one process discovers in its bounded wait: as a user would, ask again.
+    for _ in range(3):
         listed = subprocess.run(
             ["ros2", "lifecycle", "nodes"], capture_output=True, text=True, env=env, timeout=60
         )
