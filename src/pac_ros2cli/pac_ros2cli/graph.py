@@ -1,10 +1,12 @@
 """The ROS graph as a CLI sees it: one hidden node, bounded waits for discovery.
 
 Discovery here: participants show up over ~0.1-0.9 s (a busy one answers at its next
-re-announcement, every 0.5 s per config/fastdds_profile.xml). A listing is taken once the graph
-has been still for SETTLE_TIME and at least MIN_DISCOVERY has passed (two re-announcement
-periods: one lost announcement is covered), at most SPIN_TIME; a lookup of one named thing
-returns as soon as it is there, or says it is not after FIND_TIME.
+re-announcement, every 0.5 s per config/fastdds_profile.xml). A node's name arrives after its
+endpoints (on the middleware's own discovery-info topic): until then its endpoints carry the
+name UNKNOWN_NODE. A listing is taken once no endpoint is nameless, the graph has been still for
+SETTLE_TIME (two re-announcement periods: one lost announcement is covered) and MIN_DISCOVERY
+has passed, at most SPIN_TIME after joining; a lookup of one named thing returns as soon as it
+is there, or says it is not after FIND_TIME.
 """
 
 from __future__ import annotations
@@ -18,9 +20,11 @@ from typing import Any
 from .common import fail, join_name
 
 MIN_DISCOVERY = 1.1
-SETTLE_TIME = 0.5
-SPIN_TIME = 2.0
+SETTLE_TIME = 1.0
+SPIN_TIME = 3.0
 FIND_TIME = 1.5
+# rmw_dds_common's name for an endpoint whose participant's node names have not arrived yet.
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 
 
 class Graph:
@@ -67,21 +71,34 @@ class Graph:
         return True
 
     def settled(self, snapshot: Callable[[], Any], timeout: float = SPIN_TIME) -> Any:
-        """``snapshot()`` once discovery has had MIN_DISCOVERY s and the result has not changed for
-        SETTLE_TIME s; at the latest ``timeout`` s after this process joined the graph. An empty
-        result is not settled before ``timeout``: on a loaded machine the first participants can
-        take longer than MIN_DISCOVERY to show up, and "nothing yet" is not "nothing"."""
+        """``snapshot()`` once discovery has had MIN_DISCOVERY s, no endpoint waits for its node's
+        name, and the result has not changed for SETTLE_TIME s; at the latest ``timeout`` s after
+        this process joined the graph. An empty result is not settled before ``timeout``: on a
+        loaded machine the first participants can take longer than MIN_DISCOVERY to show up, and
+        "nothing yet" is not "nothing"."""
         deadline = self.started + max(timeout, MIN_DISCOVERY)
         last, since = snapshot(), time.monotonic()
         while time.monotonic() < deadline:
             now = time.monotonic()
-            if last and now - since >= SETTLE_TIME and now - self.started >= MIN_DISCOVERY:
+            still = now - since >= SETTLE_TIME and now - self.started >= MIN_DISCOVERY
+            if last and still and not self.nameless_endpoints():
                 break
             time.sleep(0.02)
             current = snapshot()
             if current != last:
                 last, since = current, time.monotonic()
         return last
+
+    def nameless_endpoints(self) -> int:
+        """Endpoints seen whose node's name has not arrived: a participant half discovered."""
+        count = 0
+        for topic, _ in self.node.get_topic_names_and_types():
+            for info in (
+                *self.node.get_publishers_info_by_topic(topic),
+                *self.node.get_subscriptions_info_by_topic(topic),
+            ):
+                count += info.node_name == UNKNOWN_NODE
+        return count
 
     def node_names(self, hidden: bool = False) -> list[str]:
         return sorted(
