@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -179,6 +180,9 @@ def synthetic_loop(
     fallback: frozenset[int] = frozenset(),
     f_hat_bias: float = 0.0,
     tell_force: bool = False,
+    amplitude: Callable[[int], float] = lambda span: 1.0,
+    laws: LawParameters | None = None,
+    follows: float = 1.0,
 ) -> tuple[LineAdaptiveLaw, list]:
     """F = F_r + d(t) + (u - F_r) delayed one tick: a line whose force follows u (D = -1 exactly).
 
@@ -191,11 +195,13 @@ def synthetic_loop(
     ticks the controller commands the fallback force (100 N), not the law; it restarts the law
     at the next tick it commands (as controller.Controller does). ``f_hat_bias``: added to F_hat
     (an estimate whose mean is off); ``tell_force``: the law is told the force applied over the
-    last period (the measurement's actuator force).
+    last period (the measurement's actuator force). ``amplitude(m)``: d's scale on span m (a line
+    whose spans differ); ``laws``: the law's parameters (default: LawParameters()); ``follows``: the
+    force's response to u (-1: a line that pushes back, D = +1).
     """
     dt = 1e-3
     track = TrackParameters(speed_kmh=speed, span_length=SPAN)
-    law = LineAdaptiveLaw(track, LawParameters(), dt)
+    law = LineAdaptiveLaw(track, laws or LawParameters(), dt)
     law.gain *= gain_sign
     w = 2 * math.pi / (law.period_ticks * dt)
     f_r = 150.0
@@ -205,7 +211,8 @@ def synthetic_loop(
     blue = (white[2:] - 2 * white[1:-1] + white[:-2]) / math.sqrt(6.0)
     for k in range(spans * law.period_ticks):
         t = k * dt
-        f_hat = f_r + 40 * math.cos(w * t) + 15 * math.sin(3 * w * t + 0.4) + (u_applied - f_r)
+        d = amplitude(k // law.period_ticks) * (40 * math.cos(w * t) + 15 * math.sin(3 * w * t + 0.4))
+        f_hat = f_r + d + follows * (u_applied - f_r)
         f_hat += noise * blue[k] + f_hat_bias
         if k in lost:
             out.append((law.mode, u_applied, f_hat))
@@ -225,11 +232,73 @@ def synthetic_loop(
     return law, out
 
 
-def test_guard_stays_out_when_the_law_helps():
-    law, out = synthetic_loop(+1.0)
+@pytest.mark.parametrize("reference", ["runin", "estimate"])
+def test_guard_stays_out_when_the_law_helps(reference):
+    law, out = synthetic_loop(+1.0, laws=LawParameters(line_guard_reference=reference))
     assert not law.tripped
     f_hat = np.array([o[2] for o in out[-law.period_ticks :]])
     assert np.std(f_hat) < 0.2 * 40 / math.sqrt(2)  # the periodic force is mostly cancelled
+
+
+ESTIMATE = LawParameters(line_guard_reference="estimate")
+#: sigma_b of d at scale 1: (1/2)(40^2 + 15^2), Parseval over the two harmonics [N^2].
+D_VAR = 0.5 * (40.0**2 + 15.0**2)
+
+
+def test_the_estimated_passive_bar_is_passive_sigma_where_the_response_is_known():
+    """Where the force follows u exactly (D = -1, as identified), each span's error less the
+    response to what was applied is d itself: the estimated passive sigma_b of the last 3 spans
+    is d's, and the guard's ratio is the law's sigma_b over it."""
+    law, out = synthetic_loop(+1.0, laws=ESTIMATE)
+    assert not law.tripped
+    recent = law.state[0]["line_recent_passive_var"]
+    np.testing.assert_allclose(recent, D_VAR, rtol=0.005)  # 0.06 % off, the learning's residual
+    n = law.period_ticks
+    f_hat = np.array([o[2] for o in out[-3 * n :]]) - 150.0
+    # d and the law's harmonics are all in the learned band here: sigma_b is the whole sigma.
+    assert law.last_sigma_ratio == pytest.approx(np.std(f_hat) / math.sqrt(D_VAR), rel=0.01)
+
+
+def rougher_after_the_runin(span: int) -> float:
+    """d's scale on span m: 1 over the passive spans, then 1.6 with a spread of 0.5 from span to
+    span (seeded): a rougher stretch whose spans differ, as on a line with drawn deviations."""
+    return 1.0 if span < 4 else 1.6 + 0.5 * ROUGH[span]
+
+
+ROUGH = np.random.default_rng(3).standard_normal(40)
+
+
+def test_the_estimated_passive_bar_follows_a_line_whose_spans_differ():
+    """On the rougher stretch the law more than halves sigma against passive on the same spans,
+    yet the learned harmonics lag the spans' differences and its sigma_b rises above the quiet
+    run-in's: the run-in's bar falls back (as it did on a realistic line, docs/laws.md). The
+    estimated bar (each span's own passive sigma_b) does not."""
+    spans = 24
+    runin, _ = synthetic_loop(+1.0, spans=spans, amplitude=rougher_after_the_runin)
+    assert runin.tripped and runin.trip_reason == "harm"
+    law, out = synthetic_loop(+1.0, spans=spans, amplitude=rougher_after_the_runin, laws=ESTIMATE)
+    assert not law.tripped, law.last_sigma_ratio
+    f_hat = np.array([o[2] for o in out]).reshape(spans, law.period_ticks)[4:] - 150.0
+    passive = [rougher_after_the_runin(m) ** 2 * D_VAR for m in range(4, spans)]
+    assert math.sqrt(np.mean(np.var(f_hat, axis=1)) / np.mean(passive)) < 0.7
+
+
+def test_the_run_in_bar_stays_behind_an_estimate_blinded_by_a_wrong_response():
+    """A line that pushes back (D = +1) and a law whose identification is frozen at the prior
+    D = -1: 180 deg wrong, every step adds to d and the estimated passive sigma_b grows with the
+    law's, so that bar reads the divergence as below 1. The run-in's bar trips it as without
+    the estimate, at the same span (one span above GUARD_HARD_FACTOR times passive)."""
+    frozen = {"line_prior_weight": 1e6}
+    runs = [
+        synthetic_loop(+1.0, follows=-1.0, laws=LawParameters(line_guard_reference=reference, **frozen))
+        for reference in ("runin", "estimate")
+    ]
+    tripped_at = []
+    for law, out in runs:
+        assert law.tripped and law.trip_reason == "harm"
+        tripped_at.append([o[0] for o in out].index("passive") // law.period_ticks)
+    assert runs[1][0].last_sigma_ratio < 1.0  # blinded
+    assert tripped_at[0] == tripped_at[1] <= 5, tripped_at
 
 
 def test_guard_is_not_blinded_by_sensor_noise():
@@ -368,8 +437,9 @@ def test_span_0_whose_last_estimate_never_came_is_closed_when_span_1_begins():
         assert lost.state[0][name] == whole.state[0][name], name  # the same machine: bit for bit
 
 
-def test_guard_falls_back_to_passive_when_forced_to_harm():
-    law, out = synthetic_loop(-1.0)
+@pytest.mark.parametrize("reference", ["runin", "estimate"])
+def test_guard_falls_back_to_passive_when_forced_to_harm(reference):
+    law, out = synthetic_loop(-1.0, laws=LawParameters(line_guard_reference=reference))
     assert law.tripped and law.trip_reason == "harm"
     modes = [o[0] for o in out]
     first = modes.index("passive")

@@ -90,6 +90,7 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_runin_spans", "i8"),
         ("line_guard_ratio", "f8"),
         ("line_guard_after", "i8"),
+        ("line_guard_estimate", "b1"),  # line_guard_reference "estimate"
         ("line_guard_bias", "f8"),  # |mean(F_hat - F_applied)| over a span, fraction of mean(F_r)
         ("line_guard_loss", "f8"),  # share of a span's ticks nearly lost above the passive spans'
         ("line_guard_loss_margin", "f8"),  # nearly lost: F_hat <= this times F_r
@@ -142,6 +143,7 @@ CONTROLLER_STATE = np.dtype(
         ("line_passive_var", "f8"),
         ("line_passive_spans", "i8"),
         ("line_recent_var", "f8", 3),  # line_adaptive_kernels.GUARD_SPANS
+        ("line_recent_passive_var", "f8", 3),  # the same spans' passive estimates
         ("line_last_sigma_ratio", "f8"),
         ("line_stiffness", "f8"),  # k_s of the fitted line impedance Z = k_s + i c w
         ("line_damping", "f8"),  # c

@@ -264,6 +264,7 @@ class LineAdaptiveLaw(KernelLaw):
         p["line_model_below"] = laws.line_model_below
         p["line_guard_ratio"] = laws.line_guard_ratio
         p["line_guard_after"] = max(laws.line_guard_spans, GUARD_SPANS)
+        p["line_guard_estimate"] = laws.line_guard_reference == "estimate"
         p["line_guard_bias"], p["line_guard_loss"] = laws.line_guard_bias, laws.line_guard_loss
         p["line_guard_loss_margin"] = laws.line_guard_loss_margin
         p["line_guard_saturation"] = laws.line_guard_saturation

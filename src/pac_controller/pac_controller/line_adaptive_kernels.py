@@ -111,6 +111,13 @@ def _sum_real(row: np.ndarray, n: int) -> float:
 
 # -- the law, compiled: the class below and pac_controller.kernels call these --------------------
 @njit(cache=True, inline="always")
+def _applied(table, memory, n: int, j: int) -> tuple[float, float]:
+    """Harmonic j of the command the span applied, on the feedforward's phase with the hold's gain
+    taken off (A_h / hold): what ``_learn`` steps from and identifies on."""
+    return _cdiv(memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag)
+
+
+@njit(cache=True, inline="always")
 def _map_row(p, block: int, m: int) -> int:
     """The row of span m of the layout in ``block`` (MAP_GIVEN, MAP_APPLIED, ...) of the map's rows."""
     return map_row(p.line_supports - 1, block, m)
@@ -143,6 +150,7 @@ def line_forget(p, s, memory) -> None:
     s.line_has_prev, s.line_start_tick = False, -1
     s.line_passive_var, s.line_passive_spans = 0.0, 0
     s.line_recent_var[:] = 0.0
+    s.line_recent_passive_var[:] = 0.0
     s.line_last_sigma_ratio, s.line_tripped = 0.0, False
     s.line_stiffness, s.line_damping, s.line_model_valid = 0.0, 0.0, False
     s.line_pending_error, s.line_pending_reference = 0.0, 0.0
@@ -450,12 +458,23 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
     elif span >= runin and s.line_passive_spans and not s.line_tripped:
         sigma_p = math.sqrt(s.line_passive_var / s.line_passive_spans)
         s.line_recent_var[span % GUARD_SPANS] = var
+        if p.line_guard_estimate:
+            s.line_recent_passive_var[span % GUARD_SPANS] = _passive_estimate_var(p, table, memory)
         learned = span - runin + 1  # learning spans so far
         m = min(learned, GUARD_SPANS)
-        total = -0.0
+        total, passive_total = -0.0, -0.0
         for i in range(m):
             total += s.line_recent_var[i]
-        s.line_last_sigma_ratio = math.sqrt((0.0 + total) / m) / sigma_p if sigma_p > 0.0 else 0.0
+            passive_total += s.line_recent_passive_var[i]
+        if p.line_guard_estimate:
+            # The bar follows a line whose spans differ: the same spans' passive sigma_b as the
+            # identified responses say it would have been (docs/laws.md, "The guard's bar"). A
+            # response identified wrong by more than 60 deg in phase can make it read a diverging
+            # law as below 1: the check of one span against the run-in's bar stays behind it.
+            ratio = math.sqrt((0.0 + total) / passive_total) if passive_total > 0.0 else 0.0
+        else:
+            ratio = math.sqrt((0.0 + total) / m) / sigma_p if sigma_p > 0.0 else 0.0
+        s.line_last_sigma_ratio = ratio
         span_ratio = math.sqrt(var) / sigma_p if sigma_p > 0.0 else 0.0
         judged = learned >= p.line_guard_after and not s.line_last_sigma_ratio <= p.line_guard_ratio
         if judged or not span_ratio <= GUARD_HARD_FACTOR * p.line_guard_ratio:
@@ -478,6 +497,21 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         if back_off:  # the step as learned, ramped down to GUARD_BACKOFF of it over the next span
             s.line_backoff_from = s.line_last_commit + 1
     _clear_sums(s, memory)
+
+
+@njit(cache=True, error_model="numpy")
+def _passive_estimate_var(p, table, memory) -> float:
+    """sigma_b^2 the span would have had passive: (1/2) sum_h |E_h - D_h A_h|^2, A_h the harmonics
+    applied (on the feedforward's phase, the hold's gain taken off, as ``_learn`` identifies on) and
+    D_h the response identified before this span (``_identified``): E_h = E_h,passive + D_h A_h."""
+    n, h = p.line_period, p.line_harmonics
+    for j in range(h):
+        a_r, a_i = _applied(table, memory, n, j)
+        d_r, d_i = _identified(p, memory, j)
+        r_r, r_i = _cmul(d_r, d_i, a_r, a_i)
+        e = _cabs(memory[E_ACC, j].real - r_r, memory[E_ACC, j].imag - r_i)
+        memory[SCRATCH, j] = complex(e * e, 0.0)
+    return 0.5 * _sum_real(memory[SCRATCH], h)
 
 
 @njit(cache=True, error_model="numpy")
@@ -517,7 +551,7 @@ def _record_span(p, s, table, memory, m: int, learned_from: bool) -> None:
         return
     n = p.line_period
     for j in range(p.line_harmonics):
-        a_r, a_i = _cdiv(memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag)
+        a_r, a_i = _applied(table, memory, n, j)
         memory[_map_row(p, MAP_APPLIED, m), j] = complex(a_r, a_i)
         memory[_map_row(p, MAP_ERROR, m), j] = memory[E_ACC, j]
     memory[_map_row(p, MAP_SEEN, m), 0] = 1.0 if learned_from else 0.0
@@ -563,9 +597,7 @@ def _learn(p, s, table, memory, span: int) -> None:
     n, h, lam = p.line_period, p.line_harmonics, p.line_forgetting
     for j in range(h):
         # Anti-windup: step from, and identify on, the harmonics applied (module docstring).
-        real_r, real_i = _cdiv(
-            memory[A_ACC, j].real, memory[A_ACC, j].imag, table[n, j].real, table[n, j].imag
-        )
+        real_r, real_i = _applied(table, memory, n, j)
         e_r, e_i = memory[E_ACC, j].real, memory[E_ACC, j].imag
         s_h, z_r, z_i = memory[S, j].real, memory[Z, j].real, memory[Z, j].imag
         if s.line_has_prev:

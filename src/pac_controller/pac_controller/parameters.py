@@ -308,6 +308,14 @@ class LawParameters(ParameterSet):
         low=0.1,
         high=10.0,
     )
+    line_guard_reference: str = parameter(
+        "runin",
+        "line_adaptive: what the guard's sigma is compared with: 'runin', the passive spans at the "
+        "start; 'estimate', each span's own passive sigma estimated from its error less the "
+        "identified response to the harmonics applied (follows a line whose spans differ; one span "
+        "above three times the run-in's trips either way; docs/laws.md)",
+        choices=("runin", "estimate"),
+    )
     line_guard_spans: int = parameter(
         8,
         "line_adaptive: learning spans before the guard judges the RMS sigma of the last 3 spans "
