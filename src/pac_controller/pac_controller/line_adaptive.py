@@ -86,6 +86,10 @@ the secant learning may rise above passive for its first spans; one span above
 ``GUARD_HARD_FACTOR`` times that trips at once: at 220 km/h a first span at 2.1x passive
 was followed by -57 % once the responses were identified, so 2 was too tight), the law
 falls back to passive for the rest of the run (``Command.mode`` "passive"; latched).
+``line_guard_reference`` "estimate" judges the RMS against the same spans' own passive sigma_b
+instead, each span's (1/2) sum_h |E_h - D_h A_h|^2 (A_h applied, D_h identified): a bar that
+follows a line whose spans differ; the one-span check stays on the run-in's bar, which an
+identification wrong in phase cannot blind (docs/laws.md, "The guard's bar").
 
 What F_hat cannot show, the guard judges on what it cannot bend (docs/laws.md, "A guard that an
 estimate cannot blind"): the mean, by the pantograph's momentum balance over a span,

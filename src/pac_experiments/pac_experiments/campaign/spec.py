@@ -86,6 +86,7 @@ KEY_NEUTRAL_DEFAULTS = {
     # line_adaptive's guard on what F_hat cannot bend, and its line map (its runs change with the
     # law's code: make campaigns and make fe-experiment run afresh, not resumed)
     "line_guard_bias": 0.25,
+    "line_guard_reference": "runin",
     "line_guard_loss": 0.01,
     "line_guard_saturation": 0.25,
     "line_guard_strikes": 3,
