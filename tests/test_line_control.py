@@ -269,10 +269,10 @@ ROUGH = np.random.default_rng(3).standard_normal(40)
 
 
 def test_the_estimated_passive_bar_follows_a_line_whose_spans_differ():
-    """On the rougher stretch the law more than halves sigma against passive on the same spans,
-    yet the learned harmonics lag the spans' differences and its sigma_b rises above the quiet
-    run-in's: the run-in's bar falls back (as it did on a realistic line, docs/laws.md). The
-    estimated bar (each span's own passive sigma_b) does not."""
+    """On the rougher stretch the law lowers sigma by about 40 % against passive on the same spans
+    (with the estimated bar), yet the learned harmonics lag the spans' differences and its sigma_b
+    rises above the quiet run-in's: the run-in's bar falls back at span 10 (as it did on a
+    realistic line, docs/laws.md). The estimated bar (each span's own passive sigma_b) does not."""
     spans = 24
     runin, _ = synthetic_loop(+1.0, spans=spans, amplitude=rougher_after_the_runin)
     assert runin.tripped and runin.trip_reason == "harm"
