@@ -81,7 +81,7 @@ class Graph:
         while time.monotonic() < deadline:
             now = time.monotonic()
             still = now - since >= SETTLE_TIME and now - self.started >= MIN_DISCOVERY
-            if last and still and not self.nameless_endpoints():
+            if last and still and not self.has_nameless_endpoint():
                 break
             time.sleep(0.02)
             current = snapshot()
@@ -89,16 +89,18 @@ class Graph:
                 last, since = current, time.monotonic()
         return last
 
-    def nameless_endpoints(self) -> int:
-        """Endpoints seen whose node's name has not arrived: a participant half discovered."""
-        count = 0
-        for topic, _ in self.node.get_topic_names_and_types():
-            for info in (
-                *self.node.get_publishers_info_by_topic(topic),
-                *self.node.get_subscriptions_info_by_topic(topic),
-            ):
-                count += info.node_name == UNKNOWN_NODE
-        return count
+    def endpoints(self, topic: str) -> tuple[list[Any], list[Any]]:
+        """(publishers, subscriptions) of ``topic`` as rclpy's TopicEndpointInfo lists."""
+        return self.node.get_publishers_info_by_topic(topic), self.node.get_subscriptions_info_by_topic(topic)
+
+    def has_nameless_endpoint(self) -> bool:
+        """Whether an endpoint is seen whose node's name has not arrived: a participant half discovered."""
+        return any(
+            info.node_name == UNKNOWN_NODE
+            for topic in self.topics()
+            for infos in self.endpoints(topic)
+            for info in infos
+        )
 
     def node_names(self, hidden: bool = False) -> list[str]:
         return sorted(

@@ -183,12 +183,7 @@ def topic_info(args: list[str]) -> int:
     with Graph() as graph:
         if graph.topic_type(topic) is None:
             fail(f"unknown topic '{topic}' (same ROS_DOMAIN_ID? ros2 topic list shows them)")
-        pubs, subs = graph.settled(
-            lambda: (
-                graph.node.get_publishers_info_by_topic(topic),
-                graph.node.get_subscriptions_info_by_topic(topic),
-            )
-        )
+        pubs, subs = graph.settled(lambda: graph.endpoints(topic))
         print(f"Type: {', '.join(graph.topics().get(topic, []))}")
         for label, infos in (("Publisher", pubs), ("Subscription", subs)):
             print(f"{label} count: {len(infos)}")
