@@ -59,23 +59,39 @@ def tension_only_equilibrium(
     slack = np.flatnonzero(elongation_taut < 0.0)
     if len(slack) == 0:
         return TensionOnlyEquilibrium(w_taut, elongation_taut, slack, 0)
-    g = np.zeros((len(w_taut), nd))
-    g[wm, np.arange(nd)] = 1.0
-    g[wc, np.arange(nd)] -= 1.0
-    y = solve(g)  # column j: K^-1 g_j
-    d = y[wm, :] - y[wc, :]  # D = G^T K^-1 G
+    n = len(w_taut)
+    # K^-1 g_j only for the droppers a pass takes slack (a whole line's ~500 columns would be most
+    # of its set-up): solved once each, as a banded solve treats every column on its own.
+    solved: dict[int, np.ndarray] = {}
+
+    def columns(js: np.ndarray) -> np.ndarray:
+        """(n, len(js)): column k is K^-1 g_(js[k]); column-major, as a column selection of the
+        whole (n, nd) solution would be (the products below then sum in the same order)."""
+        missing = np.array([j for j in js if j not in solved], dtype=np.int64)
+        if len(missing):
+            g = np.zeros((n, len(missing)))
+            g[wm[missing], np.arange(len(missing))] = 1.0
+            g[wc[missing], np.arange(len(missing))] -= 1.0
+            y_missing = solve(g)
+            for k, j in enumerate(missing):
+                solved[int(j)] = y_missing[:, k]
+        return np.asfortranarray(np.stack([solved[int(j)] for j in js], axis=1))
+
     passes = 0
     c = np.zeros(0)
     while passes < MAX_PASSES:
         passes += 1
-        c = np.linalg.solve(np.diag(1.0 / stiffness[slack]) - d[np.ix_(slack, slack)], elongation_taut[slack])
-        elongation = elongation_taut + d[:, slack] @ c
+        y = columns(slack)
+        d = np.asfortranarray(y[wm, :] - y[wc, :])  # the slack columns of D = G^T K^-1 G
+        c = np.linalg.solve(np.diag(1.0 / stiffness[slack]) - d[slack, :], elongation_taut[slack])
+        elongation = elongation_taut + d @ c
         new = np.flatnonzero(elongation < 0.0)
         if np.array_equal(new, slack):
             break
         slack = new
     else:
         raise RuntimeError(f"tension-only static state: the active set did not settle in {MAX_PASSES} passes")
-    w = w_taut + y[:, slack] @ c
-    elongation = elongation_taut + d[:, slack] @ c
+    y = columns(slack)
+    w = w_taut + y @ c
+    elongation = elongation_taut + np.asfortranarray(y[wm, :] - y[wc, :]) @ c
     return TensionOnlyEquilibrium(w, elongation, slack, passes)
