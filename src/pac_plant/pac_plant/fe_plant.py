@@ -34,6 +34,7 @@ import math
 
 import numpy as np
 
+from pac_common.parameters import ParameterError
 from pac_model.pantograph_file import load_pantograph_file
 from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters, positive_period
 
@@ -166,6 +167,17 @@ class FEPlant(Plant):
             data, options.fe_height_error, options.fe_wear, options.fe_imperfection_seed
         )
         self.data = data
+        if options.fe_window_spans > 0.0 and not data.whole_line:
+            raise ParameterError(
+                "fe_window_spans",
+                options.fe_window_spans,
+                f"0 on {data.name or 'this line'}: an endless line is a window already (a moving "
+                "window is for a whole line, drawn by a layout rule)",
+            )
+        if 0.0 < options.fe_window_spans < 2.0:
+            raise ParameterError(
+                "fe_window_spans", options.fe_window_spans, "0 (the whole line) or 2 spans and more"
+            )
         spacings = options.pantographs
         # A whole line (drawn by a layout rule) runs once from end to end; a period, endlessly.
         periods, start = (1, 1) if data.whole_line else window_periods(data, spacings[-1])
@@ -189,6 +201,7 @@ class FEPlant(Plant):
             endless=not data.whole_line,
             lag=spacings[ctrl],
             passive=passive,
+            window_spans=options.fe_window_spans,
         )
         if np.any(self.sim.uplifts[1:]) or (self.own_uplift and np.any(self.sim.panto.ground_stiffness)):
             # A pantograph's static uplift is its force on the wire at its working height: its roof

@@ -132,6 +132,15 @@ class PlantOptions(ParameterSet):
         0.5, "fe: largest beam element length (docs/catenary.md: convergence)", "m", low=0.1, high=2.0
     )
 
+    fe_window_spans: float = parameter(
+        0.0,
+        "fe: a moving window on a whole line: each step works on this many mean spans around the "
+        "pantographs (plus their spacing) and holds the rest of the line at rest (0: the whole "
+        "line; not on an endless line; docs/catenary.md: A moving window)",
+        low=0.0,
+        high=1000.0,
+    )
+
     fe_height_error: float = parameter(
         0.0,
         "fe: standard deviation of the contact-wire height error at each dropper (0: none; seeded by "

@@ -78,6 +78,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "sensors": "ground",
     "aero_turbulence": 0.0,
     "aero_turbulence_seed": 0,
+    "fe_window_spans": 0.0,
     "pantographs": (0.0,),
     "controlled_pantograph": 0,
     "passive_pantograph": "three_mass",

@@ -59,6 +59,7 @@ from .step import (
     STEPS,
     UNCONVERGED,
     UNIT_REACH,
+    WINDOW,
     StepConstants,
     StepState,
     X,
@@ -68,6 +69,7 @@ from .step import (
     readings_at,
     unit_start,
 )
+from .window import line_windows, no_windows
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,10 @@ class ContactSimulation:
     ``rear_periods`` (the periods added behind for the largest lag, or for ``window_lag``): every
     contact point then keeps at least the one-pantograph window's distance to the rear end, x the
     same distance ahead.
+
+    ``window_spans`` (0: none) on a line that is not endless: each step works on the spans around
+    the pantographs only, ``window_spans`` mean spans plus the largest lag, and holds the rest of
+    the line at rest (``window``).
     """
 
     def __init__(
@@ -117,6 +123,7 @@ class ContactSimulation:
         lag: float = 0.0,
         passive: Sequence[PassivePantograph] = (),
         window_lag: float | None = None,
+        window_spans: float = 0.0,
     ) -> None:
         positive_period(dt, "dt")
         lags = [float(lag)] + [float(q.lag) for q in passive]
@@ -189,6 +196,13 @@ class ContactSimulation:
         rear = rear_periods(span, float(self.lags.max()) if window_lag is None else window_lag)
         self.shift_at = ((line.n_periods - rear) // 2 + 1 + rear) * span
         factors, starts, bounds = chunk_factor(a_line)
+        if window_spans > 0.0:
+            if endless:
+                raise ValueError("a moving window is for a whole line, not an endless one")
+            windows = line_windows(line, a_line, self._m, window_spans, float(self.lags.max()))
+        else:
+            windows = no_windows(factors.shape[2], KD)
+        self.window_spans = window_spans
         # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
         # is < 1e-18 of the peak), what the update adds for a slack dropper.
         width = min(n, 4 * (2 * UNIT_REACH + 1))
@@ -251,6 +265,13 @@ class ContactSimulation:
             section_x=np.ascontiguousarray(line.section_x, dtype=float),
             lift=np.ascontiguousarray(line.lift, dtype=float),
             p_wire=np.repeat(np.arange(wires, dtype=np.int64), n_pantographs),
+            window_x=windows.x_leave,
+            window_rows=windows.rows,
+            window_drops=windows.drops,
+            window_mass=windows.mass,
+            window_factors=windows.factors,
+            window_starts=windows.starts,
+            window_bounds=windows.bounds,
         )
         # State: the arrays the compiled step mutates in place (the attributes below are views).
         self.state = StepState(
@@ -262,7 +283,7 @@ class ContactSimulation:
             ap=np.zeros(len(pm)),
             roof_rest=np.zeros(len(pm)),
             scalars=np.zeros(4),
-            counters=np.zeros(7, dtype=np.int64),
+            counters=np.array([0, 0, 0, 0, 0, 0, 0, -1], dtype=np.int64),
             slack=np.zeros(nd, dtype=np.int64),
             unit_patches=np.zeros((line.n_nodes, 2, width)),
             unit_ready=np.zeros(line.n_nodes, dtype=np.int64),
@@ -367,6 +388,8 @@ class ContactSimulation:
         value = np.asarray(value, dtype=np.int64)
         self.state.slack[: len(value)] = value
         self.state.counters[N_SLACK] = len(value)
+        # A moving window takes its own droppers (and rows) at the next step: it chooses afresh.
+        self.state.counters[WINDOW] = -1
 
     # -- initial states ------------------------------------------------------------------------
     def _place_pantographs(self, heads: np.ndarray, forces: np.ndarray) -> None:

@@ -15,7 +15,7 @@ from .step import StepConstants, StepState, fe_advance
 CONSTANT_KINDS = (
     "f2", "f2", "f3", "i1", "i1", "f1", "f1", "f2", "f2", "f2", "f1",
     "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1", "i1", "i1", "f1", "f1", "f1",
-    "i2", "f2", "f1", "i1",
+    "i2", "f2", "f1", "i1", "f1", "i2", "i2", "f3", "f3", "i2", "i2",
 )  # fmt: skip
 STATE_KINDS = (
     "f1", "f1", "f1", "f1", "f1", "f1", "f1", "f1", "i1", "i1", "f3", "i1", "f2", "f2", "f2",
@@ -76,7 +76,8 @@ def unpack(
         _v1(ci, cl, 12), _v1(ci, cl, 13), _v1(ci, cl, 14), _v2(cf, cl, 15), _v2(cf, cl, 16),
         _v2(cf, cl, 17), _v1(cf, cl, 18), _v1(cf, cl, 19), _v1(ci, cl, 20), _v1(ci, cl, 21),
         _v1(ci, cl, 22), _v1(cf, cl, 23), _v1(cf, cl, 24), _v1(cf, cl, 25), _v2(ci, cl, 26),
-        _v2(cf, cl, 27), _v1(cf, cl, 28), _v1(ci, cl, 29),
+        _v2(cf, cl, 27), _v1(cf, cl, 28), _v1(ci, cl, 29), _v1(cf, cl, 30), _v2(ci, cl, 31),
+        _v2(ci, cl, 32), _v3(cf, cl, 33), _v3(cf, cl, 34), _v2(ci, cl, 35), _v2(ci, cl, 36),
     )  # fmt: skip
     s = StepState(
         _v1(sf, sl, 0), _v1(sf, sl, 1), _v1(sf, sl, 2), _v1(sf, sl, 3), _v1(sf, sl, 4), _v1(sf, sl, 5),

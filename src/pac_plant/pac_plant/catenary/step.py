@@ -10,7 +10,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .banded import chunk_solve
+from .banded import KD, chunk_solve
 from .newmark import newmark_rhs_mass, newmark_update
 
 # -- the whole Newmark step of line + pantograph, compiled (``integrator.ContactSimulation``) ----------
@@ -21,7 +21,7 @@ UNIT_REACH = 20
 
 # Indices into StepState.scalars / StepState.counters.
 X, OFFSET, DELTA, INPUT_FORCE = 0, 1, 2, 3
-IN_CONTACT, STEPS, PASSES_MAX, UNCONVERGED, N_SLACK, YC_LO, YC_HI = 0, 1, 2, 3, 4, 5, 6
+IN_CONTACT, STEPS, PASSES_MAX, UNCONVERGED, N_SLACK, YC_LO, YC_HI, WINDOW = 0, 1, 2, 3, 4, 5, 6, 7
 #: ``fe_step`` return codes.
 STEP_OK, STEP_OFF_LINE = 0, 1
 
@@ -46,6 +46,10 @@ class StepConstants(NamedTuple):
     reference lift [m]. ``indices[6]`` = the pantographs P; on a line of several sections contact
     P + k is pantograph k's on the other wire set (``p_wire``: 0 touches sections 0, 2, ...; 1
     the odd ones), with no input of its own (``p_inputs`` -1).
+    A moving window on a whole line (``window.WindowArrays``; none: every ``window_*`` empty, the
+    step runs on the whole line): ``window_x`` where each window gives way to the next [m],
+    ``window_rows`` its rows solved and kept, ``window_drops`` its droppers, ``window_mass``,
+    ``window_factors``, ``window_starts``, ``window_bounds`` its mass band and factor.
     """
 
     m_pad: np.ndarray
@@ -78,6 +82,13 @@ class StepConstants(NamedTuple):
     section_x: np.ndarray
     lift: np.ndarray
     p_wire: np.ndarray
+    window_x: np.ndarray
+    window_rows: np.ndarray
+    window_drops: np.ndarray
+    window_mass: np.ndarray
+    window_factors: np.ndarray
+    window_starts: np.ndarray
+    window_bounds: np.ndarray
 
 
 class StepState(NamedTuple):
@@ -85,8 +96,9 @@ class StepState(NamedTuple):
 
     ``scalars`` = (x, offset, delta, input_force); ``counters`` = (in_contact, steps,
     active_set_passes_max, active_set_unconverged, n_slack, the range of ``work[1]`` that is
-    not zero); ``slack[:n_slack]`` the slack droppers (ascending); ``unit_patches[i, r]`` =
-    A^-1 e_(4i+r) on the rows ``unit_start(i)`` + 0..width-1 (``unit_ready[i]``: computed);
+    not zero, the moving window in use: -1 none yet); ``slack[:n_slack]`` the slack droppers
+    (ascending); ``unit_patches[i, r]`` = A^-1 e_(4i+r) on the rows ``unit_start(i)`` +
+    0..width-1 (``unit_ready[i]``: computed);
     ``work`` (1 + contacts, n): scratch and A^-1 g_k of contact k in row 1 + k, not zero on
     ``yc_range[k]`` only; ``padded`` (2, n + 2 KD), ``chunk_work``: scratch. ``deltas[k]``,
     ``touching[k]``: penetration and contact of contact k (the controlled one's also in
@@ -190,12 +202,55 @@ def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
     n, width = s.d.shape[0], s.unit_patches.shape[2]
     lo = unit_start(n, width, node)
     col = s.work[0]
+    g = s.counters[WINDOW]
     for r in range(2):
-        col[:] = 0.0
-        col[4 * node + r] = 1.0
-        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0])
+        if g < 0:
+            col[:] = 0.0
+            col[4 * node + r] = 1.0
+            chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0])
+        else:  # the window's rows (the column is the whole line's to rounding: window.PAD)
+            col[c.window_rows[g, 0] : c.window_rows[g, 1]] = 0.0
+            col[4 * node + r] = 1.0
+            window_solve(c, s, g, col, col[:0])
         s.unit_patches[node, r, :] = col[lo : lo + width]
     s.unit_ready[node] = 1
+
+
+@numba.njit(cache=True)
+def window_solve(c: StepConstants, s: StepState, g: int, b: np.ndarray, addend: np.ndarray) -> None:
+    """``chunk_solve`` in place on the rows window g solves (the line beyond them at rest);
+    ``addend``: those rows' addend, or empty."""
+    lo, hi = c.window_rows[g, 0], c.window_rows[g, 1]
+    rows = c.window_factors.shape[0] // c.window_x.shape[0]
+    factors = c.window_factors[g * rows : (g + 1) * rows]
+    chunk_solve(factors, c.window_starts[g], c.window_bounds[g], b[lo:hi], s.chunk_work, addend)
+
+
+@numba.njit(cache=True)
+def follow_window(c: StepConstants, s: StepState, x: float) -> int:
+    """The window for the reference point at x; on a change, the rows it no longer keeps are set
+    to rest and the slack droppers it no longer takes are dropped (the first time: every row
+    outside it)."""
+    g = s.counters[WINDOW]
+    new = max(g, 0)
+    while new < c.window_x.shape[0] - 1 and x >= c.window_x[new]:
+        new += 1
+    if new == g:
+        return g
+    lo, hi = c.window_rows[new, 2], c.window_rows[new, 3]
+    old_lo, old_hi = (0, s.d.shape[0]) if g < 0 else (c.window_rows[g, 2], c.window_rows[g, 3])
+    for vec in (s.d, s.v, s.a):
+        vec[old_lo : max(lo, old_lo)] = 0.0
+        vec[min(hi, old_hi) : old_hi] = 0.0
+    j0, j1 = c.window_drops[new, 0], c.window_drops[new, 1]
+    ns, kept = s.counters[N_SLACK], 0
+    for q in range(ns):
+        if j0 <= s.slack[q] < j1:
+            s.slack[kept] = s.slack[q]
+            kept += 1
+    s.counters[N_SLACK] = kept
+    s.counters[WINDOW] = new
+    return new
 
 
 @numba.njit(cache=True)
@@ -304,6 +359,20 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
     d, v, a = s.d, s.v, s.a
     n = d.shape[0]
     npc = c.p_lag.shape[0]
+    nd = c.e0.shape[0]
+    # The rows solved (lo_s .. hi_s) and kept (lo_k .. hi_k), the droppers taken (j0 .. j1): the
+    # whole line, or a moving window's (``window``; before the contact columns, which use it).
+    windowed = c.window_x.shape[0] > 0
+    g, lo_s, hi_s, lo_k, hi_k, j0, j1 = -1, 0, n, 0, n, 0, nd
+    if windowed:
+        g = follow_window(c, s, x_new)
+        lo_s, hi_s, lo_k, hi_k = (
+            c.window_rows[g, 0],
+            c.window_rows[g, 1],
+            c.window_rows[g, 2],
+            c.window_rows[g, 3],
+        )
+        j0, j1 = c.window_drops[g, 0], c.window_drops[g, 1]
     elem = np.empty(npc, dtype=np.int64)
     nsh = np.empty((npc, 4))
     dofs = np.empty((npc, 4), dtype=np.int64)
@@ -325,11 +394,28 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         _unit_patches(c, s, e)  # (before the solve: they use y_l as scratch)
         _unit_patches(c, s, e + 1)
     y_l = s.work[0]
-    z, tail = s.padded[0], s.padded[1, :n]
-    newmark_rhs_mass(c.m_pad, d, v, a, dt, alpha, beta, z, tail, y_l)
-    chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work, tail)
+    if windowed:  # (the solved rows' z keeps zero ends: nothing else writes the padded rows)
+        rows = hi_s - lo_s
+        z, tail = s.padded[0][: rows + 2 * KD], s.padded[1][:rows]
+        newmark_rhs_mass(
+            c.window_mass[g],
+            d[lo_s:hi_s],
+            v[lo_s:hi_s],
+            a[lo_s:hi_s],
+            dt,
+            alpha,
+            beta,
+            z,
+            tail,
+            y_l[lo_s:hi_s],
+        )
+        window_solve(c, s, g, y_l, tail)
+    else:
+        z, tail = s.padded[0], s.padded[1, :n]
+        newmark_rhs_mass(c.m_pad, d, v, a, dt, alpha, beta, z, tail, y_l)
+        chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, y_l, s.chunk_work, tail)
     if c.y_rest.shape[0]:  # A^-1 of the constant rest load (droppers slack at rest; else empty)
-        for i in range(n):
+        for i in range(lo_s, hi_s):
             y_l[i] += c.y_rest[i]
     # Contact columns A^-1 g_k (line part) from the stored patches; zero outside their [lo, hi).
     width = s.unit_patches.shape[2]
@@ -365,7 +451,6 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         for j in range(npn):
             y_p[i] += c.p_ainv[i, j] * bp[j]
     # Projections on the contact directions g_k and on the dropper directions g_j.
-    nd = c.e0.shape[0]
     ws_x = np.zeros(npc)
     gc_y = np.empty(npc)
     gc_yc = np.empty((npc, npc))
@@ -384,7 +469,7 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         if sectioned:
             ws_x[k] += lifted[k]
     gd_y = np.empty(nd)
-    for j in range(nd):
+    for j in range(j0, j1):
         for k in range(npc):
             acc = 0.0
             for i in range(4):
@@ -414,7 +499,7 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
             coef = _woodbury_coefficients(c, slack, active, gc_y, gc_yc, gc_ydrop, gd_y, gd_yc, ws_x)
         for k in range(npc):
             delta[k] = gc_y[k] - ws_x[k]
-        for j in range(nd):
+        for j in range(j0, j1):
             e_drop[j] = c.e0[j] + gd_y[j]
         if ns:
             for k in range(npc):
@@ -422,7 +507,7 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
                 for q in range(ns):
                     acc += gc_ydrop[k, slack[q]] * coef[q]
                 delta[k] += acc
-            for j in range(nd):
+            for j in range(j0, j1):
                 acc = 0.0
                 for q in range(ns):
                     acc += c.ddrop[j, slack[q]] * coef[q]
@@ -431,9 +516,9 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
             kb, cb = active[b], coef[ns + b]
             for k in range(npc):
                 delta[k] += gc_yc[k, kb] * cb
-            for j in range(nd):
+            for j in range(j0, j1):
                 e_drop[j] += gd_yc[kb, j] * cb
-        new_slack = np.flatnonzero(e_drop < 0.0)
+        new_slack = np.flatnonzero(e_drop[j0:j1] < 0.0) + j0
         consistent = new_slack.shape[0] == ns and np.all(new_slack == slack)
         for k in range(npc):
             new_touch = 1 if delta[k] > 0.0 else 0
@@ -466,7 +551,10 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
             d_new[r] += yc_l[r] * cc
         for i in range(npn):
             p_new[i] += c.p_ainv[i, c.p_heads[kb]] * cc
-    newmark_update(d, v, a, d_new, dt)
+    if windowed:
+        newmark_update(d[lo_k:hi_k], v[lo_k:hi_k], a[lo_k:hi_k], d_new[lo_k:hi_k], dt)
+    else:
+        newmark_update(d, v, a, d_new, dt)
     for i in range(npn):
         ap_new = c0 * (p_new[i] - s.p[i]) - (4.0 / dt) * s.vp[i] - s.ap[i]
         s.vp[i] = s.vp[i] + 0.5 * dt * (s.ap[i] + ap_new)
