@@ -54,7 +54,11 @@ class DivergenceError(RuntimeError):
         super().__init__(f"closed loop diverged at tick {tick}: {reason}")
 
 
-def build_cores(s: Scenario) -> tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]:
+#: A scenario's plant, observer and controller (``build_cores``).
+Cores = tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]
+
+
+def build_cores(s: Scenario) -> Cores:
     """The plant, observer and controller of ``s``; ParameterError (one line) for parts that do not
     fit together (pac_rig.composition) or a design the parameters do not allow."""
     composition.check_pair(
