@@ -55,7 +55,6 @@ def tension_only_equilibrium(
 ) -> TensionOnlyEquilibrium:
     """Equilibrium from the taut one (``w_taut``, ``elongation_taut``; ``solve``: f -> K^-1 f with
     every dropper taut; dropper j joins DOFs ``wc[j]`` and ``wm[j]`` with ``stiffness[j]``)."""
-    nd = len(elongation_taut)
     slack = np.flatnonzero(elongation_taut < 0.0)
     if len(slack) == 0:
         return TensionOnlyEquilibrium(w_taut, elongation_taut, slack, 0)
