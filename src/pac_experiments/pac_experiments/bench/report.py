@@ -69,6 +69,14 @@ GOALS = (
         "{:.1f}",
     ),
     Goal(
+        "realistic_simulate_x",
+        "3 km realistic line at 300 km/h (34 s), `simulate` whole process, 16-span moving window",
+        "× real time",
+        10.0,
+        True,
+        "{:.1f}",
+    ),
+    Goal(
         "batch_rate",
         "batch, every law (six), 2 threads",
         "scenario-s per wall-s",
