@@ -93,7 +93,9 @@ def test_a_line_at_rest_stays_at_rest_with_a_slack_dropper_just_outside_the_wind
     for _ in range(200):
         sim.step(0.0)
     assert sim.state.counters[7] == 1
-    assert np.max(np.abs(sim.d)) < 1e-15
+    # Rounding of the rest load against its droppers' release: 1e-21 to 8e-15 m measured over
+    # OpenBLAS's kernels (the rest solution is a LAPACK solve); the dropper left out gives 9e-9 m.
+    assert np.max(np.abs(sim.d)) < 1e-12
 
 
 def test_a_window_over_the_whole_line_is_the_whole_line() -> None:
