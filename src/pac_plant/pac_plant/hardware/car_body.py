@@ -216,6 +216,12 @@ def roof_force(amplitude, frequency, phase, stiffness: float, damping: float, t0
     h = t1 - t0
     mean_height = 0.0
     rise = 0.0
+    if damping == 0.0:  # (the turbulent uplift's: no rate term, so none of the cosines it needs)
+        for i in range(amplitude.shape[0]):
+            w = frequency[i]
+            a1, a0 = w * t1 + phase[i], w * t0 + phase[i]
+            mean_height += amplitude[i] * (math.sin(a1) - math.sin(a0)) / w
+        return stiffness * mean_height / h
     for i in range(amplitude.shape[0]):
         w = frequency[i]
         a1, a0 = w * t1 + phase[i], w * t0 + phase[i]
