@@ -98,6 +98,28 @@ def test_a_line_at_rest_stays_at_rest_with_a_slack_dropper_just_outside_the_wind
     assert np.max(np.abs(sim.d)) < 1e-12
 
 
+def test_contact_columns_prepared_outside_the_window_are_the_whole_lines() -> None:
+    """A plant may solve the contact columns of a stretch ahead before it gets there
+    (``prepare_contact_columns``); outside the window the window's solve cannot hold them, so the
+    step solves them on the whole line."""
+    line = short_line(3)
+    x0 = float(line.layout.support_x[1])
+    sims = [
+        ContactSimulation(line, three_mass_pantograph(), 1e-3, SPEED, x0, window_spans=w) for w in (2.5, 0.0)
+    ]
+    for sim in sims:
+        for _ in range(100):
+            sim.step(FORCE)
+        far = float(line.layout.support_x[-2])
+        sim.prepare_contact_columns(far, far + 5.0)
+    assert sims[0].state.counters[7] == 0  # still the first window
+    ready = np.flatnonzero(sims[1].state.unit_ready)
+    far_nodes = ready[line.x[ready] > far - 1.0]
+    assert len(far_nodes) >= 10 and DOFS_PER_NODE * far_nodes.min() >= sims[0].constants.window_rows[0, 1]
+    got, want = sims[0].state.unit_patches[far_nodes], sims[1].state.unit_patches[far_nodes]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.max(np.abs(want)))
+
+
 def test_a_window_over_the_whole_line_is_the_whole_line() -> None:
     line = short_line(1)
     runs = []

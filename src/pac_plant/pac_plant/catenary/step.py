@@ -10,7 +10,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .banded import KD, chunk_solve
+from .banded import CHUNK_OVERLAP, KD, chunk_solve
 from .newmark import newmark_rhs_mass, newmark_update
 
 # -- the whole Newmark step of line + pantograph, compiled (``integrator.ContactSimulation``) ----------
@@ -203,6 +203,10 @@ def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
     lo = unit_start(n, width, node)
     col = s.work[0]
     g = s.counters[WINDOW]
+    if g >= 0:  # the window's solve, where it holds the column with a chunk's overlap to spare
+        lo_s, hi_s = c.window_rows[g, 0], c.window_rows[g, 1]
+        if (lo_s > 0 and lo - lo_s < CHUNK_OVERLAP) or (hi_s < n and hi_s - lo - width < CHUNK_OVERLAP):
+            g = -1
     for r in range(2):
         if g < 0:
             col[:] = 0.0

@@ -11,6 +11,9 @@ plus ``PAD`` rows on either side, where the solve sees the line beyond at rest (
 about ten times per node, ``banded.CHUNK_OVERLAP``: what a solve truncated PAD rows further out
 misses is rounding). So the window's one approximation is the state it discards: the waves that
 leave it behind the pantographs, and the precursor that runs ahead of it, are set to rest.
+A contact column (A^-1 e_i, solved once per node at its first use) is solved in the window where
+the window holds it with a chunk's overlap to spare, else on the whole line (a stretch a plant
+prepares ahead of the window).
 
 Windows are fixed in advance, one per mean span: window g covers the line from g mean spans for
 ``spans`` mean spans plus the largest lag (a second pantograph's distance), and is used while the
