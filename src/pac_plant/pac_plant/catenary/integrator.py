@@ -202,7 +202,6 @@ class ContactSimulation:
             windows = line_windows(line, a_line, self._m, window_spans, float(self.lags.max()))
         else:
             windows = no_windows(factors.shape[2], KD)
-        self.window_spans = window_spans
         # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
         # is < 1e-18 of the peak), what the update adds for a slack dropper.
         width = min(n, 4 * (2 * UNIT_REACH + 1))

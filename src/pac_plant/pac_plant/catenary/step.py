@@ -522,7 +522,9 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
                 delta[k] += gc_yc[k, kb] * cb
             for j in range(j0, j1):
                 e_drop[j] += gd_yc[kb, j] * cb
-        new_slack = np.flatnonzero(e_drop[j0:j1] < 0.0) + j0
+        new_slack = np.flatnonzero(e_drop[j0:j1] < 0.0)
+        if j0:  # (in place: no second array a pass)
+            new_slack += j0
         consistent = new_slack.shape[0] == ns and np.all(new_slack == slack)
         for k in range(npc):
             new_touch = 1 if delta[k] > 0.0 else 0

@@ -72,20 +72,6 @@ def no_windows(n_chunks: int, kd: int) -> WindowArrays:
     )
 
 
-def _nodes_at(line: Line, x: float) -> tuple[int, int]:
-    """(lowest, highest) node index at x over the sections that cover x: the node at or before x
-    in the first of them, the node at or after x in the last."""
-    low, high = line.n_nodes, -1
-    for q, (lo, hi) in enumerate(line.sections):
-        x0, x1 = line.section_x[q]
-        if x0 <= x <= x1 or (q == 0 and x < x0) or (q == len(line.sections) - 1 and x > x1):
-            xs = line.x[lo:hi]
-            before = lo + max(int(np.searchsorted(xs, x, side="right")) - 1, 0)
-            after = lo + min(int(np.searchsorted(xs, x, side="left")), hi - lo - 1)
-            low, high = min(low, before), max(high, after)
-    return low, high
-
-
 def line_windows(
     line: Line, a_band: np.ndarray, m_band: np.ndarray, spans: float, lag: float
 ) -> WindowArrays:
@@ -106,9 +92,9 @@ def line_windows(
             break
         s += mean_span
     kept = []
-    for s in starts_x:
-        low = _nodes_at(line, s)[0]
-        high = _nodes_at(line, min(s + extent, end_x))[1]
+    for s in starts_x:  # every section's nodes over the window's stretch (an overlap: both wires)
+        ranges = line.node_ranges(s, min(s + extent, end_x))
+        low, high = min(first for first, _ in ranges), max(last for _, last in ranges)
         kept.append((DOFS_PER_NODE * low, DOFS_PER_NODE * (high + 1)))
     width = min(n, max(hi - lo for lo, hi in kept) + 2 * PAD)
     g_count = len(starts_x)
