@@ -311,6 +311,25 @@ def test_the_whole_lines_dropper_lengths_put_the_taut_wire_at_its_design_presag(
     assert np.max(np.abs(taut[dr.wc] + dr.target_sag)) < 1e-6
 
 
+def test_the_whole_lines_dropper_passes_stop_converged_or_say_they_did_not() -> None:
+    """The chord passes stop because the lengths moved less than their tolerance (1e-9 m), not at
+    their cap: one more pass from the solved lengths moves them less than that. Without the
+    steps' correction for the dropper stiffness the passes shrink the residual ~1.4x each and do
+    not converge within 50; a solve that does not converge says so in one line."""
+    f = load_catenary("realistic_3km")
+    data = f.line(3)
+    line = Line(data, f.numerics, n_spans=len(data.spans))
+    dr = line.droppers
+    solved = dr.length0.copy()
+    line.solve_dropper_lengths(max_iterations=1)  # raises unless the one pass moves < 1e-9 m
+    np.testing.assert_allclose(dr.length0, solved, rtol=0.0, atol=1e-9)
+    dr.length0, dr.stiffness = dr.height.copy(), data.dropper_ea / dr.height
+    with pytest.raises(ValueError) as info:
+        line.solve_dropper_lengths(max_iterations=5)
+    message = str(info.value)
+    assert "did not converge in 5 passes" in message and "\n" not in message
+
+
 def test_the_element_flexibility_is_the_inverse_stiffness_by_solves() -> None:
     """The 4x4 blocks of K^-1 on each element's contact DOFs, read off the band of K^-1 (the
     Takahashi recurrence on the Cholesky factor), equal K^-1 by banded solves of unit loads (the

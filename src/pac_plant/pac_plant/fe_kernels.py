@@ -65,7 +65,7 @@ def fe_advance(k, pp, ps, fe_args, force) -> int:
             pp.passive_roof_k[j],
             pp.passive_roof_c[j],
             t0,
-            t0 + pp.dt,
+            (k + 1) * pp.dt,
         )
     if step.fe_advance(c, st, force, pp.substeps, flexibility, readings) != step.STEP_OK:
         return OFF_LINE

@@ -326,7 +326,7 @@ class FEPlant(Plant):
             self._sense()  # every tick is sensed once (the suite's filters step per tick)
         applied = self._actuate(u)
         if self.passive_roofs:  # each passive pantograph's roof force, its mean over the tick
-            t0, t1, base = self.time, self.time + self.sample_period, self.sim.state.base_force
+            t0, t1, base = self.time, (self.tick + 1) * self.sample_period, self.sim.state.base_force
             for roof in self.passive_roofs:
                 m = roof.motion
                 base[roof.contact] = roof_force(

@@ -208,7 +208,7 @@ class Plant:
         spring and damper, and the turbulent uplift (each its mean over the tick); ``force`` itself
         for a fixed base and no turbulence."""
         roof, wind = self.roof, self.gusts
-        t0, t1 = self.time, self.time + self.sample_period
+        t0, t1 = self.time, (self.tick + 1) * self.sample_period  # the next tick's time, to the bit
         if roof is not None:
             force = force + roof_force(
                 roof.amplitude, roof.frequency, roof.phase, self._roof_k, self._roof_c, t0, t1

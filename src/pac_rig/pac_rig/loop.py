@@ -50,7 +50,7 @@ from pac_observer.observer_dispatch import observer_update
 from pac_observer.observers import compiled_observer_classes
 from pac_plant.hardware.actuator_dispatch import actuator_apply
 from pac_plant.hardware.actuators import ACTUATOR_PARAMS, ACTUATOR_STATE
-from pac_plant.hardware.car_body import TERMS, roof_at, roof_force
+from pac_plant.hardware.car_body import TERMS, cosines_at, held_force, roof_from, sines_at
 from pac_plant.hardware.sensors import SENSOR_PARAMS, SENSOR_STATE, sensor_step
 from pac_plant.parameters import MAX_PANTOGRAPHS
 from pac_plant.plant import Plant, quantise
@@ -125,6 +125,15 @@ PLANT_STATE = np.dtype(
         ("actuator", ACTUATOR_STATE),
         ("roof", "f8", 3),  # scratch: the roof's height, velocity, acceleration (car_body.roof_at)
         ("gust", "f8", 3),  # scratch: the turbulent uplift and its rates (car_body.roof_at)
+        # The roof's and the turbulent uplift's angles at tick ``angles_tick`` (-1: none yet), and at
+        # the tick after it (scratch): a tick's end is the next one's start (car_body.held_force).
+        ("angles_tick", "i8"),
+        ("roof_cos", "f8", TERMS),
+        ("roof_sin", "f8", TERMS),
+        ("gust_sin", "f8", TERMS),
+        ("roof_cos_next", "f8", TERMS),
+        ("roof_sin_next", "f8", TERMS),
+        ("gust_sin_next", "f8", TERMS),
         ("sensors", SENSOR_STATE),  # a train's suite: its low-passes and latency rings
         ("sensed", "f8", 5),  # scratch: the suite's readings of the tick (sensors.CHANNELS)
     ]
@@ -181,13 +190,53 @@ FE_ARGS = ("cf", "ci", "cl", "sf", "si", "sl", "flexibility", "readings")
 
 
 @njit(cache=True, error_model="numpy")
+def _angles_at(k, pp, ps) -> None:
+    """The roof's and the turbulent uplift's angles at t_k = k dt into ``ps`` (unless there)."""
+    if ps.angles_tick == k:
+        return
+    t = k * pp.dt
+    if pp.roof:
+        cosines_at(pp.roof_frequency, pp.roof_phase, t, ps.roof_cos, ps.roof_sin)
+    if pp.gusts:
+        sines_at(pp.gust_frequency, pp.gust_phase, t, ps.gust_sin)
+    ps.angles_tick = k
+
+
+@njit(cache=True, error_model="numpy")
+def _held_roof_forces(k, pp, ps) -> float:
+    """The moving roof's force and the turbulent uplift, each its mean over [t_k, t_k+1]
+    (car_body.roof_force, with the angles at t_k kept from the tick before); leaves the angles at
+    t_k+1 in ``ps`` for the next tick."""
+    _angles_at(k, pp, ps)
+    t0, t1 = k * pp.dt, (k + 1) * pp.dt
+    force = 0.0
+    if pp.roof:
+        cosines_at(pp.roof_frequency, pp.roof_phase, t1, ps.roof_cos_next, ps.roof_sin_next)
+        force += held_force(
+            pp.roof_amplitude, pp.roof_frequency, pp.roof_k, pp.roof_c, t1 - t0,
+            ps.roof_sin, ps.roof_sin_next, ps.roof_cos, ps.roof_cos_next,
+        )  # fmt: skip
+        ps.roof_cos[:], ps.roof_sin[:] = ps.roof_cos_next, ps.roof_sin_next
+    if pp.gusts:  # (k = 1, c = 0: the cosines' own mean; their cos unread)
+        sines_at(pp.gust_frequency, pp.gust_phase, t1, ps.gust_sin_next)
+        force += held_force(
+            pp.gust_amplitude, pp.gust_frequency, 1.0, 0.0, t1 - t0,
+            ps.gust_sin, ps.gust_sin_next, ps.gust_sin, ps.gust_sin_next,
+        )  # fmt: skip
+        ps.gust_sin[:] = ps.gust_sin_next
+    ps.angles_tick = k + 1
+    return force
+
+
+@njit(cache=True, error_model="numpy")
 def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
     """The plant at tick k: truth into ``out`` and ``ps.z``, and the measurement y_k (eq. (10),
     plus noise and quantisation; or a train suite's readings, ``Plant.measurement``)."""
     t = k * pp.dt
     out.roof_height = 0.0
     if pp.roof:
-        roof_at(pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, t, ps.roof)
+        _angles_at(k, pp, ps)
+        roof_from(pp.roof_amplitude, pp.roof_frequency, ps.roof_cos, ps.roof_sin, ps.roof)
         out.roof_height = ps.roof[0]
     # The plant's own truth (plant_dispatch, generated from the plant registry).
     stiff, force, a1, a2 = plant_output(k, t, pp, ps, fe_args, out)
@@ -218,16 +267,8 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
     """The plant over [t_k, t_k+1] with ``applied`` held (zero-order hold); 0 or a divergence code
     (OFF_LINE: past the FE line's end)."""
     force = applied + pp.uplift  # the wind acts with u
-    if pp.roof:  # and the moving roof's force (Plant._with_roof)
-        t0 = k * pp.dt
-        force = force + roof_force(
-            pp.roof_amplitude, pp.roof_frequency, pp.roof_phase, pp.roof_k, pp.roof_c, t0, t0 + pp.dt
-        )
-    if pp.gusts:  # and the turbulent uplift's mean over the tick (Plant._with_roof)
-        t0 = k * pp.dt
-        force = force + roof_force(
-            pp.gust_amplitude, pp.gust_frequency, pp.gust_phase, 1.0, 0.0, t0, t0 + pp.dt
-        )
+    if pp.roof or pp.gusts:  # the moving roof's force and the turbulent uplift (Plant._with_roof)
+        force = force + _held_roof_forces(k, pp, ps)
     status = plant_advance(k, pp, ps, fe_args, force)  # plant_dispatch
     if status:
         return status
@@ -434,7 +475,7 @@ def compile_loop(
     p["quantisation"], p["noisy"] = plant.options.quantisation, plant.noisy
     p["substeps"], p["delay"], p["uplift"] = plant.options.substeps, delay, plant.uplift
     ps = np.zeros(1, PLANT_STATE)
-    ps[0]["z"], ps[0]["u_applied"] = plant.z, plant.u_applied
+    ps[0]["z"], ps[0]["u_applied"], ps[0]["angles_tick"] = plant.z, plant.u_applied, -1
     p["actuator"], ps[0]["actuator"] = plant.actuator.params[0], plant.actuator.state[0]  # copies
     if plant.roof is not None:
         p["roof"], (p["roof_k"], p["roof_c"]) = True, plant.roof_attachment

@@ -348,7 +348,14 @@ class Line:
     def _chord_dropper_lengths(self, tolerance: float, max_iterations: int) -> None:
         """:meth:`solve_dropper_lengths` by chord steps: each pass corrects p by the residual of
         the present K (r = -presag - w_c, one solve) through W of the first pass. The fixed point
-        is the same (r = 0 there); a pass costs one solve instead of one per dropper."""
+        is the same (r = 0 there); a pass costs one solve instead of one per dropper.
+
+        A dropper's stiffness k_j = EA / L0_j = (EA + p_j) / H_j grows with p_j, which takes back
+        part of each step: dw/dp_j = K^-1 b_j s_j with s_j = (H_j + w_m - w_c) / H_j (the dropper's
+        present length over its height; 0.5-1 on a drawn line, where p_j reaches 0.9 EA). Each step
+        is divided by that s_j (a diagonal Newton correction of the chord, no solve): the residual
+        then shrinks ~2x a pass instead of ~1.4x, and the passes reach ``tolerance`` (they did not
+        within 50 passes without it: 5e-9 m at the 50th on realistic_3km)."""
         d, dr = self.data, self.droppers
         nd = len(dr.node)
         self._assemble()
@@ -362,7 +369,8 @@ class Line:
         for _ in range(max_iterations):
             pre = dr.stiffness * (dr.height - dr.length0)
             w = self.solve_static(self.f_static)  # f_static holds the present pre-tensions
-            p = pre + lu_solve(chord, -dr.target_sag - w[dr.wc])
+            taken_back = (dr.height + w[dr.wm] - w[dr.wc]) / dr.height
+            p = pre + lu_solve(chord, -dr.target_sag - w[dr.wc]) / taken_back
             length0 = d.dropper_ea * dr.height / (d.dropper_ea + p)
             change = float(np.max(np.abs(length0 - dr.length0)))
             dr.length0 = length0
@@ -370,6 +378,11 @@ class Line:
             self._assemble()
             if change < tolerance:
                 break
+        else:
+            raise ValueError(
+                f"{d.name or 'line'}: the dropper lengths did not converge in {max_iterations} passes "
+                f"(last change {change:.1e} m, tolerance {tolerance:.0e} m)"
+            )
         self.set_dropper_lengths(dr.length0)
 
     def set_dropper_lengths(self, length0: np.ndarray) -> None:

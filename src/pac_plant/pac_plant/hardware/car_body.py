@@ -184,18 +184,41 @@ def roof_motion(
 
 
 @njit(cache=True, error_model="numpy")
-def roof_at(amplitude, frequency, phase, t: float, out) -> None:
-    """out[:3] = roof height, velocity and acceleration at t: the sum of the cosines and its
-    derivatives."""
+def cosines_at(frequency, phase, t: float, cos_out, sin_out) -> None:
+    """cos and sin of every cosine's angle, frequency t + phase, at t (the loop keeps a tick's, so
+    that the next tick starts from them: ``roof_from``, ``held_force``)."""
+    for i in range(frequency.shape[0]):
+        arg = frequency[i] * t + phase[i]
+        cos_out[i], sin_out[i] = math.cos(arg), math.sin(arg)
+
+
+@njit(cache=True, error_model="numpy")
+def sines_at(frequency, phase, t: float, sin_out) -> None:
+    """sin of every cosine's angle at t (what a force with no rate term needs: ``held_force``)."""
+    for i in range(frequency.shape[0]):
+        sin_out[i] = math.sin(frequency[i] * t + phase[i])
+
+
+@njit(cache=True, error_model="numpy")
+def roof_from(amplitude, frequency, cos_t, sin_t, out) -> None:
+    """out[:3] = roof height, velocity and acceleration from the angles' cos and sin at one time:
+    the sum of the cosines and its derivatives."""
     z = v = acc = 0.0
     for i in range(amplitude.shape[0]):
         w = frequency[i]
-        arg = w * t + phase[i]
-        c, s = math.cos(arg), math.sin(arg)
-        z += amplitude[i] * c
-        v -= amplitude[i] * w * s
-        acc -= amplitude[i] * w * w * c
+        z += amplitude[i] * cos_t[i]
+        v -= amplitude[i] * w * sin_t[i]
+        acc -= amplitude[i] * w * w * cos_t[i]
     out[0], out[1], out[2] = z, v, acc
+
+
+@njit(cache=True, error_model="numpy")
+def roof_at(amplitude, frequency, phase, t: float, out) -> None:
+    """out[:3] = roof height, velocity and acceleration at t (``roof_from`` of the angles at t)."""
+    n = amplitude.shape[0]
+    cos_t, sin_t = np.empty(n), np.empty(n)
+    cosines_at(frequency, phase, t, cos_t, sin_t)
+    roof_from(amplitude, frequency, cos_t, sin_t, out)
 
 
 @njit(cache=True, error_model="numpy")
@@ -208,26 +231,40 @@ def roof_series(amplitude, frequency, phase, t, out) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def roof_force(amplitude, frequency, phase, stiffness: float, damping: float, t0: float, t1: float) -> float:
-    """The mean over [t0, t1] of k z_roof + c z_roof': what a roof spring k and damper c pass to the
-    mass they join when the roof moves (its base excitation). The mean, not a sample: the plant holds
-    the tick's forces over the tick (zero-order hold), and the mean is the held force that carries
-    the tick's impulse exactly (closed form: the cosines' integral, and z_roof(t1) - z_roof(t0))."""
-    h = t1 - t0
+def held_force(
+    amplitude, frequency, stiffness: float, damping: float, h: float, sin0, sin1, cos0, cos1
+) -> float:
+    """The mean over a tick [t0, t1] of length h of k z_roof + c z_roof': what a roof spring k and
+    damper c pass to the mass they join when the roof moves (its base excitation), from the angles'
+    sin and cos at t0 and t1 (cos unread when c = 0). The mean, not a sample: the plant holds the
+    tick's forces over the tick (zero-order hold), and the mean is the held force that carries the
+    tick's impulse exactly (closed form: the cosines' integral, and z_roof(t1) - z_roof(t0))."""
     mean_height = 0.0
     rise = 0.0
     if damping == 0.0:  # (the turbulent uplift's: no rate term, so none of the cosines it needs)
         for i in range(amplitude.shape[0]):
-            w = frequency[i]
-            a1, a0 = w * t1 + phase[i], w * t0 + phase[i]
-            mean_height += amplitude[i] * (math.sin(a1) - math.sin(a0)) / w
+            mean_height += amplitude[i] * (sin1[i] - sin0[i]) / frequency[i]
         return stiffness * mean_height / h
     for i in range(amplitude.shape[0]):
-        w = frequency[i]
-        a1, a0 = w * t1 + phase[i], w * t0 + phase[i]
-        mean_height += amplitude[i] * (math.sin(a1) - math.sin(a0)) / w
-        rise += amplitude[i] * (math.cos(a1) - math.cos(a0))
+        mean_height += amplitude[i] * (sin1[i] - sin0[i]) / frequency[i]
+        rise += amplitude[i] * (cos1[i] - cos0[i])
     return (stiffness * mean_height + damping * rise) / h
+
+
+@njit(cache=True, error_model="numpy")
+def roof_force(amplitude, frequency, phase, stiffness: float, damping: float, t0: float, t1: float) -> float:
+    """``held_force`` over [t0, t1], its angles computed here. A tick's interval is [t_k, t_k+1]
+    with t_k = k dt, so that consecutive ticks share their boundary to the bit (the compiled loop
+    keeps the angles at t_k+1 for the next tick instead of computing them again)."""
+    n = amplitude.shape[0]
+    sin0, sin1, cos0, cos1 = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    if damping == 0.0:
+        sines_at(frequency, phase, t0, sin0)
+        sines_at(frequency, phase, t1, sin1)
+    else:
+        cosines_at(frequency, phase, t0, cos0, sin0)
+        cosines_at(frequency, phase, t1, cos1, sin1)
+    return held_force(amplitude, frequency, stiffness, damping, t1 - t0, sin0, sin1, cos0, cos1)
 
 
 def roof_attachment(chain: PantographFile) -> tuple[float, float]:
