@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-draws realistic-pair realistic-pair-sections realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -138,6 +138,13 @@ realistic-experiment: setup
 realistic-guard-estimate: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_guard_estimate.yaml --out reports/realistic/guard_estimate $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/guard_estimate --against passive
+
+# line_adaptive whose harmonics only raise the command about each support, against passive on the
+# same report lines, speeds and window (config/campaigns/realistic_support_zone.yaml ->
+# reports/realistic/support_zone/; docs/laws.md, "On the realistic line", point 9).
+realistic-support-zone: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_support_zone.yaml --out reports/realistic/support_zone $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/support_zone --against passive
 
 # line_adaptive against passive on the 20 report lines with three draws each of the car body's track,
 # the turbulence and the noise (config/campaigns/realistic_draws.yaml -> reports/realistic/draws/;

@@ -183,6 +183,51 @@ def _overlap_law(overlaps: tuple[float, ...]) -> LineAdaptiveLaw:
     return LineAdaptiveLaw(TrackParameters(speed_kmh=360.0, span_length=50.0), laws, DT)
 
 
+def _zone_law(before: float, after: float, lag: float = 0.0) -> LineAdaptiveLaw:
+    """Ten spans of 50 m at 100 m/s (N = 500 ticks a span, no command delay), with a zone about the
+    supports where the harmonics may only raise the command, and an actuator lag [s]."""
+    laws = LawParameters(
+        line_supports=tuple(50.0 * np.arange(11)),
+        design_delay_ticks=0,
+        line_support_before=before,
+        line_support_after=after,
+        line_actuator_lag=lag,
+    )
+    return LineAdaptiveLaw(TrackParameters(speed_kmh=360.0, span_length=50.0), laws, DT)
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("lag", [0.0, 0.1])
+def test_about_a_support_the_harmonics_only_raise_the_command(lag):
+    """Zone 0.1 of a span before each support (plus the actuator's lag: 0.1 s is 10 m, 0.2 of a
+    span, at 100 m/s) to 0.15 after: there the feedforward is never below its mean (U_0 + C) and
+    equals the law told no zone wherever the harmonics raise it; outside the zone and its ramps
+    (0.05 of a span) it is the plain law's. Judged from the position, not the law's lookup."""
+    plain, zoned = _zone_law(0.0, 0.0), _zone_law(0.1, 0.15, lag)
+    rng = np.random.default_rng(5)
+    harmonics = rng.normal(size=plain.harmonics) + 1j * rng.normal(size=plain.harmonics)
+    for law in (plain, zoned):
+        law.memory[0] = 30.0 * harmonics  # U_FF: row 0
+    mean = zoned.state[0]["line_u_mean"] + zoned.state[0]["line_clip_offset"]
+    before = 0.1 + lag * 100.0 / 50.0
+    counted = {"held": 0, "raised": 0, "outside": 0}
+    for tick in range(10 * 500):
+        fraction = (0.1 * tick % 50.0) / 50.0
+        to_zone = min(fraction - 0.15, 1.0 - before - fraction)  # < 0: in the zone
+        whole, got = plain.feedforward(tick), zoned.feedforward(tick)
+        if to_zone < -1e-3:
+            assert got >= mean - 1e-9
+            if whole >= mean:
+                assert got == whole
+                counted["raised"] += 1
+            else:
+                counted["held"] += 1
+        elif to_zone > 0.05 + 1e-3:
+            assert got == whole
+            counted["outside"] += 1
+    assert min(counted.values()) > 50
+
+
 @pytest.mark.unit
 def test_the_learned_harmonics_are_off_over_an_overlap_and_faded_next_to_it():
     """An overlap over spans 5 and 6 (250..350 m): the feedforward's harmonics are 0 there, a raised

@@ -97,6 +97,9 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_guard_saturation", "f8"),  # share of a span's commands the limits changed
         ("line_guard_strikes", "i8"),  # back-offs before the guard falls back
         ("line_supports", "i8"),  # supports of the design layout in the table (< 2: the period N)
+        ("line_support_before", "f8"),  # share of a span before / after each support where the
+        ("line_support_after", "f8"),  # harmonics only raise the command (support_lift), starting
+        ("line_actuator_lag_ticks", "i8"),  # earlier by the actuator's lag (line_actuator_lag / dt)
         ("line_position_start", "f8"),  # the law's x at tick 0 (with the position error)
         ("line_step_distance", "f8"),  # v dt
         # a map learned on an earlier pass (line_adaptive_kernels: the map's rows of ``memory``)

@@ -274,6 +274,8 @@ class LineAdaptiveLaw(KernelLaw):
         p["line_guard_saturation"] = laws.line_guard_saturation
         p["line_guard_strikes"] = laws.line_guard_strikes
         p["line_supports"] = len(supports)
+        p["line_support_before"], p["line_support_after"] = laws.line_support_before, laws.line_support_after
+        p["line_actuator_lag_ticks"] = round(laws.line_actuator_lag / dt)
         p["line_position_start"] = laws.line_position_start + laws.line_position_error
         p["line_step_distance"] = speed * dt
         self.dt = dt

@@ -251,6 +251,32 @@ def overlap_window(p, table, m: int, phase: int) -> float:
     return share
 
 
+#: Width of the ramp [share of a span] over which ``support_lift`` goes from holding the harmonics'
+#: negative part to passing all of it (stepped, the command would jump by what was held).
+SUPPORT_RAMP = 0.05
+
+
+@njit(cache=True, error_model="numpy")
+def support_lift(p, phase: int) -> float:
+    """The share of the learned harmonics' negative part kept at phase index ``phase`` of a span:
+    0 from ``line_support_before`` of a span before a support of the design layout to
+    ``line_support_after`` after it (there the harmonics only raise the command), 1 beyond a
+    raised-cosine ramp of SUPPORT_RAMP on either side; 1 everywhere without a layout or a zone.
+    The zone starts earlier by the actuator's lag (``line_actuator_lag_ticks``, as a share of the
+    span's N ticks): the force it applies there follows the commands of that long before."""
+    before, after = p.line_support_before, p.line_support_after
+    if p.line_supports < 2 or (before <= 0.0 and after <= 0.0):
+        return 1.0
+    before += p.line_actuator_lag_ticks / p.line_period
+    frac = (phase + 0.5) / p.line_period
+    outside = min(frac - after, 1.0 - before - frac)  # distance to the zone (< 0: in it)
+    if outside <= 0.0:
+        return 0.0
+    if outside >= SUPPORT_RAMP:
+        return 1.0
+    return 0.5 * (1.0 - math.cos(math.pi * outside / SUPPORT_RAMP))
+
+
 @njit(cache=True, inline="always")
 def _windowed(p, table, m: int) -> bool:
     """Whether ``overlap_window`` is below 1 anywhere on span m of the layout."""
@@ -261,7 +287,8 @@ def _windowed(p, table, m: int) -> bool:
 def line_feedforward(p, s, table, memory, tick: int) -> float:
     """U_0 + C + w Re sum_h U_h exp(i h w_s (t + (d + 1/2) dt)) for the command of ``tick`` (w: the
     overlap window of the design layout, ``overlap_window``; 1 without one); on a learned map, over
-    an overlap, the sum's positive part only."""
+    an overlap, the sum's positive part only; about a support, its negative part held by
+    ``support_lift``."""
     n, h = p.line_period, p.line_harmonics
     m, phase = locate(p, table, tick + p.line_delay, s.line_cursor)
     share = overlap_window(p, table, m, phase)
@@ -276,6 +303,8 @@ def line_feedforward(p, s, table, memory, tick: int) -> float:
         # Over an overlap a map's harmonics only raise the command: lowered there, where the incoming
         # wire takes the head, the contact was lost (docs/laws.md, "A map learned over passes").
         harmonics = max(harmonics, 0.0)
+    if harmonics < 0.0:  # around a support, likewise (support_lift; docs/laws.md)
+        harmonics *= support_lift(p, phase)
     return s.line_u_mean + s.line_clip_offset + (harmonics if share == 1.0 else share * harmonics)
 
 

@@ -359,6 +359,33 @@ class LawParameters(ParameterSet):
         low=0.0,
         high=1.0,
     )
+    line_support_before: float = parameter(
+        0.0,
+        "line_adaptive: share of a span before each support of the design layout (line_supports) "
+        "where the learned harmonics may raise the command but not lower it (with "
+        "line_support_after; 0 and 0: nowhere). Lowered there, the head meets the dip after the "
+        "support with too little force and can lose contact where passive does not (docs/laws.md)",
+        "",
+        low=0.0,
+        high=0.5,
+    )
+    line_support_after: float = parameter(
+        0.0,
+        "line_adaptive: share of a span after each support where the learned harmonics may raise "
+        "the command but not lower it (line_support_before)",
+        "",
+        low=0.0,
+        high=0.5,
+    )
+    line_actuator_lag: float = parameter(
+        0.0,
+        "line_adaptive: how long a command takes to act (the actuator's lag and delay; derived from "
+        "the actuator where line_support_before or line_support_after is set): the zone about the "
+        "supports starts that much earlier, since the force applied there follows earlier commands",
+        "s",
+        low=0.0,
+        high=1.0,
+    )
     line_guard_strikes: int = parameter(
         3,
         "line_adaptive: the span that would back off on contact loss this many times falls back to "
