@@ -223,30 +223,6 @@ def test_the_controller_is_told_its_actuators_range():
 
 
 @pytest.mark.unit
-def test_a_law_with_a_zone_about_the_supports_is_told_its_actuators_lag():
-    """line_adaptive with a zone about the supports (line_support_before / _after) on an actuator
-    as hardware: line_actuator_lag = the actuator's lag + delay (from its table); without a zone,
-    on the ideal actuator, for another law, or named by the user: nothing derived."""
-    from pac_plant.hardware.actuators import ACTUATORS
-
-    zone = {"law": "line_adaptive", "catenary_model": "fe", "line_support_after": 0.1}
-    for actuator in ("electromechanical", "pneumatic"):
-        values, notes = composition.derive({**zone, "actuator": actuator})
-        model = ACTUATORS[actuator]
-        assert values["line_actuator_lag"] == model.time_constant + model.delay, notes
-    assert "line_actuator_lag" not in composition.derive({**zone, "actuator": "ideal"})[0]
-    assert (
-        "line_actuator_lag"
-        not in composition.derive({**zone, "actuator": "pneumatic", "line_support_after": 0.0})[0]
-    )
-    assert (
-        "line_actuator_lag" not in composition.derive({**zone, "law": "passive", "actuator": "pneumatic"})[0]
-    )
-    named = composition.derive({**zone, "actuator": "pneumatic", "line_actuator_lag": 0.05})[0]
-    assert named.get("line_actuator_lag", 0.05) == 0.05
-
-
-@pytest.mark.unit
 def test_the_rig_derives_the_observer_and_refuses_a_pair_that_cannot_work(tmp_path):
     rig = Rig(tmp_path / "bag", duration=1.0, params={"controller": {"law": "line_adaptive"}}, record=False)
     assert rig.params["observer"]["observer"] == "contact_force"

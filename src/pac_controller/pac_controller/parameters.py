@@ -379,9 +379,10 @@ class LawParameters(ParameterSet):
     )
     line_actuator_lag: float = parameter(
         0.0,
-        "line_adaptive: how long a command takes to act (the actuator's lag and delay; derived from "
-        "the actuator where line_support_before or line_support_after is set): the zone about the "
-        "supports starts that much earlier, since the force applied there follows earlier commands",
+        "line_adaptive: how long a command takes to act (an actuator's lag and delay): the zone about "
+        "the supports starts that much earlier, since the force applied there follows earlier "
+        "commands (0: not at all; measured on the realistic line, it costs more than it gives: "
+        "docs/laws.md)",
         "s",
         low=0.0,
         high=1.0,

@@ -129,8 +129,6 @@ def derive(
     actuator = str(given.get("actuator", "ideal"))
     if actuator != "ideal" and "u_min" not in given and "u_max" not in given:
         notes.extend(_actuator_limits(actuator, {**given, **out}, out))
-    if entry is not None and entry.line_layout and actuator != "ideal" and "line_actuator_lag" not in given:
-        notes.extend(_actuator_lag(actuator, given, out))
     if entry is not None and actuator != "ideal":
         for name, value in entry.actuator_as_hardware:
             if name not in given:
@@ -249,21 +247,6 @@ def _runin_behind(
         f"{name}:={out[name]} (law {law}'s run-in and {spans} spans more: the wave of the pantograph "
         f"{ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
     ]
-
-
-def _actuator_lag(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
-    """A law that keeps its harmonics from lowering the command about the supports (line_support_before,
-    line_support_after) told how long its actuator takes to act (its lag and delay): the force
-    applied in the zone follows the commands of that long before, so the zone starts that much
-    earlier; nothing where no zone is set."""
-    zone = [float(given.get(k, 0.0)) for k in ("line_support_before", "line_support_after")]
-    if not any(v > 0.0 for v in zone):
-        return []
-    from pac_plant.hardware.actuators import ACTUATORS
-
-    model = ACTUATORS[actuator]
-    out["line_actuator_lag"] = model.time_constant + model.delay
-    return [f"line_actuator_lag:={out['line_actuator_lag']:g} (the {actuator} actuator's lag and delay)"]
 
 
 def _actuator_limits(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
