@@ -191,13 +191,20 @@ def test_the_compiled_loop_moves_the_roof_under_the_passive_pantographs(tmp_path
         {"duration": 2.0, "shape": "square", "period": 0.4, "roof_motion": "german_high"},
         {"duration": 0.3, "catenary_model": "fe", "pantograph": "three_mass", "roof_motion": "german_low"},
         {"duration": 1.0, "nominal_pantograph": "three_mass_identified_2dof", "aero_turbulence": 0.1},
+        {
+            "duration": 0.5,
+            "catenary_model": "fe",
+            "pantograph": "three_mass",
+            "roof_motion": "german_low",
+            "aero_turbulence": 0.08,
+        },
     ],
-    ids=["lumped", "fe", "turbulence"],
+    ids=["lumped", "fe", "turbulence", "fe_roof_and_turbulence"],
 )
 def test_the_compiled_loop_rides_on_the_roof_as_the_core_objects(values):
-    """A closed-loop run with the roof moving (or the turbulent uplift on): the compiled loop and the
-    core objects stepped tick by tick give the same ticks bit for bit, and the roof under the
-    pantograph is the car body model's."""
+    """A closed-loop run with the roof moving (or the turbulent uplift on, or both, as the realistic
+    scenario has them): the compiled loop and the core objects stepped tick by tick give the same
+    ticks bit for bit, and the roof under the pantograph is the car body model's."""
     from pac_rig.closed_loop import build_cores, run, run_cores
     from pac_rig.simulate import scenario_from_flat
 

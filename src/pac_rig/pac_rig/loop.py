@@ -203,13 +203,12 @@ def _angles_at(k, pp, ps) -> None:
 
 
 @njit(cache=True, error_model="numpy")
-def _held_roof_forces(k, pp, ps) -> float:
-    """The moving roof's force and the turbulent uplift, each its mean over [t_k, t_k+1]
-    (car_body.roof_force, with the angles at t_k kept from the tick before); leaves the angles at
-    t_k+1 in ``ps`` for the next tick."""
+def _with_roof(k, pp, ps, force: float) -> float:
+    """``force`` plus the moving roof's force, then plus the turbulent uplift, each its mean over
+    [t_k, t_k+1] (Plant._with_roof, in its order of additions; car_body.roof_force, with the angles
+    at t_k kept from the tick before); leaves the angles at t_k+1 in ``ps`` for the next tick."""
     _angles_at(k, pp, ps)
     t0, t1 = k * pp.dt, (k + 1) * pp.dt
-    force = 0.0
     if pp.roof:
         cosines_at(pp.roof_frequency, pp.roof_phase, t1, ps.roof_cos_next, ps.roof_sin_next)
         force += held_force(
@@ -268,7 +267,7 @@ def _plant_advance(k, pp, ps, fe_args, applied) -> int:
     (OFF_LINE: past the FE line's end)."""
     force = applied + pp.uplift  # the wind acts with u
     if pp.roof or pp.gusts:  # the moving roof's force and the turbulent uplift (Plant._with_roof)
-        force = force + _held_roof_forces(k, pp, ps)
+        force = _with_roof(k, pp, ps, force)
     status = plant_advance(k, pp, ps, fe_args, force)  # plant_dispatch
     if status:
         return status
