@@ -183,12 +183,44 @@ def roof_motion(
     return RoofMotion(amplitude * np.abs(h), speed * omega, phase + np.angle(h) - omega * behind)
 
 
+# One cosine's share of each sum, written once: the per-tick kernels below that compute their angles
+# and the compiled loop's, which keeps them from tick to tick, add the same numbers in the same order.
+@njit(cache=True, inline="always")
+def _angle(w: float, phase: float, t: float) -> float:
+    return w * t + phase
+
+
+@njit(cache=True, inline="always")
+def _roof_term(a: float, w: float, c: float, s: float) -> tuple[float, float, float]:
+    """One cosine's height, minus its velocity, minus its acceleration."""
+    return a * c, a * w * s, a * w * w * c
+
+
+@njit(cache=True, inline="always")
+def _mean_term(a: float, w: float, s0: float, s1: float) -> float:
+    """One cosine's integral over [t0, t1] (its height's, times h)."""
+    return a * (s1 - s0) / w
+
+
+@njit(cache=True, inline="always")
+def _rise_term(a: float, c0: float, c1: float) -> float:
+    """One cosine's rise over [t0, t1]."""
+    return a * (c1 - c0)
+
+
+@njit(cache=True, inline="always")
+def _held(stiffness: float, damping: float, mean_height: float, rise: float, h: float) -> float:
+    if damping == 0.0:
+        return stiffness * mean_height / h
+    return (stiffness * mean_height + damping * rise) / h
+
+
 @njit(cache=True, error_model="numpy")
 def cosines_at(frequency, phase, t: float, cos_out, sin_out) -> None:
     """cos and sin of every cosine's angle, frequency t + phase, at t (the loop keeps a tick's, so
     that the next tick starts from them: ``roof_from``, ``held_force``)."""
     for i in range(frequency.shape[0]):
-        arg = frequency[i] * t + phase[i]
+        arg = _angle(frequency[i], phase[i], t)
         cos_out[i], sin_out[i] = math.cos(arg), math.sin(arg)
 
 
@@ -196,7 +228,7 @@ def cosines_at(frequency, phase, t: float, cos_out, sin_out) -> None:
 def sines_at(frequency, phase, t: float, sin_out) -> None:
     """sin of every cosine's angle at t (what a force with no rate term needs: ``held_force``)."""
     for i in range(frequency.shape[0]):
-        sin_out[i] = math.sin(frequency[i] * t + phase[i])
+        sin_out[i] = math.sin(_angle(frequency[i], phase[i], t))
 
 
 @njit(cache=True, error_model="numpy")
@@ -205,20 +237,21 @@ def roof_from(amplitude, frequency, cos_t, sin_t, out) -> None:
     the sum of the cosines and its derivatives."""
     z = v = acc = 0.0
     for i in range(amplitude.shape[0]):
-        w = frequency[i]
-        z += amplitude[i] * cos_t[i]
-        v -= amplitude[i] * w * sin_t[i]
-        acc -= amplitude[i] * w * w * cos_t[i]
+        dz, dv, da = _roof_term(amplitude[i], frequency[i], cos_t[i], sin_t[i])
+        z, v, acc = z + dz, v - dv, acc - da
     out[0], out[1], out[2] = z, v, acc
 
 
 @njit(cache=True, error_model="numpy")
 def roof_at(amplitude, frequency, phase, t: float, out) -> None:
-    """out[:3] = roof height, velocity and acceleration at t (``roof_from`` of the angles at t)."""
-    n = amplitude.shape[0]
-    cos_t, sin_t = np.empty(n), np.empty(n)
-    cosines_at(frequency, phase, t, cos_t, sin_t)
-    roof_from(amplitude, frequency, cos_t, sin_t, out)
+    """out[:3] = roof height, velocity and acceleration at t (``roof_from``, its angles computed
+    here: no arrays, so a compiled tick that calls it allocates nothing)."""
+    z = v = acc = 0.0
+    for i in range(amplitude.shape[0]):
+        arg = _angle(frequency[i], phase[i], t)
+        dz, dv, da = _roof_term(amplitude[i], frequency[i], math.cos(arg), math.sin(arg))
+        z, v, acc = z + dz, v - dv, acc - da
+    out[0], out[1], out[2] = z, v, acc
 
 
 @njit(cache=True, error_model="numpy")
@@ -243,28 +276,29 @@ def held_force(
     rise = 0.0
     if damping == 0.0:  # (the turbulent uplift's: no rate term, so none of the cosines it needs)
         for i in range(amplitude.shape[0]):
-            mean_height += amplitude[i] * (sin1[i] - sin0[i]) / frequency[i]
-        return stiffness * mean_height / h
-    for i in range(amplitude.shape[0]):
-        mean_height += amplitude[i] * (sin1[i] - sin0[i]) / frequency[i]
-        rise += amplitude[i] * (cos1[i] - cos0[i])
-    return (stiffness * mean_height + damping * rise) / h
+            mean_height += _mean_term(amplitude[i], frequency[i], sin0[i], sin1[i])
+    else:
+        for i in range(amplitude.shape[0]):
+            mean_height += _mean_term(amplitude[i], frequency[i], sin0[i], sin1[i])
+            rise += _rise_term(amplitude[i], cos0[i], cos1[i])
+    return _held(stiffness, damping, mean_height, rise, h)
 
 
 @njit(cache=True, error_model="numpy")
 def roof_force(amplitude, frequency, phase, stiffness: float, damping: float, t0: float, t1: float) -> float:
-    """``held_force`` over [t0, t1], its angles computed here. A tick's interval is [t_k, t_k+1]
-    with t_k = k dt, so that consecutive ticks share their boundary to the bit (the compiled loop
-    keeps the angles at t_k+1 for the next tick instead of computing them again)."""
-    n = amplitude.shape[0]
-    sin0, sin1, cos0, cos1 = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    if damping == 0.0:
-        sines_at(frequency, phase, t0, sin0)
-        sines_at(frequency, phase, t1, sin1)
-    else:
-        cosines_at(frequency, phase, t0, cos0, sin0)
-        cosines_at(frequency, phase, t1, cos1, sin1)
-    return held_force(amplitude, frequency, stiffness, damping, t1 - t0, sin0, sin1, cos0, cos1)
+    """``held_force`` over [t0, t1], its angles computed here (no arrays: the compiled loop calls it
+    for every passive pantograph's roof each tick). A tick's interval is [t_k, t_k+1] with
+    t_k = k dt, so that consecutive ticks share their boundary to the bit (the compiled loop keeps
+    the controlled roof's angles at t_k+1 for the next tick instead of computing them again)."""
+    mean_height = 0.0
+    rise = 0.0
+    for i in range(amplitude.shape[0]):
+        w = frequency[i]
+        a0, a1 = _angle(w, phase[i], t0), _angle(w, phase[i], t1)
+        mean_height += _mean_term(amplitude[i], w, math.sin(a0), math.sin(a1))
+        if damping != 0.0:
+            rise += _rise_term(amplitude[i], math.cos(a0), math.cos(a1))
+    return _held(stiffness, damping, mean_height, rise, t1 - t0)
 
 
 def roof_attachment(chain: PantographFile) -> tuple[float, float]:
