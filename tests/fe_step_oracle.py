@@ -35,6 +35,16 @@ class NumpyStep:
             raise NotImplementedError("the numpy step runs one pantograph (the compiled step runs several)")
         self.sim = sim
         self.unit_solutions: dict[int, np.ndarray] = {}
+        # A^-1 g_j of every dropper over the whole line (the compiled step keeps them on the nodes
+        # around each dropper) and D = G^T A^-1 G from them.
+        line, c = sim.line, sim.constants
+        g = np.zeros((len(c.dwc), line.n_dof))
+        g[np.arange(len(c.dwc)), c.dwm] = 1.0
+        g[np.arange(len(c.dwc)), c.dwc] = -1.0
+        for col in g:
+            band_chol_solve(c.chol, col)
+        self.ydrop = np.ascontiguousarray(g.T)  # (n, nd): column j = A^-1 g_j
+        self.ddrop = self.ydrop[c.dwm, :] - self.ydrop[c.dwc, :]
 
     def __call__(self, input_force: float) -> None:
         sim, c = self.sim, self.sim.constants
@@ -72,7 +82,7 @@ class NumpyStep:
         # Projections on the contact direction g_c and on the dropper directions g_j.
         gc_y = -float(nsh @ y_l[dofs]) + y_p[h]
         gc_yc = -float(nsh @ yc_l[dofs]) + yc_p[h]
-        gc_ydrop = -(nsh @ c.ydrop[dofs, :])  # (nd,)
+        gc_ydrop = -(nsh @ self.ydrop[dofs, :])  # (nd,)
         gd_y = y_l[c.dwm] - y_l[c.dwc]  # (nd,)
         gd_yc = yc_l[c.dwm] - yc_l[c.dwc]  # (nd,)
         contact, slack = sim.in_contact, sim.slack
@@ -93,7 +103,7 @@ class NumpyStep:
             e = c.e0 + gd_y
             if ns:
                 delta += float(gc_ydrop[slack] @ coef[:ns])
-                e += c.ddrop[:, slack] @ coef[:ns]
+                e += self.ddrop[:, slack] @ coef[:ns]
             if contact:
                 delta += gc_yc * coef[ns]
                 e += gd_yc * coef[ns]
@@ -109,7 +119,7 @@ class NumpyStep:
         d_new = y_l
         p_new = y_p.copy()
         if len(slack):
-            d_new += c.ydrop[:, slack] @ coef[: len(slack)]
+            d_new += self.ydrop[:, slack] @ coef[: len(slack)]
         if contact:
             d_new += yc_l * coef[len(slack)]
             p_new += yc_p * coef[len(slack)]
@@ -154,7 +164,7 @@ class NumpyStep:
         cap = np.zeros((m, m))
         uy = np.zeros(m)
         r = np.zeros(m)
-        cap[:ns, :ns] = c.ddrop[np.ix_(slack, slack)] - np.diag(1.0 / c.kdrop[slack])
+        cap[:ns, :ns] = self.ddrop[np.ix_(slack, slack)] - np.diag(1.0 / c.kdrop[slack])
         uy[:ns] = gd_y[slack]
         r[:ns] = c.kdrop[slack] * c.e0[slack]
         s_inv = list(-1.0 / c.kdrop[slack])

@@ -517,12 +517,20 @@ def test_fast_kernels_equal_the_banded_reference():
     # column's peak (measured 5.8e-19; a dropper column is the difference of two unit columns,
     # so its peak is smaller than theirs), 200x below the rounding of the peak itself.
     width = c.ydrop_patches.shape[1]
-    for j, node in enumerate(line.droppers.node):
+    dr = line.droppers
+    whole = np.zeros((line.n_dof, len(dr.node)))  # A^-1 g_j over the whole line
+    for j, node in enumerate(dr.node):
         lo = unit_start(line.n_dof, width, int(node))
-        col = c.ydrop[:, j]
+        col = np.zeros(line.n_dof)
+        col[[dr.wm[j], dr.wc[j]]] = 1.0, -1.0
+        band_chol_solve(sim._chol, col)
+        whole[:, j] = col
         peak = np.max(np.abs(col))
         np.testing.assert_array_equal(c.ydrop_patches[j], col[lo : lo + width])
         assert np.max(np.abs(np.concatenate([col[:lo], col[lo + width :]]))) < 1e-18 * peak
+    # D = G^T A^-1 G from the patches: the whole columns' within the same 1e-18.
+    coupling = whole[dr.wm, :] - whole[dr.wc, :]
+    assert np.max(np.abs(c.ddrop - coupling)) < 1e-18 * np.max(np.abs(coupling))
     # Contact-column patches against full columns, at a support, a dropper and mid-element nodes.
     node = 2 * line.nodes_per_span
     for i in (node, node + 9, node + 50):

@@ -88,6 +88,19 @@ def rear_periods(period: float, lag: float) -> int:
     return math.ceil(lag / period - 1e-9) if lag > 0.0 else 0
 
 
+def dropper_coupling(patches: np.ndarray, lo: np.ndarray, wc: np.ndarray, wm: np.ndarray) -> np.ndarray:
+    """D = G^T A^-1 G, D[i, j] = (A^-1 g_j)[wm_i] - (A^-1 g_j)[wc_i], from each column's patch
+    ``patches[j]`` on the rows ``lo[j]`` + 0..width-1 (zero where dropper i lies outside it: both
+    its DOFs sit on one node, so both are inside or both outside)."""
+    nd, width = patches.shape
+    coupling = np.zeros((nd, nd))
+    for j in range(nd):
+        upper, lower = wm - lo[j], wc - lo[j]
+        inside = (lower >= 0) & (lower < width)
+        coupling[inside, j] = patches[j, upper[inside]] - patches[j, lower[inside]]
+    return coupling
+
+
 class ContactSimulation:
     """Line + pantograph moving at ``speed`` [m/s] from ``x0`` [m], time step ``dt`` [s].
 
@@ -177,17 +190,23 @@ class ContactSimulation:
         self._pground = np.asarray(ground, dtype=float)
         self._pm = pm
         self._ap_inv = np.linalg.inv(self._pk + self.c0 * pm + self.c1 * self._pc)
-        # Droppers: A^-1 g_j for every dropper (line part only) and D = G^T A^-1 G.
+        # Droppers: A^-1 g_j (line part only) on the UNIT_REACH nodes around dropper j, like the
+        # contact columns (the rest is < 1e-18 of the peak: the whole columns, n x nd, were ~100 MB
+        # on a 3 km line), and D = G^T A^-1 G from them.
         dr = line.droppers
         self._dwc, self._dwm = dr.wc, dr.wm
         nd = len(dr.node)
-        g = np.zeros((nd, n))
-        g[np.arange(nd), dr.wm] = 1.0
-        g[np.arange(nd), dr.wc] = -1.0
-        for col in g:
+        width = min(n, 4 * (2 * UNIT_REACH + 1))
+        drop_patches = np.empty((nd, width))
+        drop_lo = np.empty(nd, dtype=np.int64)
+        col = np.empty(n)
+        for j, node in enumerate(dr.node):
+            col[:] = 0.0
+            col[dr.wm[j]], col[dr.wc[j]] = 1.0, -1.0
             band_chol_solve(self._chol, col)
-        self._ydrop = np.ascontiguousarray(g.T)  # (n, nd): column j = A^-1 g_j
-        self._ddrop = np.ascontiguousarray(self._ydrop[dr.wm, :] - self._ydrop[dr.wc, :])
+            drop_lo[j] = unit_start(n, width, int(node))
+            drop_patches[j] = col[drop_lo[j] : drop_lo[j] + width]
+        self._ddrop = dropper_coupling(drop_patches, drop_lo, dr.wc, dr.wm)
         self._kdrop = dr.stiffness.copy()
         self._e0 = dr.elongation0.copy()
         # The window shifts by whole periods of the line (one span where the spans are equal).
@@ -202,13 +221,6 @@ class ContactSimulation:
             windows = line_windows(line, a_line, self._m, window_spans, float(self.lags.max()))
         else:
             windows = no_windows(factors.shape[2], KD)
-        # A^-1 g_j on the UNIT_REACH nodes around dropper j (like the contact columns: the rest
-        # is < 1e-18 of the peak), what the update adds for a slack dropper.
-        width = min(n, 4 * (2 * UNIT_REACH + 1))
-        drop_patches = np.empty((nd, width))
-        for j, node in enumerate(dr.node):
-            lo = unit_start(n, width, int(node))
-            drop_patches[j] = g[j, lo : lo + width]
         self.constants = StepConstants(
             m_pad=pad_band(self._m),
             chol=self._chol,
@@ -217,7 +229,6 @@ class ContactSimulation:
             chunk_bounds=bounds,
             x_nodes=np.ascontiguousarray(line.x),
             w_static=np.ascontiguousarray(line.w_static),
-            ydrop=self._ydrop,
             ydrop_patches=drop_patches,
             ddrop=self._ddrop,
             kdrop=self._kdrop,

@@ -13,7 +13,7 @@ from .step import StepConstants, StepState, fe_advance
 # -- packed arguments: a call from Python pays ~0.1 us per array argument (numba types each one) --
 #: Kind of each field of StepConstants / StepState: f = float64, i = int64, then the dimension.
 CONSTANT_KINDS = (
-    "f2", "f2", "f3", "i1", "i1", "f1", "f1", "f2", "f2", "f2", "f1",
+    "f2", "f2", "f3", "i1", "i1", "f1", "f1", "f2", "f2", "f1",
     "f1", "i1", "i1", "i1", "f2", "f2", "f2", "f1", "f1", "i1", "i1", "i1", "f1", "f1", "f1",
     "i2", "f2", "f1", "i1", "f1", "i2", "i2", "f3", "f3", "i2", "i2",
 )  # fmt: skip
@@ -72,12 +72,12 @@ def unpack(
     """The StepConstants and StepState that ``pack`` stored (field order and kinds as declared)."""
     c = StepConstants(
         _v2(cf, cl, 0), _v2(cf, cl, 1), _v3(cf, cl, 2), _v1(ci, cl, 3), _v1(ci, cl, 4), _v1(cf, cl, 5),
-        _v1(cf, cl, 6), _v2(cf, cl, 7), _v2(cf, cl, 8), _v2(cf, cl, 9), _v1(cf, cl, 10), _v1(cf, cl, 11),
-        _v1(ci, cl, 12), _v1(ci, cl, 13), _v1(ci, cl, 14), _v2(cf, cl, 15), _v2(cf, cl, 16),
-        _v2(cf, cl, 17), _v1(cf, cl, 18), _v1(cf, cl, 19), _v1(ci, cl, 20), _v1(ci, cl, 21),
-        _v1(ci, cl, 22), _v1(cf, cl, 23), _v1(cf, cl, 24), _v1(cf, cl, 25), _v2(ci, cl, 26),
-        _v2(cf, cl, 27), _v1(cf, cl, 28), _v1(ci, cl, 29), _v1(cf, cl, 30), _v2(ci, cl, 31),
-        _v2(ci, cl, 32), _v3(cf, cl, 33), _v3(cf, cl, 34), _v2(ci, cl, 35), _v2(ci, cl, 36),
+        _v1(cf, cl, 6), _v2(cf, cl, 7), _v2(cf, cl, 8), _v1(cf, cl, 9), _v1(cf, cl, 10),
+        _v1(ci, cl, 11), _v1(ci, cl, 12), _v1(ci, cl, 13), _v2(cf, cl, 14), _v2(cf, cl, 15),
+        _v2(cf, cl, 16), _v1(cf, cl, 17), _v1(cf, cl, 18), _v1(ci, cl, 19), _v1(ci, cl, 20),
+        _v1(ci, cl, 21), _v1(cf, cl, 22), _v1(cf, cl, 23), _v1(cf, cl, 24), _v2(ci, cl, 25),
+        _v2(cf, cl, 26), _v1(cf, cl, 27), _v1(ci, cl, 28), _v1(cf, cl, 29), _v2(ci, cl, 30),
+        _v2(ci, cl, 31), _v3(cf, cl, 32), _v3(cf, cl, 33), _v2(ci, cl, 34), _v2(ci, cl, 35),
     )  # fmt: skip
     s = StepState(
         _v1(sf, sl, 0), _v1(sf, sl, 1), _v1(sf, sl, 2), _v1(sf, sl, 3), _v1(sf, sl, 4), _v1(sf, sl, 5),

@@ -30,10 +30,9 @@ class StepConstants(NamedTuple):
     """What does not change during a run: line matrices, factor, droppers, pantograph, numbers.
 
     ``m_pad`` = ``pad_band(M)`` (the step needs no K, see ``newmark_rhs_mass``);
-    ``ydrop[:, j]`` is A^-1 g_j for dropper j (its rows at the contact DOFs are read),
-    ``ydrop_patches[j]`` the same column on the rows ``unit_start`` of the dropper's node +
-    0..width-1 (the update adds it for a slack dropper; outside, the column is < 1e-18 of its
-    peak), ``ddrop`` = G^T A^-1 G.
+    ``ydrop_patches[j]`` is A^-1 g_j for dropper j on the rows ``unit_start`` of the dropper's
+    node + 0..width-1 (outside, the column is < 1e-18 of its peak and taken as 0: its rows at the
+    contact DOFs and the update for a slack dropper read the patch), ``ddrop`` = G^T A^-1 G.
     ``numbers`` = (dt, speed, alpha, beta, kp, c0, c1, length, span, shift_at);
     ``indices`` = (head, input, endless, shift_dofs, droppers_per_span, controlled contact) (head
     and input: the controlled pantograph's, in the stacked pantograph vector).
@@ -59,7 +58,6 @@ class StepConstants(NamedTuple):
     chunk_bounds: np.ndarray
     x_nodes: np.ndarray
     w_static: np.ndarray
-    ydrop: np.ndarray
     ydrop_patches: np.ndarray
     ddrop: np.ndarray
     kdrop: np.ndarray
@@ -473,11 +471,15 @@ def fe_step(c: StepConstants, s: StepState, input_force: float) -> int:
         if sectioned:
             ws_x[k] += lifted[k]
     gd_y = np.empty(nd)
+    drop_width = c.ydrop_patches.shape[1]
     for j in range(j0, j1):
+        drop_lo = unit_start(n, drop_width, c.dwc[j] // 4)
         for k in range(npc):
             acc = 0.0
             for i in range(4):
-                acc += nsh[k, i] * c.ydrop[dofs[k, i], j]
+                row = dofs[k, i] - drop_lo
+                if 0 <= row < drop_width:  # (outside the patch the column is < 1e-18 of its peak)
+                    acc += nsh[k, i] * c.ydrop_patches[j, row]
             gc_ydrop[k, j] = -acc
             gd_yc[k, j] = s.work[1 + k, c.dwm[j]] - s.work[1 + k, c.dwc[j]]
         gd_y[j] = y_l[c.dwm[j]] - y_l[c.dwc[j]]
