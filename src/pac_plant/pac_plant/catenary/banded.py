@@ -82,6 +82,31 @@ def band_chol_solve(cb: np.ndarray, b: np.ndarray) -> None:
         b[j] = acc * cb[j, 0]
 
 
+@numba.njit(cache=True)
+def band_chol_solve_columns(cb: np.ndarray, b: np.ndarray) -> None:
+    """``band_chol_solve`` on every column of b (shape (n, m), rows contiguous) in place: the same
+    operations on each column in the same order (each column is bit for bit its solve alone),
+    a row of all the columns at a time so that the inner loop runs along contiguous memory."""
+    n, kd = cb.shape[0], cb.shape[1] - 1
+    m = b.shape[1]
+    for j in range(n):  # forward: L y = b, column-oriented
+        inv = cb[j, 0]
+        for c in range(m):
+            b[j, c] *= inv
+        for k in range(1, min(kd, n - 1 - j) + 1):
+            f = cb[j, k]
+            for c in range(m):
+                b[j + k, c] -= f * b[j, c]
+    for j in range(n - 1, -1, -1):  # backward: L^T x = y, row-oriented
+        top = min(kd, n - 1 - j)
+        inv = cb[j, 0]
+        for c in range(m):
+            acc = b[j, c]
+            for k in range(1, top + 1):
+                acc -= cb[j, k] * b[j + k, c]
+            b[j, c] = acc * inv
+
+
 # -- the fast path's kernels: padded band product, two-chain solve ------------------------------------
 #: Rows of overlap (20 nodes) each chunk of ``chunk_solve`` carries past its own part. A^-1 decays by
 #: about 10x per node along the line (the implicit step's mass term 4/dt^2 M dominates A), so what

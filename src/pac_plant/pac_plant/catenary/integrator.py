@@ -44,7 +44,15 @@ from pac_common import divergence
 from pac_common.divergence import OFF_LINE
 from pac_model.parameters import positive_period
 
-from .banded import KD, band_chol_solve, band_matvec2, chol_factor, chunk_factor, pad_band
+from .banded import (
+    KD,
+    band_chol_solve,
+    band_chol_solve_columns,
+    band_matvec2,
+    chol_factor,
+    chunk_factor,
+    pad_band,
+)
 from .line import DOFS_PER_NODE, Line
 from .packing import CONSTANT_KINDS, STATE_KINDS, fe_advance_packed, pack
 from .pantographs import LumpedPantograph
@@ -86,6 +94,10 @@ def rear_periods(period: float, lag: float) -> int:
     """Periods (of ``period`` [m]) an endless window needs behind the one-pantograph window so that a
     pantograph ``lag`` [m] behind x is as far from the window's rear end as x is in that window."""
     return math.ceil(lag / period - 1e-9) if lag > 0.0 else 0
+
+
+#: Dropper columns A^-1 g_j solved side by side at set-up (``banded.band_chol_solve_columns``).
+DROPPER_BLOCK = 64
 
 
 def dropper_coupling(patches: np.ndarray, lo: np.ndarray, wc: np.ndarray, wm: np.ndarray) -> np.ndarray:
@@ -198,14 +210,15 @@ class ContactSimulation:
         nd = len(dr.node)
         width = min(n, 4 * (2 * UNIT_REACH + 1))
         drop_patches = np.empty((nd, width))
-        drop_lo = np.empty(nd, dtype=np.int64)
-        col = np.empty(n)
-        for j, node in enumerate(dr.node):
-            col[:] = 0.0
-            col[dr.wm[j]], col[dr.wc[j]] = 1.0, -1.0
-            band_chol_solve(self._chol, col)
-            drop_lo[j] = unit_start(n, width, int(node))
-            drop_patches[j] = col[drop_lo[j] : drop_lo[j] + width]
+        drop_lo = np.array([unit_start(n, width, int(node)) for node in dr.node], dtype=np.int64)
+        for first in range(0, nd, DROPPER_BLOCK):  # (a block of columns at a time: 13 MB on 3 km)
+            block = np.arange(first, min(nd, first + DROPPER_BLOCK))
+            cols = np.zeros((n, len(block)))
+            cols[dr.wm[block], np.arange(len(block))] = 1.0
+            cols[dr.wc[block], np.arange(len(block))] = -1.0
+            band_chol_solve_columns(self._chol, cols)
+            for c, j in enumerate(block):
+                drop_patches[j] = cols[drop_lo[j] : drop_lo[j] + width, c]
         self._ddrop = dropper_coupling(drop_patches, drop_lo, dr.wc, dr.wm)
         self._kdrop = dr.stiffness.copy()
         self._e0 = dr.elongation0.copy()

@@ -35,6 +35,8 @@ from .static import tension_only_equilibrium
 DOFS_PER_NODE = 4
 BANDWIDTH = 7  # sub-diagonals: node i couples with node i+1 only
 WC, RC, WM, RM = 0, 1, 2, 3  # DOF offsets within a node
+#: Droppers whose pre-tension responses one pass of the chord's set-up solves side by side.
+PRETENSION_BLOCK = 64
 
 
 def hermite_shape(xi: float, h: float) -> np.ndarray:
@@ -43,51 +45,51 @@ def hermite_shape(xi: float, h: float) -> np.ndarray:
     return np.array([1 - 3 * x2 + 2 * x3, h * (xi - 2 * x2 + x3), 3 * x2 - 2 * x3, h * (x3 - x2)])
 
 
-def beam_matrices(w: WireData, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Element (stiffness = bending + string, consistent mass) of a tensioned beam of length h."""
-    kb = (
-        w.ei
-        / h**3
-        * np.array(
-            [
-                [12, 6 * h, -12, 6 * h],
-                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
-                [-12, -6 * h, 12, -6 * h],
-                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
-            ]
-        )
+def _matrices4(rows: list[list[np.ndarray]]) -> np.ndarray:
+    """4 x 4 matrices from their entries (each of one shape S): an array of shape S + (4, 4)."""
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def beam_matrices(w: WireData, h: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Element (stiffness = bending + string, consistent mass) of a tensioned beam of length h;
+    h an array of lengths: one pair per element (shape h.shape + (4, 4))."""
+    h = np.asarray(h, dtype=float)
+    one = np.ones_like(h)
+    # h**3 element by element: numpy's array power may take a vector path that rounds otherwise
+    # (on some CPUs), and the matrices are the same to the bit whether built one by one or at once.
+    cube = np.array([x**3 for x in h.ravel()]).reshape(h.shape)
+    kb = np.asarray(w.ei / cube)[..., None, None] * _matrices4(
+        [
+            [12 * one, 6 * h, -12 * one, 6 * h],
+            [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+            [-12 * one, -6 * h, 12 * one, -6 * h],
+            [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+        ]
     )
-    kg = (
-        w.tension
-        / (30 * h)
-        * np.array(
-            [
-                [36, 3 * h, -36, 3 * h],
-                [3 * h, 4 * h * h, -3 * h, -h * h],
-                [-36, -3 * h, 36, -3 * h],
-                [3 * h, -h * h, -3 * h, 4 * h * h],
-            ]
-        )
+    kg = np.asarray(w.tension / (30 * h))[..., None, None] * _matrices4(
+        [
+            [36 * one, 3 * h, -36 * one, 3 * h],
+            [3 * h, 4 * h * h, -3 * h, -h * h],
+            [-36 * one, -3 * h, 36 * one, -3 * h],
+            [3 * h, -h * h, -3 * h, 4 * h * h],
+        ]
     )
-    m = (
-        w.rho
-        * h
-        / 420
-        * np.array(
-            [
-                [156, 22 * h, 54, -13 * h],
-                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
-                [54, 13 * h, 156, -22 * h],
-                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
-            ]
-        )
+    m = np.asarray(w.rho * h / 420)[..., None, None] * _matrices4(
+        [
+            [156 * one, 22 * h, 54 * one, -13 * h],
+            [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+            [54 * one, 13 * h, 156 * one, -22 * h],
+            [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+        ]
     )
     return kb + kg, m
 
 
-def gravity_load(w: WireData, h: float, g: float) -> np.ndarray:
-    """Consistent nodal load of the wire's own weight over one element (downwards)."""
-    return -w.rho * g * np.array([h / 2, h * h / 12, h / 2, -h * h / 12])
+def gravity_load(w: WireData, h: float | np.ndarray, g: float) -> np.ndarray:
+    """Consistent nodal load of the wire's own weight over one element (downwards); h an array of
+    lengths: one load per element (shape h.shape + (4,))."""
+    h = np.asarray(h, dtype=float)
+    return np.asarray(-w.rho * g)[..., None] * np.stack([h / 2, h * h / 12, h / 2, -h * h / 12], axis=-1)
 
 
 def string_matrices(w: WireData, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -121,6 +123,14 @@ class Banded:
             for b, j in enumerate(dofs):
                 if i >= j:
                     self.ab[i - j, j] += block[a, b]
+
+    def add_blocks(self, dofs: np.ndarray, blocks: np.ndarray) -> None:
+        """``add_block(dofs[e], blocks[e])`` for e = 0, 1, ... in one go, each entry's sums in
+        the same order (``np.add.at`` adds in index order)."""
+        i, j = dofs[:, :, None], dofs[:, None, :]
+        lower = np.broadcast_to(i >= j, blocks.shape)
+        rows, cols = np.broadcast_to(i - j, blocks.shape)[lower], np.broadcast_to(j, blocks.shape)[lower]
+        np.add.at(self.ab, (rows, cols), blocks[lower])
 
     def dense(self) -> np.ndarray:
         a = np.zeros((self.n, self.n))
@@ -234,14 +244,17 @@ class Line:
         fw = np.zeros(self.n_dof)
         # A stitched line's messenger is a string: its slope slot carries the stitch wire (layout.py).
         beams = ((d.contact, WC),) if self.stitched else ((d.contact, WC), (d.messenger, WM))
-        for e, h in enumerate(self.h):
-            for wire, off in beams:
-                ke, me = beam_matrices(wire, h)
-                dofs = [4 * e + off, 4 * e + off + 1, 4 * (e + 1) + off, 4 * (e + 1) + off + 1]
-                kw.add_block(dofs, ke)
-                mw.add_block(dofs, me)
-                fw[dofs] += gravity_load(wire, h, d.gravity)
-            if self.stitched:
+        # Every element of a wire at once: the wires' entries are apart, so each entry's sum has
+        # its terms in element order, as added one by one.
+        first = 4 * np.arange(len(self.h))[:, None]
+        for wire, off in beams:
+            ke, me = beam_matrices(wire, self.h)
+            dofs = first + np.array([off, off + 1, 4 + off, 4 + off + 1])
+            kw.add_blocks(dofs, ke)
+            mw.add_blocks(dofs, me)
+            np.add.at(fw, dofs.ravel(), gravity_load(wire, self.h, d.gravity).ravel())
+        if self.stitched:
+            for e, h in enumerate(self.h):
                 self._add_string(kw, mw, fw, d.messenger, [4 * e + WM, 4 * (e + 1) + WM], h)
         for st in self.layout.stitches:
             wire = WireData(st.rho, st.tension, 0.0)
@@ -275,19 +288,23 @@ class Line:
         f = self._f_wires.copy()
         # Dropper: spring k_d between w_c and w_m; elongation e = H + w_m - w_c - L0.
         half = 0.5 * d.dropper_rho * dr.length0
-        for j in range(len(dr.node)):
-            ic, im, kd = dr.wc[j], dr.wm[j], dr.stiffness[j]
-            k.add(ic, ic, kd)
-            k.add(im, im, kd)
-            k.add(im, ic, -kd)
-            pre = kd * (dr.height[j] - dr.length0[j])
-            f[ic] += pre
-            f[im] -= pre
-            mc, mm = d.clamp_mass_contact + half[j], d.clamp_mass_messenger + half[j]
-            m.add(ic, ic, mc)
-            m.add(im, im, mm)
-            f[ic] -= mc * d.gravity
-            f[im] -= mm * d.gravity
+        ic, im, kd = dr.wc, dr.wm, dr.stiffness
+        pre = kd * (dr.height - dr.length0)
+        mc, mm = d.clamp_mass_contact + half, d.clamp_mass_messenger + half
+        # Every dropper at once, each entry's terms in the order of a loop over the droppers
+        # (np.add.at adds in index order): k_d on both ends and -k_d between them, the
+        # pre-tension and the lumped weights on the load, the lumped masses.
+        upper, lower = np.maximum(ic, im), np.minimum(ic, im)
+        rows = np.stack([np.zeros_like(ic), np.zeros_like(im), upper - lower], axis=1).ravel()
+        cols = np.stack([ic, im, lower], axis=1).ravel()
+        np.add.at(k.ab, (rows, cols), np.stack([kd, kd, -kd], axis=1).ravel())
+        load = np.stack([pre, -pre, -(mc * d.gravity), -(mm * d.gravity)], axis=1).ravel()
+        np.add.at(f, np.stack([ic, im, ic, im], axis=1).ravel(), load)
+        np.add.at(
+            m.ab,
+            (np.zeros(2 * len(ic), dtype=np.int64), np.stack([ic, im], axis=1).ravel()),
+            np.stack([mc, mm], axis=1).ravel(),
+        )
         for i in self.fixed:
             k.ab[:, i] = 0.0
             m.ab[:, i] = 0.0
@@ -362,10 +379,7 @@ class Line:
         if nd == 0:
             self.set_dropper_lengths(dr.length0)
             return
-        b = np.zeros((self.n_dof, nd))
-        b[dr.wc, np.arange(nd)] = 1.0
-        b[dr.wm, np.arange(nd)] = -1.0
-        chord = lu_factor(self.solve_static(b)[dr.wc, :])
+        chord = lu_factor(self._pretension_response(dr.wc, dr.wm))
         for _ in range(max_iterations):
             pre = dr.stiffness * (dr.height - dr.length0)
             w = self.solve_static(self.f_static)  # f_static holds the present pre-tensions
@@ -384,6 +398,27 @@ class Line:
                 f"(last change {change:.1e} m, tolerance {tolerance:.0e} m)"
             )
         self.set_dropper_lengths(dr.length0)
+
+    def _pretension_response(self, wc: np.ndarray, wm: np.ndarray) -> np.ndarray:
+        """W[i, j] = (K^-1 b_j)[wc_i], b_j = e_wc_j - e_wm_j: the contact wire's static response at
+        each dropper to each dropper's pre-tension pair (droppers taut). The columns are solved
+        side by side, a block at a time (``banded.band_chol_solve_columns``: one pass over the
+        factor for a block, where LAPACK's banded solve takes the columns one by one)."""
+        from .banded import band_chol_solve_columns
+
+        factor = np.array(self._k_chol.T, order="C")  # a copy: LAPACK's factor may be Fortran-ordered
+        factor[:, 0] = 1.0 / factor[:, 0]  # (laid out as banded.chol_factor's)
+        nd = len(wc)
+        response = np.empty((nd, nd))
+        for first in range(0, nd, PRETENSION_BLOCK):
+            block = np.arange(first, min(nd, first + PRETENSION_BLOCK))
+            cols = np.zeros((self.n_dof, len(block)))
+            cols[wc[block], np.arange(len(block))] = 1.0
+            cols[wm[block], np.arange(len(block))] = -1.0
+            cols[self.fixed] = 0.0
+            band_chol_solve_columns(factor, cols)
+            response[:, block] = cols[wc, :]
+        return response
 
     def set_dropper_lengths(self, length0: np.ndarray) -> None:
         """Static equilibrium with the unstrained dropper lengths ``length0`` [m] (e.g. solved on
