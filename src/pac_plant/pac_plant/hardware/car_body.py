@@ -39,6 +39,8 @@ from numba import njit
 from pac_common.parameters import ParameterError
 from pac_model.pantograph_file import PantographFile
 
+from .sincos import sin_cos, sin_of
+
 
 @dataclass(frozen=True)
 class TrackSpectrum:
@@ -220,15 +222,14 @@ def cosines_at(frequency, phase, t: float, cos_out, sin_out) -> None:
     """cos and sin of every cosine's angle, frequency t + phase, at t (the loop keeps a tick's, so
     that the next tick starts from them: ``roof_from``, ``held_force``)."""
     for i in range(frequency.shape[0]):
-        arg = _angle(frequency[i], phase[i], t)
-        cos_out[i], sin_out[i] = math.cos(arg), math.sin(arg)
+        sin_out[i], cos_out[i] = sin_cos(_angle(frequency[i], phase[i], t))
 
 
 @njit(cache=True, error_model="numpy")
 def sines_at(frequency, phase, t: float, sin_out) -> None:
     """sin of every cosine's angle at t (what a force with no rate term needs: ``held_force``)."""
     for i in range(frequency.shape[0]):
-        sin_out[i] = math.sin(_angle(frequency[i], phase[i], t))
+        sin_out[i] = sin_of(_angle(frequency[i], phase[i], t))
 
 
 @njit(cache=True, error_model="numpy")
@@ -248,8 +249,8 @@ def roof_at(amplitude, frequency, phase, t: float, out) -> None:
     here: no arrays, so a compiled tick that calls it allocates nothing)."""
     z = v = acc = 0.0
     for i in range(amplitude.shape[0]):
-        arg = _angle(frequency[i], phase[i], t)
-        dz, dv, da = _roof_term(amplitude[i], frequency[i], math.cos(arg), math.sin(arg))
+        s, c = sin_cos(_angle(frequency[i], phase[i], t))
+        dz, dv, da = _roof_term(amplitude[i], frequency[i], c, s)
         z, v, acc = z + dz, v - dv, acc - da
     out[0], out[1], out[2] = z, v, acc
 
@@ -294,10 +295,11 @@ def roof_force(amplitude, frequency, phase, stiffness: float, damping: float, t0
     rise = 0.0
     for i in range(amplitude.shape[0]):
         w = frequency[i]
-        a0, a1 = _angle(w, phase[i], t0), _angle(w, phase[i], t1)
-        mean_height += _mean_term(amplitude[i], w, math.sin(a0), math.sin(a1))
+        s0, c0 = sin_cos(_angle(w, phase[i], t0))
+        s1, c1 = sin_cos(_angle(w, phase[i], t1))
+        mean_height += _mean_term(amplitude[i], w, s0, s1)
         if damping != 0.0:
-            rise += _rise_term(amplitude[i], math.cos(a0), math.cos(a1))
+            rise += _rise_term(amplitude[i], c0, c1)
     return _held(stiffness, damping, mean_height, rise, t1 - t0)
 
 
