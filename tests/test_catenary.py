@@ -483,6 +483,46 @@ def test_the_banded_cholesky_solve_is_a_dense_solve(compiled):
         np.testing.assert_allclose(x, np.linalg.solve(a, b), rtol=1e-12, atol=1e-14, err_msg=f"n = {n}")
 
 
+@pytest.mark.parametrize("compiled", [True, False])
+def test_the_banded_cholesky_is_the_dense_one_and_refuses_what_is_not_positive_definite(compiled):
+    """band_cholesky's L (LAPACK lower band storage) equals numpy's dense Cholesky factor to
+    rounding, on SPD matrices of the line's band width and below it; a matrix with a negative
+    pivot, or a NaN, is refused with ValueError. band_chol_solve_columns gives each column's
+    band_chol_solve to the bit. Also as plain Python (``py_func``: every index checked)."""
+    from pac_plant.catenary.banded import band_chol_solve, band_chol_solve_columns, band_cholesky, chol_factor
+
+    rng = np.random.default_rng(12)
+    kd = 7
+    factor = band_cholesky if compiled else band_cholesky.py_func
+    for n in (1, 3, kd + 1, 40):
+        a = np.zeros((n, n))
+        for k in range(1, min(kd, n - 1) + 1):
+            off = rng.uniform(-1.0, 1.0, n - k)
+            a += np.diag(off, k) + np.diag(off, -k)
+        a += np.diag(2.0 * kd + rng.uniform(1.0, 2.0, n))
+        ab = np.zeros((kd + 1, n))
+        for k in range(min(kd, n - 1) + 1):
+            ab[k, : n - k] = np.diag(a, -k)
+        low = factor(ab)
+        dense = np.linalg.cholesky(a)
+        for k in range(min(kd, n - 1) + 1):
+            np.testing.assert_allclose(low[k, : n - k], np.diag(dense, -k), rtol=1e-13, atol=1e-15)
+        b = rng.normal(size=(n, 5))
+        together = b.copy()
+        (band_chol_solve_columns if compiled else band_chol_solve_columns.py_func)(chol_factor(ab), together)
+        for c in range(5):
+            alone = b[:, c].copy()
+            band_chol_solve(chol_factor(ab), alone)
+            np.testing.assert_array_equal(together[:, c], alone)
+        bad = ab.copy()
+        bad[0, n // 2] = -1.0
+        with pytest.raises(ValueError, match="not positive definite"):
+            factor(bad)
+        bad[0, n // 2] = np.nan
+        with pytest.raises(ValueError, match="not positive definite"):
+            factor(bad)
+
+
 def test_fast_kernels_equal_the_banded_reference():
     """Chunked solve (8 LDL^T chains in vector lanes) = one banded Cholesky solve; the M-only
     right-hand side = M x1 + beta K w; a stored contact-column or slack-dropper patch = the full

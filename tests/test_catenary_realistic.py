@@ -332,15 +332,20 @@ def test_the_whole_lines_dropper_passes_stop_converged_or_say_they_did_not() -> 
 
 def test_the_element_flexibility_is_the_inverse_stiffness_by_solves() -> None:
     """The 4x4 blocks of K^-1 on each element's contact DOFs, read off the band of K^-1 (the
-    Takahashi recurrence on the Cholesky factor), equal K^-1 by banded solves of unit loads (the
-    reference: scipy's cho_solve_banded through solve_static, which zeroes fixed DOFs) within
-    1e-12 of the largest entry (rounding of two O(n kd) recurrences; measured 1.4e-15)."""
+    Takahashi recurrence on the line's own Cholesky factor), equal K^-1 by banded solves of unit
+    loads (the reference: scipy's cholesky_banded and cho_solve_banded, LAPACK's, with the fixed
+    DOFs' loads zeroed as solve_static does) within 1e-12 of the largest entry (rounding of two
+    O(n kd) recurrences; measured 1.4e-15)."""
+    from scipy.linalg import cho_solve_banded, cholesky_banded
+
     line = Line(CatenaryData(n_spans=6), n_spans=6)
     got = line.element_flexibility()
+    lapack = cholesky_banded(line.K.ab, lower=True)
     for e in range(line.n_nodes - 1):
         dofs = line.contact_dofs(e)
         unit = np.zeros((line.n_dof, 4))
         unit[dofs, np.arange(4)] = 1.0
-        want = line.solve_static(unit)[dofs, :]
+        unit[line.fixed] = 0.0
+        want = cho_solve_banded((lapack, True), unit)[dofs, :]
         np.testing.assert_allclose(got[e], want, rtol=0.0, atol=1e-12 * np.max(np.abs(want)) + 1e-300)
     assert not np.any(got[0][:, 0]) and not np.any(got[0][0, :])  # the first node's wire is fixed

@@ -1,4 +1,4 @@
-"""A finite-element overhead contact line (simple catenary) as the plant: pure numpy/scipy/numba.
+"""A finite-element overhead contact line (simple catenary) as the plant: pure numpy/numba.
 
 Modules, one concept each: ``data`` (the parameter set of docs/catenary_data.md §2),
 ``line`` (mesh, Hermite beam matrices, droppers, static equilibrium, static stiffness),

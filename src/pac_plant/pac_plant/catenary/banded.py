@@ -8,6 +8,8 @@ into overlapping chunks, one dependency chain per vector lane.
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -32,12 +34,37 @@ def band_matvec2(a1: np.ndarray, x1: np.ndarray, a2: np.ndarray, x2: np.ndarray,
         out[j] += acc
 
 
+@numba.njit(cache=True)
+def band_cholesky(ab: np.ndarray) -> np.ndarray:
+    """L of A = L L^T for symmetric positive definite banded A in LAPACK lower storage, in the same
+    storage (low[k, j] = L[j+k, j]): LAPACK's unblocked dpbtf2, column by column (the square root
+    of the pivot, the column scaled by its inverse, the rank-one update of the trailing band). Our
+    own rather than scipy's: the same bits on every CPU (no BLAS underneath), and the FE set-up
+    then needs no scipy.linalg (0.1-0.2 s to import). Raises ValueError on a pivot that is not
+    positive (a matrix that is not positive definite, or not finite)."""
+    kd, n = ab.shape[0] - 1, ab.shape[1]
+    low = ab.copy()
+    for j in range(n):
+        pivot = low[0, j]
+        if not pivot > 0.0:
+            raise ValueError("band_cholesky: the matrix is not positive definite")
+        pivot = math.sqrt(pivot)
+        low[0, j] = pivot
+        kn = min(kd, n - 1 - j)
+        scale = 1.0 / pivot
+        for k in range(1, kn + 1):
+            low[k, j] *= scale
+        for c in range(1, kn + 1):
+            lc = low[c, j]
+            for r in range(c, kn + 1):
+                low[r - c, j + c] -= low[r, j] * lc
+    return low
+
+
 def chol_factor(ab: np.ndarray) -> np.ndarray:
     """The banded Cholesky factor of ``ab`` laid out for ``band_chol_solve``: (n, kd+1), row j
     holding L[j+k, j] for k = 0..kd with the diagonal inverted (cache-friendly, no division)."""
-    from scipy.linalg import cholesky_banded
-
-    cb = np.ascontiguousarray(cholesky_banded(ab, lower=True).T)
+    cb = np.ascontiguousarray(band_cholesky(np.ascontiguousarray(ab, dtype=float)).T)
     cb[:, 0] = 1.0 / cb[:, 0]
     return cb
 
@@ -148,8 +175,6 @@ def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarr
     bounds[c+1], with at least ``overlap`` rows of its block on either side of them (where A
     goes on)). LDL^T rather than L L^T: each row of either sweep then waits on one fused
     multiply-add of the previous row, not on a multiply-add and a scaling."""
-    from scipy.linalg import cholesky_banded
-
     n, kd = ab.shape[1], KD
     bounds = np.array([round(c * n / CHUNKS) for c in range(CHUNKS + 1)], dtype=np.int64)
     lc = -(-(int(np.max(np.diff(bounds))) + 2 * overlap) // CHUNKS) * CHUNKS  # whole groups of 8 rows
@@ -161,7 +186,7 @@ def chunk_factor(ab: np.ndarray, overlap: int = CHUNK_OVERLAP) -> tuple[np.ndarr
         sub = ab[:, starts[c] : starts[c] + lc].copy()
         for k in range(1, sub.shape[0]):
             sub[k, lc - k :] = 0.0  # couplings that leave the block
-        low = narrow_band(cholesky_banded(sub, lower=True))  # low[k, j] = L[j+k, j]
+        low = narrow_band(band_cholesky(sub))  # low[k, j] = L[j+k, j]
         diag = low[0].copy()
         for k in range(1, kd + 1):
             factors[kd + k : kd + lc, k, c] = low[k, : lc - k] / diag[: lc - k]

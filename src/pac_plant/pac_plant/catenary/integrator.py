@@ -38,7 +38,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import block_diag
 
 from pac_common import divergence
 from pac_common.divergence import OFF_LINE
@@ -94,6 +93,16 @@ def rear_periods(period: float, lag: float) -> int:
     """Periods (of ``period`` [m]) an endless window needs behind the one-pantograph window so that a
     pantograph ``lag`` [m] behind x is as far from the window's rear end as x is in that window."""
     return math.ceil(lag / period - 1e-9) if lag > 0.0 else 0
+
+
+def block_diagonal(blocks: Sequence[np.ndarray]) -> np.ndarray:
+    """The square blocks along the diagonal of one matrix, zero elsewhere (each pantograph's own)."""
+    out = np.zeros((sum(len(b) for b in blocks),) * 2)
+    at = 0
+    for b in blocks:
+        out[at : at + len(b), at : at + len(b)] = b
+        at += len(b)
+    return out
 
 
 #: Dropper columns A^-1 g_j solved side by side at set-up (``banded.band_chol_solve_columns``).
@@ -194,9 +203,9 @@ class ContactSimulation:
         else:
             ground = np.concatenate([q.ground_stiffness for q in self.pantographs])
             pm = np.diag(np.concatenate([q.mass for q in self.pantographs]))
-            self._pstiff = block_diag(*[q.stiffness for q in self.pantographs])
+            self._pstiff = block_diagonal([q.stiffness for q in self.pantographs])
             self._pk = self._pstiff + np.diag(ground)
-            self._pc = block_diag(*[q.damping for q in self.pantographs])
+            self._pc = block_diagonal([q.damping for q in self.pantographs])
             if not damping:
                 self._pc = np.zeros_like(self._pc)
         self._pground = np.asarray(ground, dtype=float)

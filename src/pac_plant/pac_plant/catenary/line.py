@@ -25,8 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded, lu_factor, lu_solve
 
+from .banded import band_chol_solve, band_chol_solve_columns, band_inverse_band, chol_factor
 from .data import CatenaryData, NumericalOptions, WireData
 from .layout import WS, build_layout, span_marks
 from .layout import span_nodes as _span_nodes
@@ -315,13 +315,17 @@ class Line:
             k.ab[0, i] = 1.0
             f[i] = 0.0
         self.K, self.M, self.f_static = k, m, f
-        self._k_chol = cholesky_banded(k.ab, lower=True)
+        self._k_chol = chol_factor(k.ab)
 
     def solve_static(self, f: np.ndarray) -> np.ndarray:
         """K^-1 f (droppers taut), f of shape (n_dof,) or (n_dof, m)."""
-        f = np.array(f, dtype=float)
+        f = np.array(f, dtype=float, order="C")
         f[self.fixed] = 0.0
-        return cho_solve_banded((self._k_chol, True), f)
+        if f.ndim == 1:
+            band_chol_solve(self._k_chol, f)
+        else:
+            band_chol_solve_columns(self._k_chol, f)
+        return f
 
     def solve_dropper_lengths(self, tolerance: float = 1e-9, max_iterations: int = 50) -> None:
         """Unstrained dropper lengths that put the static contact wire at -presag at every dropper.
@@ -379,12 +383,12 @@ class Line:
         if nd == 0:
             self.set_dropper_lengths(dr.length0)
             return
-        chord = lu_factor(self._pretension_response(dr.wc, dr.wm))
+        chord = np.linalg.inv(self._pretension_response(dr.wc, dr.wm))
         for _ in range(max_iterations):
             pre = dr.stiffness * (dr.height - dr.length0)
             w = self.solve_static(self.f_static)  # f_static holds the present pre-tensions
             taken_back = (dr.height + w[dr.wm] - w[dr.wc]) / dr.height
-            p = pre + lu_solve(chord, -dr.target_sag - w[dr.wc]) / taken_back
+            p = pre + chord @ (-dr.target_sag - w[dr.wc]) / taken_back
             length0 = d.dropper_ea * dr.height / (d.dropper_ea + p)
             change = float(np.max(np.abs(length0 - dr.length0)))
             dr.length0 = length0
@@ -403,11 +407,7 @@ class Line:
         """W[i, j] = (K^-1 b_j)[wc_i], b_j = e_wc_j - e_wm_j: the contact wire's static response at
         each dropper to each dropper's pre-tension pair (droppers taut). The columns are solved
         side by side, a block at a time (``banded.band_chol_solve_columns``: one pass over the
-        factor for a block, where LAPACK's banded solve takes the columns one by one)."""
-        from .banded import band_chol_solve_columns
-
-        factor = np.array(self._k_chol.T, order="C")  # a copy: LAPACK's factor may be Fortran-ordered
-        factor[:, 0] = 1.0 / factor[:, 0]  # (laid out as banded.chol_factor's)
+        factor for a block of columns, not one per column)."""
         nd = len(wc)
         response = np.empty((nd, nd))
         for first in range(0, nd, PRETENSION_BLOCK):
@@ -416,7 +416,7 @@ class Line:
             cols[wc[block], np.arange(len(block))] = 1.0
             cols[wm[block], np.arange(len(block))] = -1.0
             cols[self.fixed] = 0.0
-            band_chol_solve_columns(factor, cols)
+            band_chol_solve_columns(self._k_chol, cols)
             response[:, block] = cols[wc, :]
         return response
 
@@ -502,9 +502,7 @@ class Line:
         """Per element, the 4x4 block of K^-1 on its contact DOFs (static stiffness at any x): read
         off the band of K^-1 (``banded.band_inverse_band``; an element's DOFs are 5 apart at most,
         inside the band of 7), a fixed DOF's rows and columns 0 (as ``solve_static`` gives)."""
-        from .banded import band_inverse_band, chol_factor
-
-        z = band_inverse_band(chol_factor(self.K.ab))
+        z = band_inverse_band(self._k_chol)
         z[:, self.fixed] = 0.0
         for i in self.fixed:  # the entries of a fixed DOF's row, stored in earlier columns
             for k in range(1, min(BANDWIDTH, i) + 1):

@@ -27,8 +27,8 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.linalg import cholesky_banded
 
+from .banded import chol_factor
 from .data import CatenaryData, NumericalOptions
 from .layout import Layout
 from .line import DOFS_PER_NODE, Banded, Dropper, Line, hermite_shape
@@ -118,7 +118,7 @@ class SectionedLine(Line):
         self.K, self.M = Banded(self.n_dof), Banded(self.n_dof)
         self.K.ab[:] = np.concatenate([p.K.ab for p in parts], axis=1)  # block diagonal: no entry between
         self.M.ab[:] = np.concatenate([p.M.ab for p in parts], axis=1)
-        self._k_chol = cholesky_banded(self.K.ab, lower=True)
+        self._k_chol = chol_factor(self.K.ab)
         self.layout = Layout(
             x=self.x,
             support_x=masts,
