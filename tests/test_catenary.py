@@ -488,7 +488,8 @@ def test_the_banded_cholesky_is_the_dense_one_and_refuses_what_is_not_positive_d
     """band_cholesky's L (LAPACK lower band storage) equals numpy's dense Cholesky factor to
     rounding, on SPD matrices of the line's band width and below it; a matrix with a negative
     pivot, or a NaN, is refused with ValueError. band_chol_solve_columns gives each column's
-    band_chol_solve to the bit. Also as plain Python (``py_func``: every index checked)."""
+    band_chol_solve to the bit, also when told where the loads start and which rows are wanted.
+    Also as plain Python (``py_func``: every index checked)."""
     from pac_plant.catenary.banded import band_chol_solve, band_chol_solve_columns, band_cholesky, chol_factor
 
     rng = np.random.default_rng(12)
@@ -514,6 +515,13 @@ def test_the_banded_cholesky_is_the_dense_one_and_refuses_what_is_not_positive_d
             alone = b[:, c].copy()
             band_chol_solve(chol_factor(ab), alone)
             np.testing.assert_array_equal(together[:, c], alone)
+        # Loads from row `first` on, rows from `stop` on wanted: the same bits there.
+        first, stop = n // 3, n // 2
+        b[:first] = 0.0
+        whole, part = b.copy(), b.copy()
+        band_chol_solve_columns(chol_factor(ab), whole)
+        band_chol_solve_columns(chol_factor(ab), part, first, stop)
+        np.testing.assert_array_equal(part[stop:], whole[stop:])
         bad = ab.copy()
         bad[0, n // 2] = -1.0
         with pytest.raises(ValueError, match="not positive definite"):

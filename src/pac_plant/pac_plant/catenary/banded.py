@@ -110,13 +110,16 @@ def band_chol_solve(cb: np.ndarray, b: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
-def band_chol_solve_columns(cb: np.ndarray, b: np.ndarray) -> None:
+def band_chol_solve_columns(cb: np.ndarray, b: np.ndarray, first: int = 0, stop: int = 0) -> None:
     """``band_chol_solve`` on every column of b (shape (n, m), rows contiguous) in place: the same
     operations on each column in the same order (each column is bit for bit its solve alone),
-    a row of all the columns at a time so that the inner loop runs along contiguous memory."""
+    a row of all the columns at a time so that the inner loop runs along contiguous memory.
+    ``first``: b is zero above this row (the forward sweep starts there: above it, it would compute
+    zeros); ``stop``: the rows above it are not wanted (the backward sweep ends there and leaves
+    them unsolved)."""
     n, kd = cb.shape[0], cb.shape[1] - 1
     m = b.shape[1]
-    for j in range(n):  # forward: L y = b, column-oriented
+    for j in range(first, n):  # forward: L y = b, column-oriented
         inv = cb[j, 0]
         for c in range(m):
             b[j, c] *= inv
@@ -124,7 +127,7 @@ def band_chol_solve_columns(cb: np.ndarray, b: np.ndarray) -> None:
             f = cb[j, k]
             for c in range(m):
                 b[j + k, c] -= f * b[j, c]
-    for j in range(n - 1, -1, -1):  # backward: L^T x = y, row-oriented
+    for j in range(n - 1, stop - 1, -1):  # backward: L^T x = y, row-oriented
         top = min(kd, n - 1 - j)
         inv = cb[j, 0]
         for c in range(m):

@@ -225,7 +225,8 @@ class ContactSimulation:
             cols = np.zeros((n, len(block)))
             cols[dr.wm[block], np.arange(len(block))] = 1.0
             cols[dr.wc[block], np.arange(len(block))] = -1.0
-            band_chol_solve_columns(self._chol, cols)
+            loads = np.concatenate([dr.wc[block], dr.wm[block]])
+            band_chol_solve_columns(self._chol, cols, int(loads.min()), int(drop_lo[block].min()))
             for c, j in enumerate(block):
                 drop_patches[j] = cols[drop_lo[j] : drop_lo[j] + width, c]
         self._ddrop = dropper_coupling(drop_patches, drop_lo, dr.wc, dr.wm)

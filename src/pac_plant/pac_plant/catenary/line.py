@@ -416,7 +416,7 @@ class Line:
             cols[wc[block], np.arange(len(block))] = 1.0
             cols[wm[block], np.arange(len(block))] = -1.0
             cols[self.fixed] = 0.0
-            band_chol_solve_columns(self._k_chol, cols)
+            band_chol_solve_columns(self._k_chol, cols, int(min(wc[block].min(), wm[block].min())))
             response[:, block] = cols[wc, :]
         return response
 
@@ -508,10 +508,6 @@ class Line:
             for k in range(1, min(BANDWIDTH, i) + 1):
                 z[k, i - k] = 0.0
         ne = self.n_nodes - 1
-        out = np.empty((ne, 4, 4))
-        for e in range(ne):
-            dofs = self.contact_dofs(e)
-            for a, p in enumerate(dofs):
-                for c, q in enumerate(dofs):
-                    out[e, a, c] = z[p - q, q] if p >= q else z[q - p, p]
-        return out
+        dofs = 4 * np.arange(ne)[:, None] + np.array([WC, RC, 4 + WC, 4 + RC])  # contact_dofs(e)
+        p, q = dofs[:, :, None], dofs[:, None, :]
+        return z[np.abs(p - q), np.minimum(p, q)]  # (K^-1)[p, q] from the lower band
