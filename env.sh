@@ -70,6 +70,10 @@ _pac_env_main() {
     # numba's on-disk cache of the compiled cores: outside install/ (colcon rewrites it), git-ignored
     # (build/), filled by `make setup` (python -m pac_rig.warm) so no process compiles at start.
     export NUMBA_CACHE_DIR="$root/build/numba_cache"
+    # Whole lines' solved dropper lengths (pac_plant/catenary/line_cache.py): a later run of the same
+    # drawn line reads them instead of solving them again (keyed by the line's data and the solver's
+    # code). PAC_LINE_CACHE= (empty) turns it off.
+    export PAC_LINE_CACHE="${PAC_LINE_CACHE-$root/build/line_cache}"
     export RMW_IMPLEMENTATION=rmw_fastrtps_cpp
     # One OpenBLAS thread unless told otherwise: pac's LAPACK calls are small (observer and law
     # designs at a node's start, an FE line's static solve); with OpenBLAS's default threads

@@ -10,10 +10,13 @@ started as a process, a Dask cluster, a long simulation.  ``make test-fast`` run
 them all.
 """
 
+import atexit
 import contextlib
 import os
+import shutil
 import signal
 import subprocess
+import tempfile
 import time
 from pathlib import Path
 
@@ -21,6 +24,11 @@ import numpy as np
 import pytest
 
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"  # also for anything imported below
+# Whole lines' dropper lengths (pac_plant.catenary.line_cache) in this test process's own directory:
+# no test reads what other runs left there; each line is solved once per test process.
+_LINE_CACHE = tempfile.mkdtemp(prefix="pac-line-cache-")
+os.environ["PAC_LINE_CACHE"] = _LINE_CACHE
+atexit.register(shutil.rmtree, _LINE_CACHE, True)
 
 
 def node_stats(log: str, node: str) -> dict:

@@ -70,7 +70,16 @@ GOALS = (
     ),
     Goal(
         "realistic_simulate_x",
-        "3 km realistic line at 300 km/h (34 s), `simulate` whole process, 16-span moving window",
+        "3 km realistic line at 300 km/h (34 s), `simulate` whole process, 16-span moving window, "
+        "the line's dropper lengths solved by an earlier run",
+        "× real time",
+        10.0,
+        True,
+        "{:.1f}",
+    ),
+    Goal(
+        "realistic_simulate_cold_x",
+        "the same, no line cache (the run solves its line's dropper lengths)",
         "× real time",
         10.0,
         True,

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import line_cache
 from .banded import band_chol_solve, band_chol_solve_columns, band_inverse_band, chol_factor
 from .data import CatenaryData, NumericalOptions, WireData
 from .layout import WS, build_layout, span_marks
@@ -339,7 +340,7 @@ class Line:
         (:meth:`_chord_dropper_lengths`).
         """
         if self.data.whole_line:
-            self._chord_dropper_lengths(tolerance, max_iterations)
+            self._whole_line_dropper_lengths(tolerance, max_iterations)
             return
         d, dr = self.data, self.droppers
         nd = len(dr.node)
@@ -365,6 +366,33 @@ class Line:
             if change < tolerance:
                 break
         self.set_dropper_lengths(dr.length0)
+
+    def _whole_line_dropper_lengths(self, tolerance: float, max_iterations: int) -> None:
+        """The chord passes, or their lengths as a run of the same line kept them (``line_cache``,
+        where the environment names a cache): checked, then set as the passes would set them."""
+        dr = self.droppers
+        key = line_cache.line_key(
+            self.data, self.options, self.n_spans, self.has_droppers, self._supports, tolerance
+        )
+        kept = line_cache.read(key, len(dr.node))
+        if kept is not None:
+            start = dr.length0.copy()
+            self.set_dropper_lengths(kept)
+            residual = self.presag_residual()
+            if residual <= line_cache.RESIDUAL_BOUND:
+                return
+            line_cache.reject(key, f"its pre-sag is {residual:.1e} m off the target")
+            dr.length0, dr.stiffness = start, self.data.dropper_ea / start
+        self._chord_dropper_lengths(tolerance, max_iterations)
+        line_cache.write(key, dr.length0)
+
+    def presag_residual(self) -> float:
+        """Largest |w_c + pre-sag| over the droppers [m] with every dropper taut: how far the
+        present dropper lengths leave the static contact wire from its target (0 when solved)."""
+        if not len(self.droppers.node):
+            return 0.0
+        w = self.solve_static(self.f_static)
+        return float(np.max(np.abs(w[self.droppers.wc] + self.droppers.target_sag)))
 
     def _chord_dropper_lengths(self, tolerance: float, max_iterations: int) -> None:
         """:meth:`solve_dropper_lengths` by chord steps: each pass corrects p by the residual of
