@@ -388,3 +388,13 @@ def test_unknown_types_and_empty_bags_via_the_tools(tmp_path):
             assert proc.returncode == 1, (tool, bag, proc.stderr)
             lines = assert_one_line_problems(proc, tool)
             assert any(expected in line or "not a pac topic" in line for line in lines), (tool, lines)
+
+
+def test_the_offline_publisher_qos_is_what_a_pac_publisher_offers():
+    """A bag written offline records its publishers' QoS from plain settings (no rclpy): the same
+    entries, in the same order, as rosbag2's record of pac's PUBLISH_QOS profile."""
+    from pac_bag.qos import pac_publisher_qos, qos_dict
+    from pac_common.qos import PUBLISH_QOS
+
+    (offline,) = pac_publisher_qos()
+    assert list(offline.items()) == list(qos_dict(PUBLISH_QOS).items())

@@ -27,10 +27,25 @@ def qos_dict(profile: Any) -> dict[str, Any]:
 
 
 def pac_publisher_qos() -> list[dict[str, Any]]:
-    """What every pac publisher offers (pac_common.node.PUBLISH_QOS), for bags written offline."""
-    from pac_common.node import PUBLISH_QOS
+    """What every pac publisher offers (``pac_common.qos.PUBLISH_QOS``), for bags written offline:
+    ``qos_dict`` of it, from its plain settings (no rclpy; tests/test_bags.py checks the two agree),
+    the entries it leaves at rclpy's defaults written out. New dictionaries each call (YAML would
+    write shared ones as aliases, which pac's bag reader refuses)."""
+    from dataclasses import asdict
 
-    return [qos_dict(PUBLISH_QOS)]
+    from pac_common.qos_settings import PUBLISH
+
+    never = {"sec": 0, "nsec": 0}  # rclpy's default deadline, lifespan and lease: none
+    return [
+        {
+            **asdict(PUBLISH),
+            "deadline": dict(never),
+            "lifespan": dict(never),
+            "liveliness": "system_default",
+            "liveliness_lease_duration": dict(never),
+            "avoid_ros_namespace_conventions": False,
+        }
+    ]
 
 
 def to_yaml(value: Any) -> str:

@@ -4,21 +4,24 @@ from __future__ import annotations
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from .qos_settings import PUBLISH
+
 #: Loop subscribers (observer <- measurement, controller <- estimate, plant <- command): best
 #: effort, keep last 1. Only the newest sample matters in real time, a late sample is worse than
 #: a lost one, and a node that falls behind skips to the newest sample (the observer bridges the
 #: gap exactly) instead of working through a backlog; with depth 10 the command age reached
 #: 20-44 ticks under load (docs/design.md).
 LOOP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-#: Every pac publisher: reliable and transient-local with the last 1000 samples. The best-effort
+#: Every pac publisher (``qos_settings.PUBLISH``): reliable and transient-local with the last 1000
+#: samples. The best-effort
 #: loop subscribers are unaffected (no acknowledgements, no retransmission to them); a reliable
 #: reader (the recorder) gets every sample, including those sent before its side of the match
 #: completed, which best effort loses (seen: tick 0 missing from a lock-step bag).
 PUBLISH_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=1000,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    history=HistoryPolicy[PUBLISH.history.upper()],
+    depth=PUBLISH.depth,
+    reliability=ReliabilityPolicy[PUBLISH.reliability.upper()],
+    durability=DurabilityPolicy[PUBLISH.durability.upper()],
 )
 #: The plant's run_status: reliable and transient local, so a node that starts late (or a
 #: recorder) learns at once whether the run has ended.

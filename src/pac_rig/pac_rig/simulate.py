@@ -31,6 +31,7 @@ from .closed_loop import (
     Scenario,
     TickRecord,
     build_cores,
+    computed_ahead,
     pantograph_truths,
     run_blocks,
     run_cores,
@@ -159,7 +160,7 @@ def simulate_to_bag(
         loop = compile_loop(plant, observer, controller, delay) if compiled else None
         try:
             if loop is not None:  # compiled: whole blocks of ticks, written as columns
-                blocks: Iterable[np.ndarray] = run_blocks(scenario, plant, loop)
+                blocks: Iterable[np.ndarray] = computed_ahead(run_blocks(scenario, plant, loop))
                 if show_progress:
                     blocks = progress(blocks, -(-scenario.loop.ticks // BLOCK), label or "simulate", "block")
                 controlled = loop.controlled()
