@@ -76,3 +76,33 @@ def test_goal_marks():
     assert g.met(float("nan")) is None
     low = next(goal for goal in bench_report.GOALS if not goal.at_least)
     assert low.met(low.goal) is True and low.met(low.goal + 1.0) is False
+
+
+def test_blocks_computed_ahead_come_in_order_and_the_error_after_them():
+    """computed_ahead gives every block in order, each computed in its worker thread (the next one
+    while the caller holds this one), then raises the loop's error where the loop raised it."""
+    import threading
+
+    import numpy as np
+
+    from pac_rig.closed_loop import DivergenceError, computed_ahead
+
+    made_in: list[str] = []
+    second_made = threading.Event()
+
+    def blocks():
+        for k in range(3):
+            made_in.append(threading.current_thread().name)
+            if k == 1:
+                second_made.set()
+            yield np.full(2, k)
+        raise DivergenceError(6, "test: the run diverged")
+
+    got = []
+    with pytest.raises(DivergenceError, match="test: the run diverged"):
+        for block in computed_ahead(blocks()):
+            if not got:  # holding the first block, the second is made meanwhile, not on asking
+                assert second_made.wait(timeout=10.0)
+            got.append(int(block[0]))
+    assert got == [0, 1, 2]
+    assert len(made_in) == 3 and all(name.startswith("pac-loop") for name in made_in)
