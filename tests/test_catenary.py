@@ -457,6 +457,20 @@ def test_the_contact_point_is_found_in_the_element_that_holds_it_at_both_ends_of
         assert n[0] + n[2] == pytest.approx(1.0, abs=1e-12)  # the shapes of w sum to one
 
 
+def _random_spd_band(rng: np.random.Generator, n: int, kd: int) -> tuple[np.ndarray, np.ndarray]:
+    """(A, ab): a random SPD n x n matrix with kd sub-diagonals (all non-zero, diagonally dominant)
+    and its LAPACK lower band storage ab[k, j] = A[j + k, j]."""
+    a = np.zeros((n, n))
+    for k in range(1, min(kd, n - 1) + 1):
+        off = rng.uniform(-1.0, 1.0, n - k)
+        a += np.diag(off, k) + np.diag(off, -k)
+    a += np.diag(2.0 * kd + rng.uniform(1.0, 2.0, n))  # diagonally dominant: SPD
+    ab = np.zeros((kd + 1, n))
+    for k in range(min(kd, n - 1) + 1):
+        ab[k, : n - k] = np.diag(a, -k)
+    return a, ab
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_the_banded_cholesky_solve_is_a_dense_solve(compiled):
     """band_chol_solve on chol_factor's factor solves A x = b as a dense solve does, for an SPD matrix
@@ -469,14 +483,7 @@ def test_the_banded_cholesky_solve_is_a_dense_solve(compiled):
     kd = 7
     solve = band_chol_solve if compiled else band_chol_solve.py_func
     for n in (1, 3, kd + 1, 40):
-        a = np.zeros((n, n))
-        for k in range(1, min(kd, n - 1) + 1):
-            off = rng.uniform(-1.0, 1.0, n - k)
-            a += np.diag(off, k) + np.diag(off, -k)
-        a += np.diag(2.0 * kd + rng.uniform(1.0, 2.0, n))  # diagonally dominant: SPD
-        ab = np.zeros((kd + 1, n))  # LAPACK lower storage: ab[k, j] = A[j + k, j]
-        for k in range(min(kd, n - 1) + 1):
-            ab[k, : n - k] = np.diag(a, -k)
+        a, ab = _random_spd_band(rng, n, kd)
         b = rng.normal(size=n)
         x = b.copy()
         solve(chol_factor(ab), x)
@@ -496,14 +503,7 @@ def test_the_banded_cholesky_is_the_dense_one_and_refuses_what_is_not_positive_d
     kd = 7
     factor = band_cholesky if compiled else band_cholesky.py_func
     for n in (1, 3, kd + 1, 40):
-        a = np.zeros((n, n))
-        for k in range(1, min(kd, n - 1) + 1):
-            off = rng.uniform(-1.0, 1.0, n - k)
-            a += np.diag(off, k) + np.diag(off, -k)
-        a += np.diag(2.0 * kd + rng.uniform(1.0, 2.0, n))
-        ab = np.zeros((kd + 1, n))
-        for k in range(min(kd, n - 1) + 1):
-            ab[k, : n - k] = np.diag(a, -k)
+        a, ab = _random_spd_band(rng, n, kd)
         low = factor(ab)
         dense = np.linalg.cholesky(a)
         for k in range(min(kd, n - 1) + 1):
