@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from . import diagnostics, messages
-from .command_line import ROS_OWN_PARAMETERS, process_arguments
+from .command_line import ROS_OWN_PARAMETERS, pac_parameter_names, process_arguments
 from .health import NodeHealth
 from .lifecycle import LifecycleOptions, ManagedNode
 from .parameters import (
@@ -43,36 +43,6 @@ from .ros_parameters import (
 from .scheduling import set_realtime_priority
 
 S = TypeVar("S", bound=ParameterSet)
-
-
-def pac_parameter_names() -> set[str]:
-    """Every parameter name of every installed pac node (the generated share/pac_*/config files).
-
-    Used to tell a typo in a shared ``/**`` section (no pac node has it: refused) from a key
-    meant for another node (ignored, as ROS does). Empty when the index cannot be read.
-    """
-    import glob
-    import os
-
-    from .files import FileInputError, read_yaml
-
-    try:
-        from ament_index_python.packages import get_packages_with_prefixes
-    except ImportError:
-        return set()
-    names: set[str] = set()
-    for package, prefix in get_packages_with_prefixes().items():
-        if not package.startswith("pac_"):
-            continue
-        for path in glob.glob(os.path.join(prefix, "share", package, "config", "*.yaml")):
-            try:
-                data = read_yaml(path, "params") or {}
-            except FileInputError:
-                continue
-            for section in data.values() if isinstance(data, dict) else ():
-                if isinstance(section, dict) and isinstance(section.get("ros__parameters"), dict):
-                    names |= set(section["ros__parameters"])
-    return names
 
 
 def unacknowledged(publishers: Iterable[Any], timeout: float) -> list[Any]:

@@ -220,7 +220,7 @@ def simulate_to_bag(
 def node_only(values: dict[str, Any]) -> list[str]:
     """Names in ``values`` that a pac node has but a scenario does not (start-up, scheduling, ...):
     a node's `ros2 param dump` holds them; offline they mean nothing."""
-    from pac_common.pac_node import pac_parameter_names
+    from pac_common.command_line import pac_parameter_names
 
     scenario = set(scenario_to_flat(Scenario()))
     nodes = pac_parameter_names()
