@@ -19,7 +19,7 @@ from pac_bag import cdr
 from pac_bag.mcap_writer import COMPRESSIONS
 from pac_bag.reader import read_bag
 from pac_bag.recovery import iter_records
-from pac_bag.typestore import typestore
+from pac_bag.typestore import ensure_type, typestore, writer_typestore
 from pac_bag.writer import BagWriter
 from pac_common import messages
 from pac_rig import simulate
@@ -80,6 +80,30 @@ def test_vectorised_cdr_is_byte_for_byte_rosbags(typename, frame_id):
     store = typestore()
     strings = dict.fromkeys(cdr.string_fields(store, typename), frame_id[:-1])
     assert_bytes_equal_rosbags(store, typename, strings={**strings, "header.frame_id": frame_id})
+
+
+@pytest.mark.parametrize("typename", sorted(set(messages.WATCHED_TOPICS.values())))
+def test_writer_store_defines_each_type_as_the_jazzy_store(typename):
+    """The writer's small store (pac types, then what a topic needs from the installed .msg files)
+    gives each type the definition, message text and hash of rosbags' whole Jazzy store, and knows
+    no Jazzy type it was not asked for."""
+    full = typestore()
+    small = writer_typestore()
+    ensure_type(small, typename)
+    assert typename in small.fielddefs
+    for name in small.fielddefs:
+        assert small.fielddefs[name] == full.fielddefs[name], name
+        assert small.generate_msgdef(name, ros_version=2) == full.generate_msgdef(name, ros_version=2)
+        assert small.hash_rihs01(name) == full.hash_rihs01(name)
+    assert len(small.fielddefs) < 20
+
+
+def test_writer_store_leaves_an_unknown_type_to_the_stores_error():
+    small = writer_typestore()
+    ensure_type(small, "no_such_pkg/msg/Nothing")
+    assert "no_such_pkg/msg/Nothing" not in small.fielddefs
+    with pytest.raises(Exception, match="Nothing"):
+        small.generate_msgdef("no_such_pkg/msg/Nothing", ros_version=2)
 
 
 def test_layout_follows_any_msg_definition_with_odd_alignments():

@@ -28,7 +28,7 @@ from . import cdr
 from .mcap_writer import COMPRESSIONS, McapWriter, message_records
 from .names import qualified, topic_key
 from .qos import pac_publisher_qos, to_yaml
-from .typestore import typestore
+from .typestore import ensure_type, writer_typestore
 
 #: Chunk compression of new bags: zstd costs the loop nothing measurable (README, bench).
 DEFAULT_COMPRESSION = "zstd"
@@ -70,7 +70,7 @@ class BagWriter:
             raise ValueError(f"compression {compression!r}: allowed {', '.join(COMPRESSIONS)}")
         self.path = Path(path)
         self.path.mkdir(parents=True, exist_ok=False)
-        self.store = typestore()
+        self.store = writer_typestore()
         self.factory = RosbagsFactory(self.store)
         self.compression = compression
         self._file = self.path / f"{name or self.path.name}.mcap"
@@ -92,6 +92,7 @@ class BagWriter:
             raise ValueError(f"topic '{name}' is already in the bag")
         qos = pac_publisher_qos() if offered_qos is None else list(offered_qos)
         if typename not in self._schemas:
+            ensure_type(self.store, typename)
             msgdef, _ = self.store.generate_msgdef(typename, ros_version=2)
             self._schemas[typename] = self._mcap.add_schema(typename, "ros2msg", msgdef.encode())
         channel = self._mcap.add_channel(
