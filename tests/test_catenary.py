@@ -619,3 +619,26 @@ def test_compiled_reference_run_equals_the_numpy_run():
     assert slack >= 1  # droppers went slack on the way
     assert np.max(np.abs(f_fast - f_ref)) <= COMPILED_TOLERANCE * np.max(np.abs(f_ref))
     assert fast.uplift() == pytest.approx(ref.uplift(), rel=COMPILED_TOLERANCE)
+
+
+def test_packed_buffers_hold_every_array_bit_for_bit_and_share_its_memory() -> None:
+    """``pack`` leaves arrays of zeros to the new buffer's zero pages; a negative zero, integers
+    and numbers are copied, and each view is the buffer's memory."""
+    from pac_plant.catenary.packing import pack
+
+    rng = np.random.default_rng(3)
+    arrays = (
+        np.zeros((3, 5)),
+        np.full(7, -0.0),
+        rng.standard_normal((2, 3, 4)),
+        np.arange(-4, 5, dtype=np.int64),
+        np.zeros(9, dtype=np.int64),
+        rng.standard_normal(1),
+    )
+    floats, ints, layout, views = pack(arrays, ("f2", "f1", "f3", "i1", "i1", "f1"))
+    for arr, view in zip(arrays, views, strict=True):
+        assert view.shape == arr.shape and view.dtype == arr.dtype
+        assert view.tobytes() == arr.tobytes()
+        assert np.shares_memory(view, ints if arr.dtype == np.int64 else floats)
+    assert np.signbit(views[1]).all()
+    assert layout[2, 1:].tolist() == [2, 3, 4]

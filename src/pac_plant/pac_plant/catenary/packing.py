@@ -44,7 +44,10 @@ def pack(
     views = []
     for k, (arr, kind) in enumerate(zip(arrays, kinds, strict=True)):
         view = buffers[kind[0]][layout[k, 0] : layout[k, 0] + arr.size].reshape(arr.shape)
-        view[...] = arr
+        # The buffers are new zeros whose pages the system maps when first written: an array of
+        # zeros (the contact columns not yet solved: 16 MB on a 3 km line) is left to them.
+        if arr.any() or np.signbit(arr).any():
+            view[...] = arr
         views.append(view)
     return buffers["f"], buffers["i"], layout, views
 
