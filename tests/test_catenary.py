@@ -471,6 +471,42 @@ def _random_spd_band(rng: np.random.Generator, n: int, kd: int) -> tuple[np.ndar
     return a, ab
 
 
+def test_a_chunked_solve_of_a_load_on_a_few_rows_is_the_whole_solves_rows():
+    """chunk_solve told that b is zero outside rows first..last and that only rows from keep on
+    are wanted: those rows bit for bit the whole solve's whatever its scratch held (NaN here), for
+    loads inside one chunk, across a chunk's bound and at the ends."""
+    from pac_plant.catenary.banded import CHUNKS, KD, chunk_factor, chunk_solve
+
+    rng = np.random.default_rng(11)
+    _, ab = _random_spd_band(rng, 1000, KD)
+    factors, starts, bounds = chunk_factor(ab)
+    n = ab.shape[1]
+    cases = [(500, 501, 420), (bounds[3], bounds[3] + 2, bounds[3] - 80), (0, 3, 0), (n - 2, n, n - 90)]
+    for first, last, keep in [*cases, (300, 700, 0), (10, 11, 990)]:
+        b = np.zeros(n)
+        b[first:last] = rng.uniform(-1.0, 1.0, last - first)
+        whole = b.copy()
+        chunk_solve(factors, starts, bounds, whole, np.zeros((factors.shape[0], CHUNKS)), whole[:0])
+        part = b.copy()
+        chunk_solve(
+            factors,
+            starts,
+            bounds,
+            part,
+            np.full((factors.shape[0], CHUNKS), np.nan),
+            part[:0],
+            first,
+            last,
+            keep,
+        )
+        assert part[keep:].tobytes() == whole[keep:].tobytes(), (first, last, keep)
+        below = part[:keep]  # each row b's or the whole solve's (the sweep's last groups)
+        assert np.all(
+            (below.view(np.int64) == b[:keep].view(np.int64))
+            | (below.view(np.int64) == whole[:keep].view(np.int64))
+        )
+
+
 @pytest.mark.parametrize("compiled", [True, False])
 def test_the_banded_cholesky_solve_is_a_dense_solve(compiled):
     """band_chol_solve on chol_factor's factor solves A x = b as a dense solve does, for an SPD matrix
@@ -593,6 +629,10 @@ def test_fast_kernels_equal_the_banded_reference():
             band_chol_solve(sim._chol, col)
             peak = np.max(np.abs(col))
             assert np.max(np.abs(sim.state.unit_patches[i, r] - col[lo : lo + width])) < 1e-13 * peak
+            whole = np.zeros(line.n_dof)  # the chunked solve of the whole column: bit for bit
+            whole[4 * i + r] = 1.0
+            chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, whole, work, whole[:0])
+            assert sim.state.unit_patches[i, r].tobytes() == whole[lo : lo + width].tobytes()
             outside = np.concatenate([col[:lo], col[lo + width :]])
             assert np.max(np.abs(outside)) < 1e-19 * peak
 

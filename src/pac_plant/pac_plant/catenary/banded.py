@@ -205,6 +205,9 @@ def chunk_solve(
     b: np.ndarray,
     w: np.ndarray,
     addend: np.ndarray,
+    first: int = 0,
+    last: int = -1,
+    keep: int = 0,
 ) -> None:
     """Solve A x = b in place (b of shape (n,)) as CHUNKS independent banded LDL^T solves of
     overlapping diagonal blocks of A (``chunk_factor``), one block per vector lane: one
@@ -212,14 +215,30 @@ def chunk_solve(
     side fill the vector unit. The five previous rows stay in registers; the newest term is
     subtracted last (the chain per row is one fused multiply-add). ``w``: scratch
     (lc + 2 KD, CHUNKS). ``addend`` (length n, or empty: none) is added to the solution on
-    the way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``)."""
+    the way out. Equal to ``band_chol_solve`` to rounding (``CHUNK_OVERLAP``).
+
+    A column of A^-1 wanted near its load (a contact column, ``step``): b zero outside rows
+    ``first`` .. ``last`` (-1: the end) and only the rows from ``keep`` on wanted. The forward
+    sweep then starts at the first row that can be non-zero and the backward one stops below
+    ``keep``: the rows from ``keep`` on are bit for bit the whole solve's (the rows skipped before
+    ``first`` are exact zeros in it); below ``keep`` b holds some rows of each, not to be read."""
     lc = factors.shape[0] - 2 * KD
     if w.shape[0] < lc + KD or w.shape[1] != CHUNKS:
         raise ValueError("chunk_solve: scratch w too small (rows: at least the factors')")
+    end = b.shape[0] if last < 0 else last
+    j_first = j_need = KD + lc
+    for c in range(CHUNKS):
+        if starts[c] < end and starts[c] + lc > first:  # a block b is not zero in
+            j_first = min(j_first, KD + max(first - starts[c], 0))
+        if bounds[c + 1] > keep:  # a block that delivers rows wanted
+            j_need = min(j_need, KD + max(keep, bounds[c]) - starts[c])
+    j_low = KD + (j_need - KD) // CHUNKS * CHUNKS  # the backward sweep's last group of rows
+    if j_low < j_first:
+        w[j_low:j_first, :] = 0.0
     f = factors
     row = (KD + 1) * CHUNKS  # elements per row of f
     p1 = p2 = p3 = p4 = p5 = lanes.zeros()
-    for j in range(KD, KD + lc):  # forward: L y = b; p1..p5 = y[j-1]..y[j-5], lane c = chunk c
+    for j in range(j_first, KD + lc):  # forward: L y = b; p1..p5 = y[j-1]..y[j-5], lane c = chunk c
         o = j * row
         acc = lanes.gather(b, starts, j - KD)  # b[starts[c] + j - KD]
         acc = lanes.fnma(lanes.load(f, o + 5 * CHUNKS), p5, acc)
@@ -234,7 +253,7 @@ def chunk_solve(
     # writing (plus the addend) only the rows it delivers.
     add = addend.shape[0] != 0
     p1 = p2 = p3 = p4 = p5 = lanes.zeros()
-    for j in range(KD + lc - CHUNKS, KD - 1, -CHUNKS):
+    for j in range(KD + lc - CHUNKS, j_low - 1, -CHUNKS):
         x7 = _back_row(f, w, j + 7, p1, p2, p3, p4, p5)
         x6 = _back_row(f, w, j + 6, x7, p1, p2, p3, p4)
         x5 = _back_row(f, w, j + 5, x6, x7, p1, p2, p3)

@@ -206,26 +206,43 @@ def _unit_patches(c: StepConstants, s: StepState, node: int) -> None:
         if (lo_s > 0 and lo - lo_s < CHUNK_OVERLAP) or (hi_s < n and hi_s - lo - width < CHUNK_OVERLAP):
             g = -1
     for r in range(2):
+        # Only the rows of the patch are solved for (``chunk_solve``'s first, last and keep).
+        i = 4 * node + r
         if g < 0:
             col[:] = 0.0
-            col[4 * node + r] = 1.0
-            chunk_solve(c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0])
+            col[i] = 1.0
+            chunk_solve(
+                c.chunk_factors, c.chunk_starts, c.chunk_bounds, col, s.chunk_work, col[:0], i, i + 1, lo
+            )
         else:  # the window's rows (the column is the whole line's to rounding: window.PAD)
-            col[c.window_rows[g, 0] : c.window_rows[g, 1]] = 0.0
-            col[4 * node + r] = 1.0
-            window_solve(c, s, g, col, col[:0])
+            lo_s = c.window_rows[g, 0]
+            col[lo_s : c.window_rows[g, 1]] = 0.0
+            col[i] = 1.0
+            window_solve(c, s, g, col, col[:0], i - lo_s, i + 1 - lo_s, lo - lo_s)
         s.unit_patches[node, r, :] = col[lo : lo + width]
     s.unit_ready[node] = 1
 
 
 @numba.njit(cache=True)
-def window_solve(c: StepConstants, s: StepState, g: int, b: np.ndarray, addend: np.ndarray) -> None:
+def window_solve(
+    c: StepConstants,
+    s: StepState,
+    g: int,
+    b: np.ndarray,
+    addend: np.ndarray,
+    first: int = 0,
+    last: int = -1,
+    keep: int = 0,
+) -> None:
     """``chunk_solve`` in place on the rows window g solves (the line beyond them at rest);
-    ``addend``: those rows' addend, or empty."""
+    ``addend``: those rows' addend, or empty; ``first``, ``last``, ``keep``: ``chunk_solve``'s,
+    counted from the window's first row."""
     lo, hi = c.window_rows[g, 0], c.window_rows[g, 1]
     rows = c.window_factors.shape[0] // c.window_x.shape[0]
     factors = c.window_factors[g * rows : (g + 1) * rows]
-    chunk_solve(factors, c.window_starts[g], c.window_bounds[g], b[lo:hi], s.chunk_work, addend)
+    chunk_solve(
+        factors, c.window_starts[g], c.window_bounds[g], b[lo:hi], s.chunk_work, addend, first, last, keep
+    )
 
 
 @numba.njit(cache=True)
