@@ -179,10 +179,14 @@ def test_a_message_quotes_a_short_prefix_of_a_file(tmp_path: Path) -> None:
 # -- 4. simulate's compression ----------------------------------------------------------------------
 @pytest.mark.parametrize("compression", ["none", "lz4", "zstd"])
 def test_simulate_writes_the_compression_asked_for(compression: str, tmp_path: Path) -> None:
+    import gc
+
     from mcap.reader import make_reader
 
     bag = tmp_path / "bag"
+    frozen = gc.get_freeze_count()
     assert simulate.main([str(bag), "-p", "duration:=0.05", "-p", f"compression:={compression}"]) == 0
+    assert gc.get_freeze_count() == frozen  # what simulate froze for its run is thawed again
     with open(bag / "bag.mcap", "rb") as stream:
         chunks = {c.compression for c in make_reader(stream).get_summary().chunk_indexes}
     assert chunks == {"" if compression == "none" else compression}

@@ -229,6 +229,18 @@ def node_only(values: dict[str, Any]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``simulate`` command (its help: ``--help``); the exit status."""
+    # The imports' objects (numba's alone are a few hundred thousand) live as long as the process:
+    # left out of the collector's full passes, which visited them all twice a run (~0.05 s). Thawed
+    # on the way out, for a caller in the same process (a test) whose objects were frozen too.
+    gc.freeze()
+    try:
+        return _main(argv)
+    finally:
+        gc.unfreeze()
+
+
+def _main(argv: list[str] | None) -> int:
     parser = argparse.ArgumentParser(
         prog="simulate",
         description=__doc__,
@@ -248,9 +260,6 @@ def main(argv: list[str] | None = None) -> int:
     add_override_arguments(parser)
     parser.add_argument("--list", action="store_true", help="list every parameter and exit")
     args = parser.parse_args(without_ros_args(list(sys.argv[1:] if argv is None else argv)))
-    # The imports' objects (numba's alone are a few hundred thousand) live as long as the process:
-    # left out of the collector's full passes, which visited them all twice a run (~0.1 s).
-    gc.freeze()
     if args.list:
         for pset in scenario_sets(Scenario()).values():
             for spec in pset.specs():
@@ -282,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
         if derived != values:
             values, scenario = derived, scenario_from_flat(derived)
         cores = build_cores(scenario)  # parts that do not fit, or a law design the parameters do not allow
-        gc.freeze()  # (see main's start) and the line's, the loaded compiled code's
+        gc.freeze()  # (as in main) the line's and the loaded compiled code's objects too
     except (OverrideError, ParameterError) as exc:
         print(f"simulate: {exc}", file=sys.stderr)
         return 2
