@@ -208,8 +208,9 @@ def pac_parameter_names() -> set[str]:
         if not package.startswith("pac_"):
             continue
         for path in glob.glob(os.path.join(prefix, "share", package, "config", "*.yaml")):
-            # Files make setup generated, of which only the keys are wanted: libyaml's loader
-            # reads them in ~1/10 of the time of the checked one (files.read_yaml) a user's get.
+            # Files that make setup generated, of which only the keys are wanted: libyaml's loader
+            # reads them in ~1/10 of the time of the checked one that a user's files get
+            # (files.read_yaml).
             try:
                 with open(path, encoding="utf-8") as stream:
                     data = yaml.load(stream, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)) or {}
