@@ -65,6 +65,7 @@ class LineAdaptiveLaw:
         self.guard_bias, self.guard_loss = laws.line_guard_bias, laws.line_guard_loss
         self.loss_margin = laws.line_guard_loss_margin
         self.guard_saturation, self.guard_strikes = laws.line_guard_saturation, laws.line_guard_strikes
+        self.guard_loss_after = laws.line_guard_loss_spans
         self._pending_measured = math.nan
         self._pending_law = 0.0
         self._pending_error = 0.0
@@ -240,7 +241,8 @@ class LineAdaptiveLaw:
             if judged or not span_ratio <= GUARD_HARD_FACTOR * self.guard_ratio:
                 self._trip("harm")
             else:
-                if loss > self.passive_loss + self.guard_loss:
+                early = learned < self.guard_loss_after  # the learning's first spans: the hard bar
+                if loss > self.passive_loss + (GUARD_HARD_FACTOR if early else 1.0) * self.guard_loss:
                     self.strikes += 1
                     if self.strikes >= self.guard_strikes:
                         self._trip("loss")

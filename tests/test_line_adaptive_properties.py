@@ -116,16 +116,21 @@ def test_one_span_just_below_the_hard_limit_is_forgiven_once_it_leaves_the_judge
 
 
 def strikes_after_a_span_with_lost_ticks(
-    lost: int, bias: float = 0.0, lost_passive: int = 0, start_bias: float = 0.0, level: float = 0.0
+    lost: int,
+    bias: float = 0.0,
+    lost_passive: int = 0,
+    start_bias: float = 0.0,
+    level: float = 0.0,
+    laws: LawParameters = LAWS,
 ) -> int:
     """The back-offs counted after the first learning span, in which ``lost`` ticks had F_hat =
     ``bias`` + ``level`` (a loss, or a near loss, read through an estimate whose mean is ``bias``
     off in every span) and the rest the passive spans' error; the last passive span lost
     ``lost_passive`` ticks likewise; span 0 (the start's transient) has ``start_bias`` added."""
-    law = LineAdaptiveLaw(TRACK, LAWS, DT)
+    law = LineAdaptiveLaw(TRACK, laws, DT)
     n, w = law.period_ticks, law.omega_span
     f_r = np.array([F_R, 0.0, 0.0, 0.0])
-    learning = LAWS.line_runin_spans
+    learning = laws.line_runin_spans
     for k in range((learning + 1) * n):
         span, i = divmod(k, n)
         f_hat = F_R + bias + (start_bias if span == 0 else 0.0) - PASSIVE * math.cos(w * k * DT)
@@ -142,6 +147,26 @@ def test_a_span_backs_off_when_its_share_of_lost_ticks_exceeds_line_guard_loss()
     allowed = LAWS.line_guard_loss * n
     assert strikes_after_a_span_with_lost_ticks(math.floor(allowed) - 1) == 0
     assert strikes_after_a_span_with_lost_ticks(math.ceil(allowed) + 1) == 1
+
+
+@pytest.mark.parametrize("loss_spans", [1, 8])
+def test_before_line_guard_loss_spans_only_a_loss_above_the_hard_bar_strikes(loss_spans):
+    """With line_guard_loss_spans, the first learning span is judged against GUARD_HARD_FACTOR times
+    line_guard_loss over the passive spans' share: just below that no back-off, just above it one;
+    from the loss_spans-th learning span on (1: the first) the bar is line_guard_loss again. (A
+    small line_guard_loss: a few lost ticks, which do not move the span's sigma_b to the harm
+    check's hard limit.)"""
+    laws = dataclasses.replace(LAWS, line_guard_loss=0.003, line_guard_loss_spans=loss_spans)
+    n = LineAdaptiveLaw(TRACK, laws, DT).period_ticks
+    bar, hard = laws.line_guard_loss * n, GUARD_HARD_FACTOR * laws.line_guard_loss * n
+    between = math.ceil(bar) + 1
+    assert bar < between < math.floor(hard) - 1
+    judged = loss_spans <= 1  # the first learning span is learned span 1
+    assert strikes_after_a_span_with_lost_ticks(between, laws=laws) == (1 if judged else 0)
+    assert strikes_after_a_span_with_lost_ticks(math.floor(hard) - 1, laws=laws) == (1 if judged else 0)
+    assert strikes_after_a_span_with_lost_ticks(math.ceil(hard) + 1, laws=laws) == 1
+    default = dataclasses.replace(laws, line_guard_loss_spans=0)  # judges every learning span
+    assert strikes_after_a_span_with_lost_ticks(between, laws=default) == 1
 
 
 def test_a_tick_counts_as_nearly_lost_below_the_margin_times_the_reference():

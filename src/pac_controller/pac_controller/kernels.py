@@ -96,6 +96,7 @@ CONTROLLER_PARAMS = np.dtype(
         ("line_guard_loss_margin", "f8"),  # nearly lost: F_hat <= this times F_r
         ("line_guard_saturation", "f8"),  # share of a span's commands the limits changed
         ("line_guard_strikes", "i8"),  # back-offs before the guard falls back
+        ("line_guard_loss_after", "i8"),  # learning spans before the loss check's bar is the run-in's
         ("line_supports", "i8"),  # supports of the design layout in the table (< 2: the period N)
         ("line_support_before", "f8"),  # share of a span before / after each support where the
         ("line_support_after", "f8"),  # harmonics only raise the command (support_lift), starting

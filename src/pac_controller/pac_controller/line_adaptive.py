@@ -97,7 +97,8 @@ mean(F) = mean(F_a) + (roof spring, momentum change: a few N), so |mean(F_hat - 
 ``line_guard_bias`` mean(F_r) (F_a the actuator force the measurement reports, or the law's own
 commands when it is not told it) falls back at once, from span 1 on; contact loss (ticks with
 F_hat less the last span's bias <= ``line_guard_loss_margin`` F_r, nearly lost, above the worst passive
-span's share by ``line_guard_loss``)
+span's share by ``line_guard_loss``; before ``line_guard_loss_spans`` learning spans, by
+``GUARD_HARD_FACTOR`` times that, as the harm check waits out the learning's first spans)
 and saturation (a share of the commands the limits changed above ``line_guard_saturation``) back
 off, the harmonics U_h halved, and the ``line_guard_strikes``-th time fall back. A fallback fades
 the feedforward as learned out over one span, u_ff (1 - (k - k_trip) / N), then U = 0: stepped
@@ -273,6 +274,7 @@ class LineAdaptiveLaw(KernelLaw):
         p["line_guard_loss_margin"] = laws.line_guard_loss_margin
         p["line_guard_saturation"] = laws.line_guard_saturation
         p["line_guard_strikes"] = laws.line_guard_strikes
+        p["line_guard_loss_after"] = laws.line_guard_loss_spans
         p["line_supports"] = len(supports)
         p["line_support_before"], p["line_support_after"] = laws.line_support_before, laws.line_support_after
         p["line_actuator_lag_ticks"] = round(laws.line_actuator_lag / dt)

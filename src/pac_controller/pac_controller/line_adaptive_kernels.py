@@ -509,7 +509,7 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         if judged or not span_ratio <= GUARD_HARD_FACTOR * p.line_guard_ratio:
             _trip(s, TRIP_HARM)
         else:
-            back_off = _struck(p, s, loss, s.line_clip_ticks / ticks)
+            back_off = _struck(p, s, loss, s.line_clip_ticks / ticks, learned)
     if s.line_backoff_from >= 0:
         # This span ramped a back-off down: its feedforward is now GUARD_BACKOFF U_h, and what it
         # applied (a ramp's mixture) teaches nothing; the next span steps on from there.
@@ -544,12 +544,17 @@ def _passive_estimate_var(p, table, memory) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def _struck(p, s, loss: float, clipped: float) -> bool:
-    """Whether a learning span backs off: more of its ticks with F_hat <= 0 (less the last span's
-    bias) than the worst passive span's by ``line_guard_loss`` (a strike), or more of its commands
-    changed by the limits than ``line_guard_saturation``. The ``line_guard_strikes``-th strike
-    falls back instead (and does not back off); saturation alone only backs off."""
-    lost = loss > s.line_passive_loss + p.line_guard_loss
+def _struck(p, s, loss: float, clipped: float, learned: int) -> bool:
+    """Whether the ``learned``-th learning span backs off: more of its ticks nearly lost (F_hat less
+    the last span's bias) than the worst passive span's by ``line_guard_loss`` (a strike; by
+    GUARD_HARD_FACTOR times that before ``line_guard_loss_after`` learning spans), or more of its
+    commands changed by the limits than ``line_guard_saturation``. The ``line_guard_strikes``-th
+    strike falls back instead (and does not back off); saturation alone only backs off."""
+    # The run-in's two spans are the bar; where the line's next spans dip deeper, passive's own share
+    # there exceeds it while the learning's first spans are still a transient (docs/laws.md).
+    early = learned < p.line_guard_loss_after
+    margin = (GUARD_HARD_FACTOR if early else 1.0) * p.line_guard_loss
+    lost = loss > s.line_passive_loss + margin
     if lost:
         s.line_strikes += 1
         if s.line_strikes >= p.line_guard_strikes:

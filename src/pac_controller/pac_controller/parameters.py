@@ -324,6 +324,16 @@ class LawParameters(ParameterSet):
         low=3,
         high=100,
     )
+    line_guard_loss_spans: int = parameter(
+        0,
+        "line_adaptive: learning spans before a span's near-lost share is judged against the worst "
+        "passive span's (line_guard_loss); before, only a span above that bar by three times "
+        "line_guard_loss strikes, as the harm check waits out the learning's first spans (0: from "
+        "the first learning span; docs/laws.md)",
+        "spans",
+        low=0,
+        high=100,
+    )
     line_guard_bias: float = parameter(
         0.25,
         "line_adaptive: fall back to passive when the mean of F_hat over a span differs from the mean "

@@ -94,6 +94,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "line_support_after": 0.0,
     "line_actuator_lag": 0.0,
     "line_guard_strikes": 3,
+    "line_guard_loss_spans": 0,
     "line_guard_loss_margin": 0.05,
     "line_supports": (0.0,),
     "line_overlaps": (0.0,),
