@@ -100,13 +100,15 @@ def test_line_adaptive_brings_its_observer_and_the_fe_line_its_span():
 @pytest.mark.unit
 def test_what_a_law_is_told_of_the_line_and_the_actuator_follows_its_registry_line(monkeypatch):
     """The design layout of a whole line and a design for an actuator as hardware reach a law by its
-    registry line (``LawEntry.line_layout``, ``actuator_as_hardware``), not by its name: a law that
+    registry line (``LawEntry.line_layout``, ``actuator_design``), not by its name: a law that
     declares them gets them, one that does not gets neither, and a value the user names is kept."""
     import dataclasses
 
     run = {"scenario": "realistic_electromechanical", "force_amplitude": 157.3}
     declared = dataclasses.replace(
-        LAWS["passive"], line_layout=True, actuator_as_hardware=(("line_effort_weight", 0.3),)
+        LAWS["passive"],
+        line_layout=True,
+        actuator_design=lambda lag, span_time: (("line_effort_weight", 0.3),),
     )
     monkeypatch.setitem(LAWS, "declares_both", declared)
     values, notes = composition.derive({**run, "law": "declares_both"})
@@ -123,6 +125,57 @@ def test_what_a_law_is_told_of_the_line_and_the_actuator_follows_its_registry_li
     assert named["line_effort_weight"] == 0.1
     ideal, _ = composition.derive({**run, "law": "declares_both", "actuator": "ideal"})
     assert "line_effort_weight" not in ideal  # the ideal actuator keeps the law's defaults
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("speed", [250.0, 300.0, 350.0])
+def test_line_adaptive_holds_the_support_zone_where_the_actuator_is_fast_against_a_span(speed):
+    """line_adaptive's design for an actuator as hardware (docs/laws.md, "On the realistic line",
+    points 9 and 10): on the electromechanical actuator (20 ms lag, 5 ms delay) the zone about each
+    support starts that 25 ms earlier, and the loss check waits 8 learned spans; the pneumatic one
+    (200 ms, 20 ms: a third of a span at these speeds) gets neither, only the design both share. A
+    value the user names is kept, the rest still derived. The lag is summed here from the actuator's
+    registry line, not from the law's module."""
+    from pac_controller.line_adaptive import DESIGN_FOR_ACTUATOR_AS_HARDWARE, DESIGN_FOR_FAST_ACTUATOR
+    from pac_plant.hardware.actuators import ACTUATORS
+
+    fast_only = {"line_support_before", "line_support_after", "line_guard_loss_spans", "line_actuator_lag"}
+    assert {name for name, _ in DESIGN_FOR_FAST_ACTUATOR} | {"line_actuator_lag"} == fast_only
+    run = {"law": "line_adaptive", "force_amplitude": 157.3, "speed_kmh": speed}
+    fast, notes = composition.derive({**run, "scenario": "realistic_electromechanical"})
+    electromechanical = ACTUATORS["electromechanical"]
+    lag = electromechanical.time_constant + electromechanical.delay
+    assert fast["line_actuator_lag"] == pytest.approx(lag, abs=1e-9)
+    assert (fast["line_support_before"], fast["line_support_after"]) == (0.02, 0.1)
+    assert fast["line_guard_loss_spans"] == 8 and isinstance(fast["line_guard_loss_spans"], int)
+    note = "line_support_before:=0.02 (law line_adaptive's design for the electromechanical actuator)"
+    assert note in notes
+    slow, _ = composition.derive({**run, "scenario": "realistic_pneumatic"})
+    assert not fast_only & set(slow)
+    for values in (fast, slow):
+        assert {name: values[name] for name, _ in DESIGN_FOR_ACTUATOR_AS_HARDWARE} == dict(
+            DESIGN_FOR_ACTUATOR_AS_HARDWARE
+        )
+    electromechanical_run = {**run, "scenario": "realistic_electromechanical"}
+    named, _ = composition.derive({**electromechanical_run, "line_support_before": 0})
+    assert named["line_support_before"] == 0.0 and named["line_support_after"] == 0.1
+    ideal, _ = composition.derive({**run, "catenary_model": "fe", "catenary": "realistic_3km"})
+    assert not fast_only & set(ideal)  # the ideal actuator keeps the law's defaults
+
+
+@pytest.mark.unit
+def test_an_actuator_is_fast_up_to_a_tenth_of_a_spans_passing_time():
+    """The boundary of line_adaptive's fast-actuator design: a lag of FAST_ACTUATOR_SPAN_SHARE of
+    the span's passing time is fast (the zone starts that much earlier), one a microsecond more is
+    not; and the design for a slow actuator is the design both share."""
+    from pac_controller import line_adaptive
+
+    span_time = 0.5
+    edge = line_adaptive.FAST_ACTUATOR_SPAN_SHARE * span_time
+    at = dict(line_adaptive.design_for_actuator(edge, span_time))
+    assert at["line_actuator_lag"] == pytest.approx(edge) and at["line_support_after"] == 0.1
+    beyond = line_adaptive.design_for_actuator(edge + 1e-6, span_time)
+    assert beyond == line_adaptive.DESIGN_FOR_ACTUATOR_AS_HARDWARE
 
 
 @pytest.mark.unit

@@ -138,3 +138,25 @@ def test_the_line_and_the_stretch_are_named_in_the_report_and_an_empty_stretch_i
     assert main(["--spans", "12", "12", "--seeds", "1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--spans 12 12" in err[0]
+
+
+def test_settings_given_reach_every_active_run_and_the_report_and_a_wrong_name_is_refused(tmp_path, capsys):
+    """``-p NAME:=VALUE`` (the Makefile's way to run the pair without line_adaptive's design for a
+    fast actuator): every line_adaptive configuration runs with it, the spared leader keeps its own
+    effort weight on top, the passive pair gets nothing; the report's header names it; a name that
+    is no parameter of the laws is refused in one line, exit 2, before any run."""
+    from pac_experiments.realistic.pair import configurations
+
+    settings = {"line_support_before": 0, "line_effort_weight": 0.2}
+    configs = configurations((1.5,), settings)
+    assert configs["passive pair"][2] == {}
+    assert configs["active leading"][2] == configs["active trailing"][2] == settings
+    assert configs["active leading, mu 1.5"][2] == {"line_support_before": 0, "line_effort_weight": 1.5}
+    text = write_report(_pair_rows(300.0, 50.0, 35.0), tmp_path, settings={"line_support_before": 0})
+    assert "line_adaptive with line_support_before:=0." in text
+    assert "line_adaptive with" not in write_report(_pair_rows(300.0, 50.0, 35.0), tmp_path / "none")
+    capsys.readouterr()
+    assert main(["-p", "line_zone:=0", "--seeds", "1", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "-p line_zone" in err[0] and "not a parameter of the laws" in err[0]
+    assert not (tmp_path / "out").exists()

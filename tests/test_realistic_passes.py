@@ -82,3 +82,17 @@ def test_adding_a_line_the_results_already_hold_is_refused_in_one_line(tmp_path,
     assert code == 2
     assert err == [f"realistic_passes: {csv_path} has realistic_electromechanical line 1 at 300 km/h already"]
     assert not (tmp_path / "out").exists()  # refused before any run
+
+
+def test_settings_given_are_named_in_the_report_and_a_wrong_name_is_refused_in_one_line(tmp_path, capsys):
+    """``-p NAME:=VALUE``: the report says line_adaptive ran with it (and no longer that pass A is
+    the realistic experiment's row); a name that is no parameter of the laws is refused in one line,
+    exit 2, before any run."""
+    text = write_report(_rows(range(2)), tmp_path / "a", settings={"line_guard_loss_spans": 0})
+    assert "`line_adaptive` with line_guard_loss_spans:=0 (every run of it)" in text
+    assert "realistic experiment's row" not in text
+    assert "realistic experiment's row" in write_report(_rows(range(2)), tmp_path / "b")
+    code = main(["-p", "nope:=1", "--seeds", "1", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("realistic_passes: -p nope:")
+    assert not (tmp_path / "out").exists()

@@ -10,6 +10,7 @@ from conftest import simulate_refusal
 from pac_common.contact_statistics import target_mean_force
 from pac_common.parameters import ParameterError
 from pac_controller.laws import LAWS
+from pac_model.parameters import TrackParameters
 from pac_rig import composition
 from pac_rig.launcher import Rig
 from pac_rig.scenario_file import PRESETS, ScenarioFileError, expand, load_scenario
@@ -53,8 +54,11 @@ def test_derive_sees_the_files_parts():
     assert values["observer"] == "head_balance"
     assert 50.0 <= values["span_length"] <= 60.0  # the drawn line's mean span (50-60 m rule)
     assert len(values["line_supports"]) > 50
-    design = dict(LAWS["line_adaptive"].actuator_as_hardware)
-    assert {k: values[k] for k in design} == design
+    design = LAWS["line_adaptive"].actuator_design
+    assert design is not None
+    span_time = values["span_length"] / (TrackParameters().speed_kmh / 3.6)
+    expected = dict(design(0.025, span_time))  # the electromechanical actuator: 20 ms lag, 5 ms delay
+    assert "line_support_before" in expected and {k: values[k] for k in expected} == expected
 
 
 @pytest.mark.unit

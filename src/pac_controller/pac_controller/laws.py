@@ -28,7 +28,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
-from .line_adaptive import DESIGN_FOR_ACTUATOR_AS_HARDWARE, LineAdaptiveLaw
+from .line_adaptive import LineAdaptiveLaw, design_for_actuator
 from .lqr import LqrLaw, design_lqr
 from .parameters import FORCE_ESTIMATES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
@@ -106,8 +106,9 @@ class LawEntry:
     #: contact point starts), which the run derives from the line the plant runs (pac_rig.composition).
     line_layout: bool = False
     #: The law's design values, (parameter, value) pairs, where the actuator is hardware (limited range
-    #: and rate), each derived where the user names it not; empty: the law's defaults serve any actuator.
-    actuator_as_hardware: tuple[tuple[str, float], ...] = ()
+    #: and rate), from the actuator's lag plus delay [s] and the time a span takes to pass [s]; each
+    #: derived where the user names it not. None: the law's defaults serve any actuator.
+    actuator_design: Callable[[float, float], tuple[tuple[str, float], ...]] | None = None
     #: The law's parameter that holds its passive run-in in spans (where its guard measures the
     #: passive reference), if it has one: on a train, a pantograph with another ahead of it runs
     #: passive until that one's wave has reached it (derived by pac_rig.composition).
@@ -193,7 +194,7 @@ LAWS: dict[str, LawEntry] = {
         observer="contact_force",
         kernel="pac_controller.line_adaptive_kernels",
         line_layout=True,
-        actuator_as_hardware=DESIGN_FOR_ACTUATOR_AS_HARDWARE,
+        actuator_design=design_for_actuator,
         runin_spans="line_runin_spans",
     ),
     "skyhook": law_module("pac_controller.skyhook"),

@@ -180,6 +180,39 @@ DESIGN_FOR_ACTUATOR_AS_HARDWARE = (
     ("line_model_below", 1.0),
 )
 
+#: The law's design where, besides, the actuator is fast against a span (its lag and delay at most
+#: FAST_ACTUATOR_SPAN_SHARE of the time a span takes to pass): about each support of the design
+#: layout, from 0.02 of a span plus the actuator's lag and delay before it to 0.10 after it, the
+#: learned harmonics only raise the command, since lowered there the head meets the dip after the
+#: support with too little force (every lost tick the traces showed lay in it); and a span's
+#: contact loss strikes only above three times its bar until 8 spans are learned, as the harm check
+#: waits out the learning's first spans (docs/laws.md, "On the realistic line", points 9 and 10).
+#: The zone's edges came from traces, the loss check's numbers are the harm check's; checked on the
+#: design lines (seeds 0-19) before the report lines. On a slow actuator the zone before the support
+#: spans a third of it and takes nearly all of the gain, and the loss rule changed no design run:
+#: there the law keeps DESIGN_FOR_ACTUATOR_AS_HARDWARE alone.
+DESIGN_FOR_FAST_ACTUATOR = (
+    ("line_support_before", 0.02),
+    ("line_support_after", 0.1),
+    ("line_guard_loss_spans", 8),
+)
+
+#: The largest lag and delay, as a share of a span's passing time, for which an actuator counts as
+#: fast (judgement: the electromechanical actuator's 25 ms is 0.03-0.05 of a span at 250-350 km/h,
+#: the pneumatic one's 220 ms 0.28-0.39; nothing between them was measured).
+FAST_ACTUATOR_SPAN_SHARE = 0.1
+
+
+def design_for_actuator(lag: float, span_time: float) -> tuple[tuple[str, float], ...]:
+    """The law's design values for an actuator as hardware whose command acts ``lag`` [s] late (its
+    time constant plus its delay) on spans that take ``span_time`` [s] to pass:
+    DESIGN_FOR_ACTUATOR_AS_HARDWARE, and where the actuator is fast DESIGN_FOR_FAST_ACTUATOR with the
+    zone started ``lag`` earlier (``line_actuator_lag``)."""
+    if lag > FAST_ACTUATOR_SPAN_SHARE * span_time:
+        return DESIGN_FOR_ACTUATOR_AS_HARDWARE
+    # To the microsecond: a value that does not move with the last bits of a sum (campaign keys hash it).
+    return (*DESIGN_FOR_ACTUATOR_AS_HARDWARE, *DESIGN_FOR_FAST_ACTUATOR, ("line_actuator_lag", round(lag, 6)))
+
 
 #: ``LineAdaptiveLaw.trip_reason`` by ``line_trip_reason`` (line_adaptive_kernels.TRIP_*).
 TRIP_REASONS = ("", "harm", "bias", "loss")

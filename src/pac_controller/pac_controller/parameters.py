@@ -329,7 +329,7 @@ class LawParameters(ParameterSet):
         "line_adaptive: learning spans before a span's near-lost share is judged against the worst "
         "passive span's (line_guard_loss); before, only a span above that bar by three times "
         "line_guard_loss strikes, as the harm check waits out the learning's first spans (0: from "
-        "the first learning span; docs/laws.md)",
+        "the first learning span; derived 8 where the actuator is fast; docs/laws.md)",
         "spans",
         low=0,
         high=100,
@@ -373,8 +373,9 @@ class LawParameters(ParameterSet):
         0.0,
         "line_adaptive: share of a span before each support of the design layout (line_supports) "
         "where the learned harmonics may raise the command but not lower it (with "
-        "line_support_after; 0 and 0: nowhere). Lowered there, the head meets the dip after the "
-        "support with too little force and can lose contact where passive does not (docs/laws.md)",
+        "line_support_after; 0 and 0: nowhere; derived 0.02 where the actuator is fast against a "
+        "span). Lowered there, the head meets the dip after the support with too little force and can "
+        "lose contact where passive does not (docs/laws.md)",
         "",
         low=0.0,
         high=0.5,
@@ -382,7 +383,7 @@ class LawParameters(ParameterSet):
     line_support_after: float = parameter(
         0.0,
         "line_adaptive: share of a span after each support where the learned harmonics may raise "
-        "the command but not lower it (line_support_before)",
+        "the command but not lower it (line_support_before; derived 0.1 where the actuator is fast)",
         "",
         low=0.0,
         high=0.5,
@@ -391,7 +392,7 @@ class LawParameters(ParameterSet):
         0.0,
         "line_adaptive: how long a command takes to act (an actuator's lag and delay): the zone about "
         "the supports starts that much earlier, since the force applied there follows earlier "
-        "commands (0: not at all; measured on the realistic line, it costs more than it gives: "
+        "commands (0: not at all; derived as the actuator's lag plus delay where it is fast: "
         "docs/laws.md)",
         "s",
         low=0.0,

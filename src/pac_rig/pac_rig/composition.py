@@ -13,11 +13,12 @@ observer states what it gives (``pac_observer.observers.OBSERVERS``: ``gives``).
   layout of the whole line the plant runs; a law that names its passive run-in
   (``LawEntry.runin_spans``), on a pantograph with others ahead of it, runs passive until the wave
   of the farthest one ahead has reached it; a law's design for an actuator as hardware
-  (``LawEntry.actuator_as_hardware``) where the actuator is one; a fixed-gain law feeds back F_hat
-  in the first form its observer gives (``force_estimate``: k_hat z1 on the paper's observer, the
-  filter's own F_hat on ``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the
-  observer and the controller are told the span of the line the plant runs (its catenary file's mean
-  span), not the 65 m default of the lumped model, and a fixed-gain law is designed at the line's
+  (``LawEntry.actuator_design``: from the actuator's lag and a span's passing time) where the
+  actuator is one; a fixed-gain law feeds back F_hat in the first form its observer gives
+  (``force_estimate``: k_hat z1 on the paper's observer, the filter's own F_hat on
+  ``observer:=contact_force``); on the FE line (``catenary_model:=fe``) the observer and the
+  controller are told the span of the line the plant runs (its catenary file's mean span), not the
+  65 m default of the lumped model, and a fixed-gain law is designed at the line's
   equivalent stiffness (``design_stiffness``: its mean static stiffness over a period of the design
   spans, ``pac_plant.fe_plant.equivalent_contact_stiffness``), not the lumped model's k0; an
   actuator as hardware works about the run's reference (``actuator_static_force`` =
@@ -36,7 +37,7 @@ refused pair.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from pac_common.parameters import ParameterError
@@ -129,12 +130,34 @@ def derive(
     actuator = str(given.get("actuator", "ideal"))
     if actuator != "ideal" and "u_min" not in given and "u_max" not in given:
         notes.extend(_actuator_limits(actuator, {**given, **out}, out))
-    if entry is not None and actuator != "ideal":
-        for name, value in entry.actuator_as_hardware:
-            if name not in given:
-                out[name] = value
-                notes.append(f"{name}:={value:g} (law {law}'s design for the {actuator} actuator)")
+    if entry is not None and entry.actuator_design is not None and actuator != "ideal":
+        notes += _actuator_design(entry.actuator_design, law, actuator, given, out)
     return out, notes
+
+
+def _actuator_design(
+    design: Callable[[float, float], tuple[tuple[str, float], ...]],
+    law: str,
+    actuator: str,
+    given: Mapping[str, Any],
+    out: dict[str, Any],
+) -> list[str]:
+    """A law's design for an actuator as hardware (``LawEntry.actuator_design``), into ``out`` where
+    the user named nothing: from the actuator's lag plus delay and the time the run's span (the FE
+    line's mean span where derived) takes to pass at the run's speed."""
+    from pac_model.parameters import TrackParameters
+    from pac_plant.hardware.actuators import actuator_model
+
+    model = actuator_model(actuator)
+    track = TrackParameters()
+    span = float(out.get("span_length", given.get("span_length", track.span_length)))
+    speed = float(given.get("speed_kmh", track.speed_kmh)) / 3.6
+    notes = []
+    for name, value in design(model.time_constant + model.delay, span / speed):
+        if name not in given:
+            out[name] = value
+            notes.append(f"{name}:={value:g} (law {law}'s design for the {actuator} actuator)")
+    return notes
 
 
 def _fe_line_design(

@@ -37,6 +37,7 @@ import numpy as np
 from pac_common import markdown
 from pac_common.contact_statistics import contact_statistics, target_mean_force
 from pac_experiments.campaign.summary import Interval
+from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text
 
 SEEDS = tuple(range(100, 120))
 SPEED = 300.0
@@ -53,18 +54,21 @@ Config = tuple[str, int, dict[str, Any]]
 PANTOGRAPHS = ("leading", "trailing")
 
 
-def configurations(effort_weights: tuple[float, ...] = (PAIR_EFFORT_WEIGHT,)) -> dict[str, Config]:
-    """The runs per line: the passive pair, each pantograph active with the law's defaults, and the
-    leading one with each effort weight of ``effort_weights``."""
+def configurations(
+    effort_weights: tuple[float, ...] = (PAIR_EFFORT_WEIGHT,), settings: dict[str, Any] | None = None
+) -> dict[str, Config]:
+    """The runs per line: the passive pair, each pantograph active with the law's defaults (and
+    ``settings`` on them), and the leading one with each effort weight of ``effort_weights``."""
+    given = dict(settings or {})
     spared: dict[str, Config] = {
-        f"active leading, mu {mu:g}": ("line_adaptive", 0, {"line_effort_weight": mu})
+        f"active leading, mu {mu:g}": ("line_adaptive", 0, {**given, "line_effort_weight": mu})
         for mu in effort_weights
     }
     return {
         "passive pair": ("passive", 0, {}),
-        "active leading": ("line_adaptive", 0, {}),
+        "active leading": ("line_adaptive", 0, given),
         **spared,
-        "active trailing": ("line_adaptive", 1, {}),
+        "active trailing": ("line_adaptive", 1, given),
     }
 
 
@@ -166,9 +170,11 @@ def write_report(
     fixed_roof: bool = False,
     catenary: str | None = None,
     spans: tuple[int, int] = (FIRST_SPAN, LAST_SPAN),
+    settings: dict[str, Any] | None = None,
 ) -> str:
     """pair.md: per speed, configuration and pantograph, sigma and loss over the lines, and the
-    change of each pantograph's sigma against the passive pair on the same line at the same speed."""
+    change of each pantograph's sigma against the passive pair on the same line at the same speed
+    (``settings``: the law's settings the runs were given, named in the header)."""
     out.mkdir(parents=True, exist_ok=True)
     with (out / "results.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -224,8 +230,9 @@ def write_report(
         f"{_seed_text(sorted({r['line_seed'] for r in rows}))}, "
         "EN 50318 statistics of each pantograph over supports "
         f"{spans[0]}-{spans[1]} of the leading one's start. "
-        "sigma: mean [95 % interval] (smallest..largest) over the lines; the change against the passive pair "
-        "on the same line, per line.\n\n" + markdown.table(header, table) + "\n"
+        + (f"line_adaptive with {settings_text(settings)}. " if settings else "")
+        + "sigma: mean [95 % interval] (smallest..largest) over the lines; the change against the "
+        "passive pair on the same line, per line.\n\n" + markdown.table(header, table) + "\n"
     )
     (out / "pair.md").write_text(text)
     return text
@@ -264,7 +271,11 @@ def main(argv: list[str] | None = None) -> int:
         metavar=("FIRST", "LAST"),
         help="the stretch judged: supports FIRST to LAST of the leading one's start (default: %(default)s)",
     )
+    add_settings_option(parser, "every active run")
     args = parser.parse_args(argv)
+    settings = settings_or_none(args.param, "realistic_pair")
+    if settings is None:
+        return 2
     spans = (args.spans[0], args.spans[1])
     if not 0 <= spans[0] < spans[1]:
         print(
@@ -272,7 +283,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    configs = configurations(tuple(args.effort_weights))
+    configs = configurations(tuple(args.effort_weights), settings)
     try:
         earlier = read_results(args.add_to) if args.add_to else []
     except (OSError, KeyError, ValueError) as error:
@@ -293,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(_run, jobs))
-    print(write_report(earlier + rows, args.out, args.fixed_roof, args.catenary, spans))
+    print(write_report(earlier + rows, args.out, args.fixed_roof, args.catenary, spans, settings))
     return 0
 
 

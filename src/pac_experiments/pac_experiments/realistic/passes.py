@@ -35,6 +35,7 @@ import numpy as np
 
 from pac_common import markdown
 from pac_experiments.campaign.summary import Interval
+from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text
 
 SCENARIOS = ("realistic_electromechanical", "realistic_pneumatic")
 SPEEDS = (250.0, 300.0, 320.0, 350.0)
@@ -57,11 +58,17 @@ COMPARED = ("first pass B", "map, position 1 m off", "map, position as pass A")
 
 
 def run_line(
-    scenario: str, speed: float, seed: int, maps: str, spec_path: Path = SPEC, catenary: str | None = None
+    scenario: str,
+    speed: float,
+    seed: int,
+    maps: str,
+    spec_path: Path = SPEC,
+    catenary: str | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """The five runs of one line (module docstring), in order; pass A's map goes to ``maps``. ``spec_path``:
     the campaign SPEC whose window and statistics the runs take; ``catenary``: the line (default: the
-    scenario's)."""
+    scenario's); ``settings``: parameters of the law for each line_adaptive run."""
     from pac_controller.line_adaptive import TRIP_REASONS, LineAdaptiveLaw
     from pac_controller.line_map import write_line_map
     from pac_experiments.campaign.run import en50318_measures
@@ -78,6 +85,7 @@ def run_line(
             "speed_kmh": speed, "line_position_error": position_error,
             **({"catenary": catenary} if catenary else {}),
             **(PASS_B if pass_ == "B" else {}), **({"line_map": str(map_path)} if use_map else {}),
+            **(settings or {} if law == "line_adaptive" else {}),
         }  # fmt: skip
         s, _, window = resolve(spec, values)
         plant, observer, controller = build_cores(s)
@@ -107,7 +115,7 @@ def run_line(
     return rows
 
 
-def _run(args: tuple[str, float, int, str, Path, str | None]) -> list[dict[str, Any]]:
+def _run(args: tuple[str, float, int, str, Path, str | None, dict[str, Any]]) -> list[dict[str, Any]]:
     return run_line(*args)
 
 
@@ -134,7 +142,11 @@ def read_results(path: Path) -> list[dict[str, Any]]:
 
 
 def write_report(
-    rows: list[dict[str, Any]], out: Path, spec_path: Path = SPEC, catenary: str | None = None
+    rows: list[dict[str, Any]],
+    out: Path,
+    spec_path: Path = SPEC,
+    catenary: str | None = None,
+    settings: dict[str, Any] | None = None,
 ) -> str:
     """passes.md: per scenario, speed and run, the sigma change against the passive run of its pass
     (mean [95 % interval], worst line), lines with more contact loss than that passive run, and the
@@ -194,8 +206,13 @@ def write_report(
         f"line seeds {seeds[0]}-{seeds[-1]}{line}, the window and statistics of {spec_path} (EN 50318 "
         f"over spans {spans[0]:g}-{spans[1]:g}, F_r the EN 50367 target). Pass A: the scenario's seeds, "
         "line map error +0.5 m; "
-        "`line_adaptive` there writes the map (pass A's own result is the realistic experiment's "
-        "row). Pass B: other draws of the track under the car body, the "
+        + (
+            f"`line_adaptive` with {settings_text(settings)} (every run of it) there writes the map. "
+            if settings
+            else "`line_adaptive` there writes the map (pass A's own result is the realistic "
+            "experiment's row). "
+        )
+        + "Pass B: other draws of the track under the car body, the "
         "turbulent uplift and the sensors' noise (roof_seed, aero_turbulence_seed, noise_seed 1). Each "
         "run of pass B against pass B's passive run on the same line: mean [95 % interval] over "
         "the lines; the map runs also against the first pass B on the same line.\n\n"
@@ -223,7 +240,11 @@ def main(argv: list[str] | None = None) -> int:
         metavar="CSV",
         help="an earlier run's results.csv: its rows are kept and these runs added (one report of both)",
     )
+    add_settings_option(parser, "each of its runs")
     args = parser.parse_args(argv)
+    settings = settings_or_none(args.param, "realistic_passes")
+    if settings is None:
+        return 2
     try:
         earlier = read_results(args.add_to) if args.add_to else []
     except (OSError, KeyError, ValueError) as error:
@@ -238,14 +259,14 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with tempfile.TemporaryDirectory(prefix="pac_maps_") as maps:
         jobs = [
-            (sc, sp, seed, maps, args.spec, args.catenary)
+            (sc, sp, seed, maps, args.spec, args.catenary, settings)
             for sc in args.scenarios
             for sp in args.speeds
             for seed in args.seeds
         ]
         with ProcessPoolExecutor(args.workers) as pool:
             rows = earlier + [row for line in pool.map(_run, jobs) for row in line]
-    print(write_report(rows, args.out, args.spec, args.catenary))
+    print(write_report(rows, args.out, args.spec, args.catenary, settings))
     return 0
 
 
