@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-recommended realistic-recommended-draws realistic-draws realistic-pair realistic-pair-sections realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -145,21 +145,6 @@ realistic-guard-estimate: setup
 realistic-support-zone: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_support_zone.yaml --out reports/realistic/support_zone $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/support_zone --against passive
-
-# line_adaptive with the settings recommended for the electromechanical actuator (the approach and
-# the first tenth after each support held, the loss check after 8 learned spans) against passive on
-# the same report lines, speeds and window (config/campaigns/realistic_recommended.yaml ->
-# reports/realistic/recommended/; docs/realistic_scenario.md, "The recommended settings").
-realistic-recommended: setup
-	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_recommended.yaml --out reports/realistic/recommended $(ARGS)
-	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/recommended --against passive
-
-# The same with three draws per line of the car body's track, the turbulence and the noise
-# (config/campaigns/realistic_recommended_draws.yaml -> reports/realistic/recommended_draws/; draw 0
-# is realistic-recommended's run).
-realistic-recommended-draws: setup
-	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_recommended_draws.yaml --out reports/realistic/recommended_draws $(ARGS)
-	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/recommended_draws --against passive --draws roof_seed,aero_turbulence_seed,noise_seed
 
 # line_adaptive against passive on the 20 report lines with three draws each of the car body's track,
 # the turbulence and the noise (config/campaigns/realistic_draws.yaml -> reports/realistic/draws/;
