@@ -22,6 +22,7 @@ the one-tension-length line; the sectioned line has realistic_overlap_figure).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -69,10 +70,36 @@ def sigma_change_figure(rows: list[dict[str, str]], path: Path) -> None:
     fig.savefig(path, dpi=110)
 
 
+#: How far two campaigns' runs of one key may differ and still be one run, per measure: relative,
+#: and absolute in the measure's unit (N, %, mm) for the measures near zero. The same parameters
+#: computed again agree to rounding (a line's dropper lengths solved or read from its cache): 5e-9 of
+#: sigma, and 7.6e-7 N on a smallest force of 0.04 N, the most seen; a changed run moves a measure by
+#: far more (one tick of contact loss is 0.006 % of a window).
+SAME_RUN_TOLERANCE = 1e-6
+SAME_RUN_ABSOLUTE = 1e-5
+
+
+def _same_run(a: dict[str, str], b: dict[str, str]) -> bool:
+    """Whether two rows of one key hold the same run: the same fields, text equal, numbers within
+    SAME_RUN_TOLERANCE or SAME_RUN_ABSOLUTE."""
+    if a.keys() != b.keys():
+        return False
+    for name, text in a.items():
+        if text == b[name]:
+            continue
+        try:
+            x, y = float(text), float(b[name])
+        except ValueError:
+            return False
+        if not math.isclose(x, y, rel_tol=SAME_RUN_TOLERANCE, abs_tol=SAME_RUN_ABSOLUTE):
+            return False
+    return True
+
+
 def merge_runs(rows: list[dict[str, str]], more: list[dict[str, str]]) -> list[dict[str, str]]:
     """``rows`` and the runs of ``more`` that are not already there (by the run's ``key``, a hash of
-    its parameters); raises ValueError for a run in both whose measures differ, or a row without a
-    key."""
+    its parameters); raises ValueError for a run in both whose measures differ by more than rounding
+    (SAME_RUN_TOLERANCE), or a row without a key."""
     if any("key" not in r for r in (*rows[:1], *more[:1])):
         raise ValueError("results.csv without a key column")
     have = {r["key"]: r for r in rows}
@@ -80,7 +107,7 @@ def merge_runs(rows: list[dict[str, str]], more: list[dict[str, str]]) -> list[d
     for r in more:
         if r["key"] not in have:
             merged.append(r)
-        elif r != have[r["key"]]:
+        elif not _same_run(r, have[r["key"]]):
             raise ValueError(f"run {r['key']} is there with other numbers")
     return merged
 
