@@ -72,9 +72,9 @@ def sigma_change_figure(rows: list[dict[str, str]], path: Path) -> None:
 
 #: How far two campaigns' runs of one key may differ and still be one run, per measure: relative,
 #: and absolute in the measure's unit (N, %, mm) for the measures near zero. The same parameters
-#: computed again agree to rounding (a line's dropper lengths solved or read from its cache): 5e-9 of
-#: sigma, and 7.6e-7 N on a smallest force of 0.04 N, the most seen; a changed run moves a measure by
-#: far more (one tick of contact loss is 0.006 % of a window).
+#: computed again in another campaign agree to rounding (why they differ at all was not traced):
+#: 5e-9 of sigma, and 7.6e-7 N on a smallest force of 0.04 N, the most seen; a changed run moves a
+#: measure by far more (one tick of contact loss is 0.006 % of a window).
 SAME_RUN_TOLERANCE = 1e-6
 SAME_RUN_ABSOLUTE = 1e-5
 
