@@ -183,7 +183,8 @@ def test_a_pantograph_behind_another_runs_passive_until_the_wave_of_the_one_ahea
     """A law that names its run-in (``LawEntry.runin_spans``) on a pantograph with others ahead runs
     passive for its run-in and the spans until the wave of the farthest one ahead reaches it: d / (c + v)
     with c = sqrt(T / rho) of the line's contact wire (the file's data). Two spans more at 250 to 350 km/h
-    for 200 m on the realistic line; nothing for the leading pantograph, for a law that names no
+    for 200 m on the realistic line, and line_adaptive's design for that position
+    (``LawEntry.behind_another``); nothing for the leading pantograph, for a law that names no
     run-in, or where the user names the value."""
     import dataclasses
     import math
@@ -204,6 +205,9 @@ def test_a_pantograph_behind_another_runs_passive_until_the_wave_of_the_one_ahea
             values["line_runin_spans"] == default + math.ceil(v * 200.0 / (c + v) / line.span) == default + 2
         )
         assert any(n.startswith("line_runin_spans:=") and "200 m ahead" in n for n in notes)
+        # and its design for that position (LawEntry.behind_another), each with its note
+        assert values["line_guard_reference"] == "estimate"
+        assert any(n.startswith("line_guard_reference:=estimate") and "200 m behind" in n for n in notes)
     three, _ = composition.derive({**run, "pantographs": (0.0, 100.0, 600.0), "controlled_pantograph": 2})
     v = 360.0 / 3.6  # the default speed
     assert three["line_runin_spans"] == default + math.ceil(v * 600.0 / (c + v) / line.span)  # the farthest
@@ -212,11 +216,17 @@ def test_a_pantograph_behind_another_runs_passive_until_the_wave_of_the_one_ahea
         {"pantographs": (0.0,)},
         {"pantographs": (0.0, 200.0), "controlled_pantograph": 1, "law": "passive"},
     ):
-        assert "line_runin_spans" not in composition.derive({**run, **given})[0]
+        assert not {"line_runin_spans", "line_guard_reference"} & set(composition.derive({**run, **given})[0])
     named, _ = composition.derive(
-        {**run, "pantographs": (0.0, 200.0), "controlled_pantograph": 1, "line_runin_spans": 4}
+        {
+            **run,
+            "pantographs": (0.0, 200.0),
+            "controlled_pantograph": 1,
+            "line_runin_spans": 4,
+            "line_guard_reference": "runin",
+        }
     )
-    assert named["line_runin_spans"] == 4
+    assert named["line_runin_spans"] == 4 and named["line_guard_reference"] == "runin"
     monkeypatch.setitem(
         LAWS, "names_its_runin", dataclasses.replace(LAWS["passive"], runin_spans="line_runin_spans")
     )

@@ -28,7 +28,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
-from .line_adaptive import LineAdaptiveLaw, design_for_actuator
+from .line_adaptive import DESIGN_BEHIND_ANOTHER, LineAdaptiveLaw, design_for_actuator
 from .lqr import LqrLaw, design_lqr
 from .parameters import FORCE_ESTIMATES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
@@ -113,6 +113,10 @@ class LawEntry:
     #: passive reference), if it has one: on a train, a pantograph with another ahead of it runs
     #: passive until that one's wave has reached it (derived by pac_rig.composition).
     runin_spans: str | None = None
+    #: The law's design values, (parameter, value) pairs, on a pantograph with others ahead of it on
+    #: the train, where the wave it meets from them makes its spans differ; each derived where the
+    #: user names it not (pac_rig.composition). Empty: the law's defaults serve either position.
+    behind_another: tuple[tuple[str, object], ...] = ()
 
     def needs_of(self, force_estimate: str) -> frozenset[str]:
         """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
@@ -196,6 +200,7 @@ LAWS: dict[str, LawEntry] = {
         line_layout=True,
         actuator_design=design_for_actuator,
         runin_spans="line_runin_spans",
+        behind_another=DESIGN_BEHIND_ANOTHER,
     ),
     "skyhook": law_module("pac_controller.skyhook"),
 }

@@ -203,6 +203,15 @@ DESIGN_FOR_FAST_ACTUATOR = (
 FAST_ACTUATOR_SPAN_SHARE = 0.1
 
 
+#: The design values on a pantograph with others ahead of it: the harm check's bar from each span's
+#: own passive sigma_b as the identified responses say it would have been ("estimate"), not from
+#: the run-in's few spans. The wave of the one ahead makes the spans this one meets differ (its
+#: sigma per 0.66 s ranged 56-101 N on a design line), so a bar from the run-in tripped where the law
+#: was still lowering sigma; measured on design lines 0-9 (docs/realistic_scenario.md, "Two
+#: pantographs 200 m apart"). The check of one span against the run-in's bar stays behind it.
+DESIGN_BEHIND_ANOTHER = (("line_guard_reference", "estimate"),)
+
+
 def design_for_actuator(lag: float, span_time: float) -> tuple[tuple[str, float], ...]:
     """The law's design values for an actuator as hardware whose command acts ``lag`` [s] late (its
     time constant plus its delay) on spans that take ``span_time`` [s] to pass:

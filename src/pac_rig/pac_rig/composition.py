@@ -12,7 +12,8 @@ observer states what it gives (``pac_observer.observers.OBSERVERS``: ``gives``).
   accelerometer); a law that takes a line layout (``LawEntry.line_layout``) is told the design
   layout of the whole line the plant runs; a law that names its passive run-in
   (``LawEntry.runin_spans``), on a pantograph with others ahead of it, runs passive until the wave
-  of the farthest one ahead has reached it; a law's design for an actuator as hardware
+  of the farthest one ahead has reached it, and takes its design for that position
+  (``LawEntry.behind_another``); a law's design for an actuator as hardware
   (``LawEntry.actuator_design``: from the actuator's lag and a span's passing time) where the
   actuator is one; a fixed-gain law feeds back F_hat in the first form its observer gives
   (``force_estimate``: k_hat z1 on the paper's observer, the filter's own F_hat on
@@ -118,8 +119,8 @@ def derive(
         notes.append(f"span_length:={out['span_length']:g} (the mean span of the FE line {catenary})")
     if fe_line and entry is not None and entry.line_layout and "line_supports" not in given:
         notes += _line_layout(given, out, catenary)
-    if fe_line and entry is not None and entry.runin_spans is not None and entry.runin_spans not in given:
-        notes += _runin_behind(entry.runin_spans, law, given, out, catenary)
+    if fe_line and entry is not None and (entry.runin_spans is not None or entry.behind_another):
+        notes += _behind_another(entry, law, given, out, catenary)
     static_force = actuator_static_force(given)
     if static_force is not None:
         out["actuator_static_force"] = static_force
@@ -236,16 +237,18 @@ def _line_layout(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -
     return notes
 
 
-def _runin_behind(
-    name: str, law: str, given: Mapping[str, Any], out: dict[str, Any], catenary: str
+def _behind_another(
+    entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any], catenary: str
 ) -> list[str]:
-    """The law's passive run-in (its parameter ``name``), on a pantograph with others ahead of it on
-    the train, lengthened by the spans it runs before the wave of the farthest one ahead reaches it,
-    into ``out``: the law's guard measures its passive reference in the run-in, and it should measure
-    it on the wire the law will act on. Every pantograph is set down at once; the wave of one d ahead
-    runs back along the contact wire at c = sqrt(T / rho) over ground while this one runs forward at
-    v, so it arrives after d / (c + v). Nothing for a pantograph with none ahead: what one behind it
-    sends forward closes in at c - v only (docs/realistic_scenario.md, "Two pantographs")."""
+    """On a pantograph with others ahead of it on the train, into ``out`` where the user names
+    them not: the law's passive run-in (``LawEntry.runin_spans``) lengthened by the spans it runs
+    before the wave of the farthest one ahead reaches it, since the law's guard measures its
+    passive reference in the run-in and should measure it on the wire the law will act on; and the
+    law's design for a pantograph behind another (``LawEntry.behind_another``). Every pantograph is
+    set down at once; the wave of one d ahead runs back along the contact wire at c = sqrt(T / rho)
+    over ground while this one runs forward at v, so it arrives after d / (c + v). Nothing for a
+    pantograph with none ahead: what one behind it sends forward closes in at c - v only
+    (docs/realistic_scenario.md, "Two pantographs")."""
     import math
 
     from pac_controller.parameters import LawParameters
@@ -261,15 +264,23 @@ def _runin_behind(
     ahead = max((spacings[controlled] - s for s in spacings if s < spacings[controlled]), default=0.0)
     if ahead <= 0.0:
         return []
-    line = load_catenary(catenary).data
-    v = float(given.get("speed_kmh", TrackParameters().speed_kmh)) / 3.6
-    arrival = ahead / (line.contact.wave_speed + v)
-    spans = math.ceil(v * arrival / line.span)
-    out[name] = int(getattr(LawParameters(), name)) + spans
-    return [
-        f"{name}:={out[name]} (law {law}'s run-in and {spans} spans more: the wave of the pantograph "
-        f"{ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
-    ]
+    notes = []
+    name = entry.runin_spans
+    if name is not None and name not in given:
+        line = load_catenary(catenary).data
+        v = float(given.get("speed_kmh", TrackParameters().speed_kmh)) / 3.6
+        arrival = ahead / (line.contact.wave_speed + v)
+        spans = math.ceil(v * arrival / line.span)
+        out[name] = int(getattr(LawParameters(), name)) + spans
+        notes.append(
+            f"{name}:={out[name]} (law {law}'s run-in and {spans} spans more: the wave of the pantograph "
+            f"{ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
+        )
+    for key, value in entry.behind_another:
+        if key not in given:
+            out[key] = value
+            notes.append(f"{key}:={value} (law {law}'s design for a pantograph {ahead:g} m behind another)")
+    return notes
 
 
 def _actuator_limits(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
