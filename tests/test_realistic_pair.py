@@ -124,6 +124,26 @@ def test_each_speed_is_compared_with_the_passive_pair_at_that_speed_and_a_report
     assert main(["--add-to", str(tmp_path / "none.csv"), "--speeds", "300", "--seeds", "1"]) == 2
 
 
+def test_a_configuration_run_again_replaces_its_earlier_rows_and_an_unknown_one_is_refused(tmp_path, capsys):
+    """``--configs`` with ``--add-to``: the configurations run again replace their earlier rows on the
+    lines and speeds run, every other row stays (the passive pair they are compared with among them);
+    a name that is no configuration is refused in one line, exit 2, before any run."""
+    from pac_experiments.realistic.pair import replaced
+
+    rows = _pair_rows(250.0, 30.0, 24.0) + _pair_rows(300.0, 50.0, 35.0)
+    kept = replaced(rows, {"active leading"}, {(1, 250.0)})
+    assert [r for r in rows if r not in kept] == [
+        r for r in rows if r["config"] == "active leading" and r["line_seed"] == 1 and r["speed_kmh"] == 250.0
+    ]
+    assert len(kept) == len(rows) - 1 and replaced(rows, {"active leading"}, set()) == rows
+    capsys.readouterr()
+    out = tmp_path / "out"
+    assert main(["--configs", "active middle", "--seeds", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'active middle' is no configuration" in err[0] and "active trailing" in err[0]
+    assert not out.exists()
+
+
 def test_the_line_and_the_stretch_are_named_in_the_report_and_an_empty_stretch_is_refused(tmp_path, capsys):
     """``--catenary`` and ``--spans`` (the pair over tension sections): the report says which line and
     which supports its statistics cover; a stretch that ends where it starts is refused in one line,

@@ -19,7 +19,8 @@ sections joined by overlaps, ``--spans 10 40`` to hold the first overlap; line_a
 they are, as in ``realistic_sections_laws.yaml``).
 
 Writes ``reports/realistic/pair/`` (pair.md, results.csv; ``--add-to CSV`` keeps an earlier run's
-rows and adds these, each run against the passive pair on its line at its speed).
+rows and adds these, each run against the passive pair on its line at its speed; with ``--configs``
+only the configurations named run, and replace the earlier rows of the same lines and speeds).
 """
 
 from __future__ import annotations
@@ -164,6 +165,14 @@ def read_results(path: Path) -> list[dict[str, Any]]:
     return rows
 
 
+def replaced(
+    rows: list[dict[str, Any]], configs: set[str], runs: set[tuple[int, float]]
+) -> list[dict[str, Any]]:
+    """``rows`` without those of configurations ``configs`` on the (line seed, speed) pairs of
+    ``runs``: the rows a run of those configurations replaces (``--configs`` with ``--add-to``)."""
+    return [r for r in rows if not (r["config"] in configs and (r["line_seed"], r["speed_kmh"]) in runs)]
+
+
 def write_report(
     rows: list[dict[str, Any]],
     out: Path,
@@ -271,6 +280,13 @@ def main(argv: list[str] | None = None) -> int:
         metavar=("FIRST", "LAST"),
         help="the stretch judged: supports FIRST to LAST of the leading one's start (default: %(default)s)",
     )
+    parser.add_argument(
+        "--configs",
+        nargs="+",
+        metavar="NAME",
+        help="only these configurations (default: every one); with --add-to they replace the earlier "
+        "run's rows of the same configurations, lines and speeds",
+    )
     add_settings_option(parser, "every active run")
     args = parser.parse_args(argv)
     settings = settings_or_none(args.param, "realistic_pair")
@@ -284,14 +300,24 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     configs = configurations(tuple(args.effort_weights), settings)
+    unknown = [name for name in args.configs or () if name not in configs]
+    if unknown:
+        print(
+            f"realistic_pair: --configs {unknown[0]!r} is no configuration (one of: {', '.join(configs)})",
+            file=sys.stderr,
+        )
+        return 2
+    if args.configs:
+        configs = {name: config for name, config in configs.items() if name in args.configs}
     try:
         earlier = read_results(args.add_to) if args.add_to else []
     except (OSError, KeyError, ValueError) as error:
         print(f"realistic_pair: cannot read {args.add_to}: {error}", file=sys.stderr)
         return 2
-    again = {(r["line_seed"], r["speed_kmh"]) for r in earlier} & {
-        (s, v) for s in args.seeds for v in args.speeds
-    }
+    runs = {(s, v) for s in args.seeds for v in args.speeds}
+    if args.configs:
+        earlier = replaced(earlier, set(configs), runs)
+    again = {(r["line_seed"], r["speed_kmh"]) for r in earlier if r["config"] in configs} & runs
     if again:
         seed, speed = min(again)
         print(f"realistic_pair: {args.add_to} has line {seed} at {speed:g} km/h already", file=sys.stderr)
