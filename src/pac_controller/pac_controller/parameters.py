@@ -313,7 +313,8 @@ class LawParameters(ParameterSet):
         "line_adaptive: what the guard's sigma is compared with: 'runin', the passive spans at the "
         "start; 'estimate', each span's own passive sigma estimated from its error less the "
         "identified response to the harmonics applied (follows a line whose spans differ; one span "
-        "above three times the run-in's trips either way; docs/laws.md)",
+        "above three times the run-in's trips either way; derived on a pantograph behind another; "
+        "docs/laws.md)",
         choices=("runin", "estimate"),
     )
     line_guard_spans: int = parameter(
