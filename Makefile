@@ -190,7 +190,7 @@ realistic-pair: setup
 # at 300 km/h (reports/realistic/pair_sections/pair.md).
 realistic-pair-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair --catenary realistic_3km_sections --spans 10 40 \
-		--speeds 300 --out reports/realistic/pair_sections $(FAST_ACTUATOR_DESIGN_OFF) $(ARGS)
+		--speeds 300 --out reports/realistic/pair_sections $(ARGS)
 
 # line_adaptive on a map learned on an earlier pass, against its first pass, on the realistic line
 # (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic/passes.py).
