@@ -10,8 +10,9 @@ passive (law ``passive`` on the leading one), the
 leading one active (law ``line_adaptive``, ``controlled_pantograph: 0``), the leading one active
 with the effort weight that spares its follower (``PAIR_EFFORT_WEIGHT``), the trailing one active
 (``controlled_pantograph: 1``; the run derives its run-in to last until the leading one's wave has
-reached it, and the law's design for a pantograph behind another, pac_rig.composition); the passive ones press with their file's uplift, the same target.
-Each pantograph's EN 50318 statistics (20 Hz low-pass, contact loss
+reached it, and the law's design for a pantograph behind another, pac_rig.composition); the passive
+ones press with their file's uplift, the same target. Each pantograph's EN 50318 statistics (20 Hz
+low-pass, contact loss
 on the raw force) over the same stretch of line: from the support ``FIRST_SPAN`` to ``LAST_SPAN``
 of the design layout counted from the start of the leading pantograph, which both pass
 (``--spans``). ``--catenary`` runs the same on another line (``realistic_3km_sections``: tension
