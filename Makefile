@@ -173,13 +173,6 @@ realistic-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/sections_laws \
 		--also reports/realistic/sections_baselines --sigma-only
 
-# The pair and the passes over tension sections below were measured before line_adaptive's design for
-# a fast actuator (the zone about the supports and the loss check's wait, derived for the
-# electromechanical actuator: docs/laws.md, "On the realistic line", point 10); their targets name it
-# off so that they reproduce the committed reports. Drop it (FAST_ACTUATOR_DESIGN_OFF= on the command
-# line) to run them with the design.
-FAST_ACTUATOR_DESIGN_OFF = -p line_support_before:=0 -p line_support_after:=0 -p line_actuator_lag:=0 -p line_guard_loss_spans:=0
-
 # Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair, at
 # 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;
 # ARGS="--speeds 300" for one speed, "--add-to CSV" to add speeds to an earlier run's results).
@@ -201,7 +194,7 @@ realistic-passes: setup
 # of realistic_sections_laws.yaml): electromechanical at four speeds, pneumatic at 300 km/h added to
 # it (reports/realistic/passes_sections/passes.md).
 PASSES_SECTIONS = scripts/with_env.sh ros2 run pac_experiments realistic_passes --out reports/realistic/passes_sections \
-	--catenary realistic_3km_sections --spec config/campaigns/realistic_sections_laws.yaml $(FAST_ACTUATOR_DESIGN_OFF)
+	--catenary realistic_3km_sections --spec config/campaigns/realistic_sections_laws.yaml
 realistic-passes-sections: setup
 	$(PASSES_SECTIONS) --scenarios realistic_electromechanical
 	$(PASSES_SECTIONS) --scenarios realistic_pneumatic --speeds 300 --add-to reports/realistic/passes_sections/results.csv
