@@ -153,11 +153,21 @@ def _actuator_design(
     track = TrackParameters()
     span = float(out.get("span_length", given.get("span_length", track.span_length)))
     speed = float(given.get("speed_kmh", track.speed_kmh)) / 3.6
+    values = design(model.time_constant + model.delay, span / speed)
+    return _design_values(values, given, out, f"law {law}'s design for the {actuator} actuator")
+
+
+def _design_values(
+    values: tuple[tuple[str, object], ...], given: Mapping[str, Any], out: dict[str, Any], why: str
+) -> list[str]:
+    """A law's design values, (parameter, value) pairs, into ``out`` where the user named nothing,
+    and one note each that says ``why``."""
     notes = []
-    for name, value in design(model.time_constant + model.delay, span / speed):
+    for name, value in values:
         if name not in given:
             out[name] = value
-            notes.append(f"{name}:={value:g} (law {law}'s design for the {actuator} actuator)")
+            shown = f"{value:g}" if isinstance(value, int | float) else value
+            notes.append(f"{name}:={shown} ({why})")
     return notes
 
 
@@ -276,11 +286,8 @@ def _behind_another(
             f"{name}:={out[name]} (law {law}'s run-in and {spans} spans more: the wave of the pantograph "
             f"{ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
         )
-    for key, value in entry.behind_another:
-        if key not in given:
-            out[key] = value
-            notes.append(f"{key}:={value} (law {law}'s design for a pantograph {ahead:g} m behind another)")
-    return notes
+    why = f"law {law}'s design for a pantograph {ahead:g} m behind another"
+    return notes + _design_values(entry.behind_another, given, out, why)
 
 
 def _actuator_limits(actuator: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
