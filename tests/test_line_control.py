@@ -301,6 +301,57 @@ def test_the_run_in_bar_stays_behind_an_estimate_blinded_by_a_wrong_response():
     assert tripped_at[0] == tripped_at[1] <= 5, tripped_at
 
 
+#: The margin under which the loss check counts a tick nearly lost: 0.05 F_r [N].
+NEAR_LOST = 0.05 * 150.0
+
+
+def passive_near_lost_share(scale: float, period_ticks: int, span: int) -> float:
+    """The share of span ``span``'s ticks at which F = F_r + d, passive, is nearly lost, from d itself."""
+    w = 2 * math.pi / (period_ticks * 1e-3)
+    t = (span * period_ticks + np.arange(period_ticks)) * 1e-3
+    d = scale * (40 * np.cos(w * t) + 15 * np.sin(3 * w * t + 0.4))
+    return float(np.mean(150.0 + d <= NEAR_LOST))
+
+
+def test_the_estimated_passive_loss_is_passive_loss_where_the_response_is_known():
+    """d at 3.5 times its scale dips F_r + d below the margin on 12.6 % of each span. The law keeps
+    F_hat off it; the loss check's estimated bar, each tick as it would have been passive (F_hat
+    plus the identified response to the planned harmonics), counts passive's share to the tick."""
+    loud = 3.5
+    for spans in (6, 10, 16):
+        law, out = synthetic_loop(+1.0, spans=spans, amplitude=lambda m: loud, laws=ESTIMATE)
+        n = law.period_ticks
+        passive = passive_near_lost_share(loud, n, spans - 1)
+        assert passive > 0.1
+        assert abs(float(law.state[0]["line_last_passive_loss"]) - passive) <= 1.0 / n
+        last = np.array([o[2] for o in out[-n:]])
+        assert np.mean(last <= NEAR_LOST) < passive / 2  # the law itself keeps the contact
+    assert not law.tripped and law.strikes == 0
+
+
+def test_the_estimated_loss_bar_follows_spans_that_dip_deeper_than_the_run_in():
+    """After a run-in at twice d's scale (no tick nearly lost) the line dips deeper (3.5 times:
+    12.6 % of each span, passive). Moving to it, the secant misreads the change of d as a response
+    and one span loses more than passive would. Against the run-in's bar (0 %) the loss check strikes
+    and backs off, and the law loses more ticks; against each span's own estimated passive share it
+    does not."""
+    spans = 16
+
+    def deeper(m: int) -> float:
+        return 2.0 if m < 4 else 3.5
+
+    lost = {}
+    for reference in ("runin", "estimate"):
+        laws = LawParameters(line_guard_reference=reference)
+        law, out = synthetic_loop(+1.0, spans=spans, amplitude=deeper, laws=laws)
+        assert not law.tripped
+        lost[reference] = (law.strikes, int(np.sum(np.array([o[2] for o in out]) <= NEAR_LOST)))
+    n = law.period_ticks
+    assert lost["runin"][0] >= 1 and lost["estimate"][0] == 0
+    assert lost["estimate"][1] < lost["runin"][1]
+    assert lost["estimate"][1] < 0.2 * passive_near_lost_share(3.5, n, spans - 1) * n * (spans - 4)
+
+
 def test_guard_is_not_blinded_by_sensor_noise():
     """F_hat with 200 N RMS of noise (as 10 um of position noise twice differentiated gives) on
     top of a 30 N RMS periodic force: the law still cancels the periodic part, and the guard,

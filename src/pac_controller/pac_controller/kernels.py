@@ -165,9 +165,11 @@ CONTROLLER_STATE = np.dtype(
         ("line_span_ticks", "i8"),
         ("line_bias_sum", "f8"),  # sum of F_hat - F_applied
         ("line_reference_sum", "f8"),  # sum of F_r
-        ("line_loss_ticks", "i8"),  # ticks with F_hat <= 0
+        ("line_loss_ticks", "i8"),  # ticks nearly lost (F_hat less the bias <= the margin's share of F_r)
+        ("line_passive_loss_ticks", "i8"),  # the same, of F_hat as it would have been passive (estimate)
         ("line_clip_ticks", "i8"),  # ticks the limits changed u_law
-        ("line_passive_loss", "f8"),  # the largest share of F_hat <= 0 over the passive spans
+        ("line_passive_loss", "f8"),  # the largest nearly-lost share over the passive spans
+        ("line_last_passive_loss", "f8"),  # the last judged span's estimated passive share (estimate)
         ("line_strikes", "i8"),  # back-offs on contact loss so far (the trip counts them)
         ("line_saturation_backoffs", "i8"),  # back-offs on saturation so far
         ("line_last_bias", "f8"),  # mean of F_hat - F_applied over the last judged span

@@ -89,16 +89,19 @@ falls back to passive for the rest of the run (``Command.mode`` "passive"; latch
 ``line_guard_reference`` "estimate" judges the RMS against the same spans' own passive sigma_b
 instead, each span's (1/2) sum_h |E_h - D_h A_h|^2 (A_h applied, D_h identified): a bar that
 follows a line whose spans differ; the one-span check stays on the run-in's bar, which an
-identification wrong in phase cannot blind (docs/laws.md, "The guard's bar").
+identification wrong in phase cannot blind (docs/laws.md, "The guard's bar"). The loss check's bar
+then follows the spans too: each span's share of ticks nearly lost as F_hat would have been passive,
+F_hat + sum_h Re(D_h U_h b_h) - U_0 tick by tick (U_h planned: A_h is known only at the span's end).
 
 What F_hat cannot show, the guard judges on what it cannot bend (docs/laws.md, "A guard that an
 estimate cannot blind"): the mean, by the pantograph's momentum balance over a span,
 mean(F) = mean(F_a) + (roof spring, momentum change: a few N), so |mean(F_hat - F_a)| above
 ``line_guard_bias`` mean(F_r) (F_a the actuator force the measurement reports, or the law's own
 commands when it is not told it) falls back at once, from span 1 on; contact loss (ticks with
-F_hat less the last span's bias <= ``line_guard_loss_margin`` F_r, nearly lost, above the worst passive
-span's share by ``line_guard_loss``; before ``line_guard_loss_spans`` learning spans, by
-``GUARD_HARD_FACTOR`` times that, as the harm check waits out the learning's first spans)
+F_hat less the last span's bias <= ``line_guard_loss_margin`` F_r, nearly lost, above the worst
+passive span's share (or the span's own estimated, above) by ``line_guard_loss``; before
+``line_guard_loss_spans`` learning spans, by ``GUARD_HARD_FACTOR`` times that, as the harm check
+waits out the learning's first spans)
 and saturation (a share of the commands the limits changed above ``line_guard_saturation``) back
 off, the harmonics U_h halved, and the ``line_guard_strikes``-th time fall back. A fallback fades
 the feedforward as learned out over one span, u_ff (1 - (k - k_trip) / N), then U = 0: stepped

@@ -156,6 +156,7 @@ def line_forget(p, s, memory) -> None:
     s.line_pending_error, s.line_pending_reference = 0.0, 0.0
     s.line_pending_measured, s.line_pending_law = math.nan, 0.0
     s.line_passive_loss, s.line_strikes, s.line_last_bias = 0.0, 0, 0.0
+    s.line_last_passive_loss = 0.0
     s.line_saturation_backoffs = 0
     s.line_trip_reason, s.line_fade_from = TRIP_NONE, -1
     s.line_cursor, s.line_first_span = 0, 0
@@ -385,8 +386,8 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
         _end_of_span(p, s, table, memory, s.line_open_span)
     s.line_open_span = span
     e = s.line_pending_error
-    _, phase = locate(p, table, tick, s.line_cursor)
-    _accumulate(table, memory, E_ACC, phase, (2.0 / n) * e, h)
+    _, e_phase = locate(p, table, tick, s.line_cursor)
+    _accumulate(table, memory, E_ACC, e_phase, (2.0 / n) * e, h)
     # The command as the actuator's limits let it through, on the feedforward's own phase.
     applied = u_applied - s.line_pending_reference - s.line_u_mean - s.line_clip_offset
     _, phase = locate(p, table, tick + p.line_delay, s.line_cursor)
@@ -407,10 +408,36 @@ def line_commit(p, s, table, memory, tick: int, u_applied: float) -> None:
     # margin is a compromise between the realistic line's losses and the ideal rig's false alarms).
     near = p.line_guard_loss_margin * s.line_pending_reference
     s.line_loss_ticks += 1 if f_hat - s.line_last_bias <= near else 0
+    if p.line_guard_estimate:
+        # The loss check's bar follows the spans as the harm check's does: this tick as it would have
+        # been passive, F_hat less the identified response to what the feedforward planned (docs/laws.md,
+        # "The guard's bar").
+        f_passive = f_hat + _planned_response(p, s, table, memory, tick, e_phase)
+        s.line_passive_loss_ticks += 1 if f_passive - s.line_last_bias <= near else 0
     s.line_clip_ticks += 1 if u_applied != s.line_pending_law else 0
     if _span_of(p, s, table, tick + 1) != span:
         _end_of_span(p, s, table, memory, span)
         s.line_open_span = -1
+
+
+@njit(cache=True, error_model="numpy")
+def _planned_response(p, s, table, memory, tick: int, phase: int) -> float:
+    """F_hat_passive - F_hat at ``tick`` (phase index ``phase``) as the identified responses say:
+    sum_h Re(D_h U_h b_h) - U_0, times the share of the feedforward kept (fade, back-off). From
+    E_h = E_h,passive + D_h A_h (``_passive_estimate_var``) with the harmonics planned, U_h, for the
+    applied A_h, which only the span's end knows, and the static response -1 for the mean. Where the
+    support zone held the plan's negative part the law applied less than planned: the estimate then
+    counts F_hat_passive higher, and the bar lower, than it was (the check is the stricter there)."""
+    share = fade_factor(s.line_tripped, s.line_fade_from, tick, p.line_period)
+    share *= backoff_factor(s.line_backoff_from, tick, p.line_period)
+    if share <= 0.0:
+        return 0.0
+    for j in range(p.line_harmonics):
+        d_r, d_i = _identified(p, memory, j)
+        r_r, r_i = _cmul(d_r, d_i, memory[U_FF, j].real, memory[U_FF, j].imag)
+        q_r, q_i = _cmul(r_r, r_i, table[phase, j].real, table[phase, j].imag)
+        memory[SCRATCH, j] = complex(q_r, q_i)
+    return share * (_sum_real(memory[SCRATCH], p.line_harmonics) - s.line_u_mean)
 
 
 @njit(cache=True, error_model="numpy")
@@ -431,7 +458,7 @@ def _clear_sums(s, memory) -> None:
     s.line_a_mean = 0.0
     s.line_e_mean = 0.0
     s.line_span_ticks, s.line_bias_sum, s.line_reference_sum = 0, 0.0, 0.0
-    s.line_loss_ticks, s.line_clip_ticks = 0, 0
+    s.line_loss_ticks, s.line_passive_loss_ticks, s.line_clip_ticks = 0, 0, 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -509,7 +536,12 @@ def _end_of_span(p, s, table, memory, span: int) -> None:
         if judged or not span_ratio <= GUARD_HARD_FACTOR * p.line_guard_ratio:
             _trip(s, TRIP_HARM)
         else:
-            back_off = _struck(p, s, loss, s.line_clip_ticks / ticks, learned)
+            # The loss check's bar: the worst passive span's share, or with the estimate this span's
+            # own share as it would have been passive (counted tick by tick in line_commit).
+            bar = s.line_passive_loss
+            if p.line_guard_estimate:
+                bar = s.line_last_passive_loss = s.line_passive_loss_ticks / ticks
+            back_off = _struck(p, s, loss, bar, s.line_clip_ticks / ticks, learned)
     if s.line_backoff_from >= 0:
         # This span ramped a back-off down: its feedforward is now GUARD_BACKOFF U_h, and what it
         # applied (a ramp's mixture) teaches nothing; the next span steps on from there.
@@ -544,17 +576,18 @@ def _passive_estimate_var(p, table, memory) -> float:
 
 
 @njit(cache=True, error_model="numpy")
-def _struck(p, s, loss: float, clipped: float, learned: int) -> bool:
+def _struck(p, s, loss: float, bar: float, clipped: float, learned: int) -> bool:
     """Whether the ``learned``-th learning span backs off: more of its ticks nearly lost (F_hat less
-    the last span's bias) than the worst passive span's by ``line_guard_loss`` (a strike; by
+    the last span's bias) than ``bar``, passive's share, by ``line_guard_loss`` (a strike; by
     GUARD_HARD_FACTOR times that before ``line_guard_loss_after`` learning spans), or more of its
     commands changed by the limits than ``line_guard_saturation``. The ``line_guard_strikes``-th
     strike falls back instead (and does not back off); saturation alone only backs off."""
-    # The run-in's two spans are the bar; where the line's next spans dip deeper, passive's own share
-    # there exceeds it while the learning's first spans are still a transient (docs/laws.md).
+    # The run-in's two spans are the bar (without the estimate); where the line's next spans dip
+    # deeper, passive's own share there exceeds it while the learning's first spans are still a
+    # transient, which the estimate's responses are still identifying (docs/laws.md).
     early = learned < p.line_guard_loss_after
     margin = (GUARD_HARD_FACTOR if early else 1.0) * p.line_guard_loss
-    lost = loss > s.line_passive_loss + margin
+    lost = loss > bar + margin
     if lost:
         s.line_strikes += 1
         if s.line_strikes >= p.line_guard_strikes:

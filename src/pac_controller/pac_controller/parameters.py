@@ -310,11 +310,11 @@ class LawParameters(ParameterSet):
     )
     line_guard_reference: str = parameter(
         "runin",
-        "line_adaptive: what the guard's sigma is compared with: 'runin', the passive spans at the "
-        "start; 'estimate', each span's own passive sigma estimated from its error less the "
-        "identified response to the harmonics applied (follows a line whose spans differ; one span "
-        "above three times the run-in's trips either way; derived on a pantograph behind another; "
-        "docs/laws.md)",
+        "line_adaptive: what the guard's sigma and nearly-lost share are compared with: 'runin', "
+        "the passive spans at the start; 'estimate', each span's own as it would have been passive, "
+        "its error less the identified response to the harmonics applied (the share: planned, tick "
+        "by tick) (follows a line whose spans differ; one span's sigma above three times the "
+        "run-in's trips either way; derived on a pantograph behind another; docs/laws.md)",
         choices=("runin", "estimate"),
     )
     line_guard_spans: int = parameter(
