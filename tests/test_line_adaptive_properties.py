@@ -322,3 +322,21 @@ def test_what_the_limits_take_off_the_mean_is_given_back_the_next_span():
     assert np.all(loss[settled] > 1.0), loss  # the limits do take the mean off, every span
     assert np.all(np.abs(np.diff(loss[settled])) < 0.05), loss
     assert np.all(np.abs(mean_force[settled]) < 0.03 * loss[settled]), (mean_force, loss)
+
+
+def test_with_the_estimated_bar_the_run_ins_bar_stays_behind_at_the_hard_factor():
+    """F_hat imposed, deaf to u: the estimate of each span as it would have been passive reads the
+    learning span's lost ticks as passive's own, the blind spot of an identification gone wrong.
+    The run-in's share still stands behind it at GUARD_HARD_FACTOR times line_guard_loss: a span
+    between one and that many times the margin strikes on the run-in's bar alone, not with the
+    estimated one; above it, with either."""
+    laws = dataclasses.replace(LAWS, line_guard_loss=0.003)
+    estimate = dataclasses.replace(laws, line_guard_reference="estimate")
+    n = LineAdaptiveLaw(TRACK, laws, DT).period_ticks
+    bar, hard = laws.line_guard_loss * n, GUARD_HARD_FACTOR * laws.line_guard_loss * n
+    between = math.ceil(bar) + 1
+    assert bar < between < math.floor(hard) - 1
+    assert strikes_after_a_span_with_lost_ticks(between, laws=laws) == 1
+    assert strikes_after_a_span_with_lost_ticks(between, laws=estimate) == 0
+    assert strikes_after_a_span_with_lost_ticks(math.floor(hard) - 1, laws=estimate) == 0
+    assert strikes_after_a_span_with_lost_ticks(math.ceil(hard) + 1, laws=estimate) == 1

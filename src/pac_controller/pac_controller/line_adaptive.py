@@ -91,7 +91,8 @@ instead, each span's (1/2) sum_h |E_h - D_h A_h|^2 (A_h applied, D_h identified)
 follows a line whose spans differ; the one-span check stays on the run-in's bar, which an
 identification wrong in phase cannot blind (docs/laws.md, "The guard's bar"). The loss check's bar
 then follows the spans too: each span's share of ticks nearly lost as F_hat would have been passive,
-F_hat + sum_h Re(D_h U_h b_h) - U_0 tick by tick (U_h planned: A_h is known only at the span's end).
+F_hat + sum_h Re(D_h U_h b_h) - U_0 tick by tick (U_h planned: A_h is known only at the span's end),
+with the run-in's bar behind it at ``GUARD_HARD_FACTOR`` times the margin.
 
 What F_hat cannot show, the guard judges on what it cannot bend (docs/laws.md, "A guard that an
 estimate cannot blind"): the mean, by the pantograph's momentum balance over a span,

@@ -587,7 +587,9 @@ def _struck(p, s, loss: float, bar: float, clipped: float, learned: int) -> bool
     # transient, which the estimate's responses are still identifying (docs/laws.md).
     early = learned < p.line_guard_loss_after
     margin = (GUARD_HARD_FACTOR if early else 1.0) * p.line_guard_loss
-    lost = loss > bar + margin
+    # The run-in's bar stays behind an estimated one at three times the margin, as the harm check's
+    # one span does: responses identified wrong read passive's share high (docs/laws.md).
+    lost = loss > bar + margin or loss > s.line_passive_loss + GUARD_HARD_FACTOR * p.line_guard_loss
     if lost:
         s.line_strikes += 1
         if s.line_strikes >= p.line_guard_strikes:
