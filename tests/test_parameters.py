@@ -84,3 +84,24 @@ def test_bool_is_not_a_number():
 def test_from_mapping_ignores_other_sets_names():
     p = PantographParameters.from_mapping({"m1": 9.0, "k0": 1.0})
     assert p.m1 == 9.0
+
+
+def test_a_refusal_crosses_a_process_boundary_as_itself():
+    """A worker's ParameterError (and each kind of it) reaches the parent with its one line and
+    fields, not a pickling error that breaks the pool."""
+    import pickle
+
+    from pac_common.data_file import DataFileError
+    from pac_common.parameters import UnknownParameterError
+    from pac_rig.composition import CompositionError
+
+    for error in (
+        ParameterError("speed_kmh", -1.0, "a number > 0"),
+        UnknownParameterError("sped_kmh", 300.0, "simulate"),
+        DataFileError("line.yaml", "spans", [], "a list of span lengths", ", line 3, column 1"),
+        CompositionError("law", "pid", "pid needs F_hat: observer:=contact_force"),
+    ):
+        back = pickle.loads(pickle.dumps(error))
+        assert type(back) is type(error)
+        assert str(back) == str(error)
+        assert (back.name, back.value, back.allowed) == (error.name, error.value, error.allowed)

@@ -33,6 +33,20 @@ class ParameterError(ValueError):
         self.allowed = allowed
         super().__init__(f"invalid parameter '{name}' = {excerpt(value)}: allowed {allowed}")
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # A refusal raised in a worker process (a pool, a Dask cluster) must reach the parent as
+        # itself: pickle rebuilds an exception from its args (the message alone), which no
+        # subclass's __init__ takes, and the pool breaks instead of saying the one line.
+        return (_rebuilt_error, (type(self), str(self), dict(self.__dict__)))
+
+
+def _rebuilt_error(kind: type[ParameterError], message: str, fields: dict[str, Any]) -> ParameterError:
+    """A pickled :class:`ParameterError` (or subclass) with its message and fields."""
+    error = kind.__new__(kind)
+    ValueError.__init__(error, message)
+    error.__dict__.update(fields)
+    return error
+
 
 #: Names the rig takes as a whole but no node alone, and where they go instead.
 RIG_ONLY = {
