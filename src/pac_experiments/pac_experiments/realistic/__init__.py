@@ -4,8 +4,10 @@ learned map, and their figures."""
 from __future__ import annotations
 
 import argparse
+import csv
 import dataclasses
 import sys
+from pathlib import Path
 from typing import Any
 
 
@@ -50,3 +52,12 @@ def settings_or_none(items: list[str], prog: str) -> dict[str, Any] | None:
     except ValueError as error:
         print(f"{prog}: {error}", file=sys.stderr)
         return None
+
+
+def write_results(rows: list[dict[str, Any]], out: Path) -> None:
+    """``out``/results.csv: one row per run, the columns of the first (``out`` made if missing)."""
+    out.mkdir(parents=True, exist_ok=True)
+    with (out / "results.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)

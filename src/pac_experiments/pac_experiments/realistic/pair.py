@@ -39,7 +39,7 @@ import numpy as np
 from pac_common import markdown
 from pac_common.contact_statistics import contact_statistics, target_mean_force
 from pac_experiments.campaign.summary import Interval
-from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text
+from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text, write_results
 
 SEEDS = tuple(range(100, 120))
 SPEED = 300.0
@@ -77,19 +77,18 @@ def configurations(
 OUT = Path("reports/realistic/pair")
 
 
-def run_one(
+def simulate(
     seed: int,
-    name: str,
     config: Config,
     speed: float = SPEED,
     fixed_roof: bool = False,
     catenary: str | None = None,
     spans: tuple[int, int] = (FIRST_SPAN, LAST_SPAN),
-) -> dict[str, Any]:
-    """One run of configuration ``name``: each pantograph's sigma, Fm and contact loss over the
-    stretch from support ``spans[0]`` to ``spans[1]`` of the leading one's start (``fixed_roof``:
-    both roofs fixed, else the scenario's moving roof under each; ``catenary``: the line, default
-    the scenario's)."""
+) -> tuple[np.ndarray, float, float, float]:
+    """One run of ``config``: its record (the compiled loop's ticks), the stretch judged (from
+    support ``spans[0]`` to ``spans[1]`` of the leading one's start, [m]) and the sample period
+    (``fixed_roof``: both roofs fixed, else the scenario's moving roof under each; ``catenary``: the
+    line, default the scenario's). The run lasts until the trailing one has left the stretch."""
     from pac_plant.fe_plant import FEPlant
     from pac_rig import composition
     from pac_rig.closed_loop import build_cores, run_blocks
@@ -123,6 +122,22 @@ def run_one(
     loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
     assert loop is not None
     out = np.concatenate(list(run_blocks(s, plant, loop)))
+    return out, float(first), float(last), s.loop.sample_period
+
+
+def run_one(
+    seed: int,
+    name: str,
+    config: Config,
+    speed: float = SPEED,
+    fixed_roof: bool = False,
+    catenary: str | None = None,
+    spans: tuple[int, int] = (FIRST_SPAN, LAST_SPAN),
+) -> dict[str, Any]:
+    """One run of configuration ``name`` (:func:`simulate`): each pantograph's sigma, Fm and
+    contact loss over the stretch judged."""
+    law, controlled, _ = config
+    out, first, last, dt = simulate(seed, config, speed, fixed_roof, catenary, spans)
     row: dict[str, Any] = {
         "line_seed": seed,
         "config": name,
@@ -131,11 +146,7 @@ def run_one(
     }
     for k, pantograph in enumerate(PANTOGRAPHS):
         st = contact_statistics(
-            out["pantograph_contact_force"][:, k],
-            out["pantograph_contact_position"][:, k],
-            s.loop.sample_period,
-            first,
-            last,
+            out["pantograph_contact_force"][:, k], out["pantograph_contact_position"][:, k], dt, first, last
         )
         row[f"{pantograph}_sigma"], row[f"{pantograph}_mean"] = st.contact_force_std, st.contact_force_mean
         row[f"{pantograph}_loss_percent"] = st.contact_loss_percent
@@ -185,11 +196,7 @@ def write_report(
     """pair.md: per speed, configuration and pantograph, sigma and loss over the lines, and the
     change of each pantograph's sigma against the passive pair on the same line at the same speed
     (``settings``: the law's settings the runs were given, named in the header)."""
-    out.mkdir(parents=True, exist_ok=True)
-    with (out / "results.csv").open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_results(rows, out)
     passive = {(r["line_seed"], r["speed_kmh"]): r for r in rows if r["config"] == "passive pair"}
     table = []
     groups = dict.fromkeys((r["speed_kmh"], r["config"]) for r in rows)  # in the order of the runs

@@ -35,7 +35,7 @@ import numpy as np
 
 from pac_common import markdown
 from pac_experiments.campaign.summary import Interval
-from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text
+from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text, write_results
 
 SCENARIOS = ("realistic_electromechanical", "realistic_pneumatic")
 SPEEDS = (250.0, 300.0, 320.0, 350.0)
@@ -151,11 +151,7 @@ def write_report(
     """passes.md: per scenario, speed and run, the sigma change against the passive run of its pass
     (mean [95 % interval], worst line), lines with more contact loss than that passive run, and the
     map pass's change against the first pass under the same conditions (pass B), line by line."""
-    out.mkdir(parents=True, exist_ok=True)
-    with (out / "results.csv").open("w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    write_results(rows, out)
     table = []
     for scenario in dict.fromkeys(r["scenario"] for r in rows):
         for speed in sorted({r["speed_kmh"] for r in rows if r["scenario"] == scenario}):
