@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -184,6 +184,12 @@ realistic-pair: setup
 realistic-pair-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair --catenary realistic_3km_sections --spans 10 40 \
 		--speeds 300 --out reports/realistic/pair_sections $(ARGS)
+
+# The most a leading pantograph's feedforward in line_adaptive's band gains without raising its
+# passive follower's sigma, chosen per line from both pantographs' measured responses: a bound, not a
+# law (reports/realistic/pair_bound/bound.md; src/pac_experiments/pac_experiments/realistic/pair_bound.py).
+realistic-pair-bound: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_pair_bound $(ARGS)
 
 # line_adaptive on a map learned on an earlier pass, against its first pass, on the realistic line
 # (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic/passes.py).

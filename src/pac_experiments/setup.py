@@ -36,6 +36,7 @@ setup(
             "fe_live = pac_experiments.catenary.live:main",
             "two_pantographs = pac_experiments.catenary.two_pantographs:main",
             "realistic_pair = pac_experiments.realistic.pair:main",
+            "realistic_pair_bound = pac_experiments.realistic.pair_bound:main",
             "realistic_passes = pac_experiments.realistic.passes:main",
             "realistic_laws_figures = pac_experiments.realistic.laws_figures:main",
             "realistic_overlap_figure = pac_experiments.realistic.overlap_figure:main",
