@@ -185,9 +185,9 @@ realistic-pair-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair --catenary realistic_3km_sections --spans 10 40 \
 		--speeds 300 --out reports/realistic/pair_sections $(ARGS)
 
-# The most a leading pantograph's feedforward in line_adaptive's band gains without raising its
-# passive follower's sigma, chosen per line from both pantographs' measured responses: a bound, not a
-# law (reports/realistic/pair_bound/bound.md; src/pac_experiments/pac_experiments/realistic/pair_bound.py).
+# A leading pantograph's learned feedforward reshaped (band, stretch, phase) to spare its passive
+# follower's sigma, chosen per line from both pantographs' measured responses: what a law learning
+# both could reach, not a law (reports/realistic/pair_bound/bound.md; src/pac_experiments/pac_experiments/realistic/pair_bound.py).
 realistic-pair-bound: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair_bound $(ARGS)
 
