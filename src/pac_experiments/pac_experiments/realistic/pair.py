@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from pac_common import markdown
-from pac_common.contact_statistics import contact_statistics, target_mean_force
+from pac_common.contact_statistics import ContactStatistics, contact_statistics, target_mean_force
 from pac_experiments.campaign.summary import Interval
 from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text, write_results
 
@@ -144,13 +144,20 @@ def run_one(
         "active": "" if law == "passive" else PANTOGRAPHS[controlled],
         "speed_kmh": speed,
     }
-    for k, pantograph in enumerate(PANTOGRAPHS):
-        st = contact_statistics(
-            out["pantograph_contact_force"][:, k], out["pantograph_contact_position"][:, k], dt, first, last
-        )
+    for pantograph, st in zip(PANTOGRAPHS, pantograph_statistics(out, first, last, dt), strict=True):
         row[f"{pantograph}_sigma"], row[f"{pantograph}_mean"] = st.contact_force_std, st.contact_force_mean
         row[f"{pantograph}_loss_percent"] = st.contact_loss_percent
     return row
+
+
+def pantograph_statistics(out: np.ndarray, first: float, last: float, dt: float) -> list[ContactStatistics]:
+    """Each pantograph's EN 50318 statistics (leading first) of a run's record over [first, last]."""
+    return [
+        contact_statistics(
+            out["pantograph_contact_force"][:, k], out["pantograph_contact_position"][:, k], dt, first, last
+        )
+        for k in range(len(PANTOGRAPHS))
+    ]
 
 
 def _run(args: tuple[int, str, Config, float, bool, str | None, tuple[int, int]]) -> dict[str, Any]:

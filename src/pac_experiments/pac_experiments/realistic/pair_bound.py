@@ -43,10 +43,10 @@ from typing import Any
 import numpy as np
 
 from pac_common import markdown
-from pac_common.contact_statistics import contact_statistics, lowpass
+from pac_common.contact_statistics import lowpass, position_window
 from pac_experiments.campaign.summary import Interval
 from pac_experiments.realistic import feedforward_law, write_results
-from pac_experiments.realistic.pair import PANTOGRAPHS, SPEED, Config, simulate
+from pac_experiments.realistic.pair import PANTOGRAPHS, SPEED, Config, pantograph_statistics, simulate
 
 SEEDS = tuple(range(100, 120))
 #: lambda, the follower's weight against the leader's, tried in this order (the smallest that keeps
@@ -143,13 +143,9 @@ def _feedforward(
 
 def _measured(out: np.ndarray, first: float, last: float, dt: float) -> list[tuple[float, float]]:
     """Each pantograph's (sigma, contact loss %) over the stretch."""
-    result = []
-    for k in range(len(PANTOGRAPHS)):
-        st = contact_statistics(
-            out["pantograph_contact_force"][:, k], out["pantograph_contact_position"][:, k], dt, first, last
-        )
-        result.append((st.contact_force_std, st.contact_loss_percent))
-    return result
+    return [
+        (st.contact_force_std, st.contact_loss_percent) for st in pantograph_statistics(out, first, last, dt)
+    ]
 
 
 def run_line(seed: int, speed: float = SPEED, segments: int = SEGMENTS) -> dict[str, Any]:
@@ -158,8 +154,7 @@ def run_line(seed: int, speed: float = SPEED, segments: int = SEGMENTS) -> dict[
     p_out, first, last, dt = simulate(seed, passive_config, speed)
     a_out, _, _, _ = simulate(seed, ("line_adaptive", 0, {}), speed)
     masks = [
-        (p_out["pantograph_contact_position"][:, k] >= first)
-        & (p_out["pantograph_contact_position"][:, k] <= last)
+        position_window(p_out["pantograph_contact_position"][:, k], first, last)
         for k in range(len(PANTOGRAPHS))
     ]
 
