@@ -16,7 +16,7 @@ CAMPAIGNS ?= laws_speeds robustness lines_speeds
 # offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-pair-draw realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -190,6 +190,11 @@ realistic-pair-sections: setup
 # both could reach, not a law (reports/realistic/pair_bound/bound.md; src/pac_experiments/pac_experiments/realistic/pair_bound.py).
 realistic-pair-bound: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair_bound $(ARGS)
+
+# The passive pair again on draw 1 (the car bodies' track, turbulence, sensor noise), against the pair
+# report's draw 0: what "more loss than the passive pair" resolves (reports/realistic/pair_draw/draw.md).
+realistic-pair-draw: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_pair_draw $(ARGS)
 
 # line_adaptive on a map learned on an earlier pass, against its first pass, on the realistic line
 # (reports/realistic/passes/passes.md; src/pac_experiments/pac_experiments/realistic/passes.py).

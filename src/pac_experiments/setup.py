@@ -37,6 +37,7 @@ setup(
             "two_pantographs = pac_experiments.catenary.two_pantographs:main",
             "realistic_pair = pac_experiments.realistic.pair:main",
             "realistic_pair_bound = pac_experiments.realistic.pair_bound:main",
+            "realistic_pair_draw = pac_experiments.realistic.pair_draw:main",
             "realistic_passes = pac_experiments.realistic.passes:main",
             "realistic_laws_figures = pac_experiments.realistic.laws_figures:main",
             "realistic_overlap_figure = pac_experiments.realistic.overlap_figure:main",

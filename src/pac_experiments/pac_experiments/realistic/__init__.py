@@ -10,6 +10,16 @@ import sys
 from pathlib import Path
 from typing import Any
 
+#: What differs between two runs of the same train over the same line: the track under the car
+#: body, the turbulent uplift and the sensors' noise, each drawn from its seed. Draw 0 is the
+#: scenario's; :func:`draw` gives another.
+DRAW_SEEDS = ("roof_seed", "aero_turbulence_seed", "noise_seed")
+
+
+def draw(k: int) -> dict[str, int]:
+    """The scenario parameters of draw ``k`` (every seed of :data:`DRAW_SEEDS` set to ``k``)."""
+    return dict.fromkeys(DRAW_SEEDS, k)
+
 
 def law_settings(items: list[str]) -> dict[str, Any]:
     """``name:=value`` items (``-p``, as ros2 takes them), each a parameter of the laws, for every

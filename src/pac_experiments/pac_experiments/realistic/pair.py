@@ -77,6 +77,19 @@ def configurations(
 OUT = Path("reports/realistic/pair")
 
 
+def picked(configs: dict[str, Config], names: list[str] | None, prog: str) -> dict[str, Config] | None:
+    """The configurations of ``configs`` named in ``names`` (``--configs``; None or empty: all);
+    None after one line on stderr naming ``prog`` if a name is none of them."""
+    unknown = [name for name in names or () if name not in configs]
+    if unknown:
+        print(
+            f"{prog}: --configs {unknown[0]!r} is no configuration (one of: {', '.join(configs)})",
+            file=sys.stderr,
+        )
+        return None
+    return {name: config for name, config in configs.items() if name in names} if names else configs
+
+
 def simulate(
     seed: int,
     config: Config,
@@ -314,16 +327,9 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    configs = configurations(tuple(args.effort_weights), settings)
-    unknown = [name for name in args.configs or () if name not in configs]
-    if unknown:
-        print(
-            f"realistic_pair: --configs {unknown[0]!r} is no configuration (one of: {', '.join(configs)})",
-            file=sys.stderr,
-        )
+    configs = picked(configurations(tuple(args.effort_weights), settings), args.configs, "realistic_pair")
+    if configs is None:
         return 2
-    if args.configs:
-        configs = {name: config for name, config in configs.items() if name in args.configs}
     try:
         earlier = read_results(args.add_to) if args.add_to else []
     except (OSError, KeyError, ValueError) as error:
