@@ -13,8 +13,13 @@ QUOTED_BAG = '$(subst ','\'',$(value BAG))'
 CAMPAIGNS ?= laws_speeds robustness lines_speeds
 
 # Test kinds: pytest.ini (unit, offline, live; slow marks the costly ones); `make test-fast` = unit +
-# offline without slow: no DDS, no tool started as a process, under a minute. `make test` runs all.
+# offline without slow: no DDS, no tool started as a process. `make test` runs all.
 FAST_TESTS := (unit or offline) and not live and not slow
+# The kinds that start nothing over DDS run on TEST_WORKERS processes (pytest-xdist; each test file on
+# one, so a module's fixtures are built once; 0: in pytest's own process). The live ones run after
+# them with the machine to themselves: their nodes keep real time.
+TEST_WORKERS ?= 2
+PARALLEL = --numprocesses=$(TEST_WORKERS) --dist=loadfile
 
 .PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-pair-draw realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
@@ -26,11 +31,12 @@ test: setup
 	scripts/with_env.sh ruff check src tests scripts examples
 	scripts/with_env.sh ruff format --check src tests scripts examples
 	scripts/with_env.sh mypy
-	bash scripts/run_tests.sh
+	bash scripts/run_tests.sh -m "not live" $(PARALLEL)
+	bash scripts/run_tests.sh -m live
 
 # The fast kinds only (cores, offline tools in process), not the slow ones: no node process, no DDS.
 test-fast: setup
-	bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+	bash scripts/run_tests.sh -m "$(FAST_TESTS)" $(PARALLEL)
 
 # The fast tests on another CPU's arithmetic (docs/numerics.md, "Tests that pass on any machine"):
 # numpy's SIMD loops narrowed to its x86-64-v2 baseline (AVX-512 and AVX2/FMA off), OpenBLAS on
@@ -38,11 +44,11 @@ test-fast: setup
 # compiling for a generic x86-64 (no FMA, no AVX; its machine code goes beside the host's in the cache).
 PORTABLE_NUMPY := X86_V4 AVX512_ICL AVX512_SPR X86_V3
 test-portable: setup
-	NPY_DISABLE_CPU_FEATURES="$(PORTABLE_NUMPY)" bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+	NPY_DISABLE_CPU_FEATURES="$(PORTABLE_NUMPY)" bash scripts/run_tests.sh -m "$(FAST_TESTS)" $(PARALLEL)
 	core="$$(scripts/with_env.sh python scripts/other_openblas_core.py)"; echo "OpenBLAS core type: $${core:-unchanged}"; \
-	  OPENBLAS_CORETYPE="$$core" bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+	  OPENBLAS_CORETYPE="$$core" bash scripts/run_tests.sh -m "$(FAST_TESTS)" $(PARALLEL)
 	NUMBA_CPU_NAME=generic scripts/with_env.sh python -m pac_rig.warm
-	NUMBA_CPU_NAME=generic bash scripts/run_tests.sh -m "$(FAST_TESTS)"
+	NUMBA_CPU_NAME=generic bash scripts/run_tests.sh -m "$(FAST_TESTS)" $(PARALLEL)
 
 # Mutation testing (scripts/mutation.py): defects planted one at a time in the safety chain, the
 # guard, the observers, the line law, the line's assembly, the FE step and the MCAP writer; each
