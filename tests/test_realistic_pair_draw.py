@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import ROOT
 
 from pac_experiments.realistic import DRAW_SEEDS, draw
 from pac_experiments.realistic.pair_draw import against_passive, main, spread
@@ -128,3 +129,28 @@ def test_refusals_exit_2_with_one_line_before_any_run(tmp_path, capsys):
         err = capsys.readouterr().err
         assert words in err and err.count("\n") == 1, err
     assert not (tmp_path / "out").exists()
+
+
+@offline
+@pytest.mark.slow
+def test_one_line_of_the_passive_pair_on_draw_1_is_the_same_line_run_again(tmp_path):
+    """The tool's own run: line 100 at 300 km/h, the passive pair on draw 1, against the pair
+    report's draw 0 of it. The draw reached the run (sigma moved) and the rest of the run is the
+    pair report's (it moved by the few percent a draw moves it: +-2 % over the report lines)."""
+    from pac_experiments.realistic.pair import read_results
+    from pac_experiments.realistic.pair_draw import AGAINST
+
+    out, against = tmp_path / "report", ROOT / AGAINST
+    argv = ["--against", str(against), "--seeds", "100", "--speeds", "300", "--configs", "passive pair"]
+    assert main([*argv, "--out", str(out)]) == 0
+    (row,) = read_results(out / "results.csv")
+    (first,) = [
+        r
+        for r in read_results(against)
+        if r["config"] == "passive pair" and r["line_seed"] == 100 and r["speed_kmh"] == 300.0
+    ]
+    assert row["draw"] == 1 and row["config"] == "passive pair"
+    for name in ("leading", "trailing"):
+        change = row[f"{name}_sigma"] / first[f"{name}_sigma"] - 1.0
+        assert 0.0 < abs(change) < 0.05, (name, change)
+    assert "| 300 | leading | " in (out / "draw.md").read_text()
