@@ -197,7 +197,7 @@ realistic-pair-sections: setup
 realistic-pair-bound: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair_bound $(ARGS)
 
-# The passive pair again on draw 1 (the car bodies' track, turbulence, sensor noise), against the pair
+# The pair's runs again on draw 1 (the car bodies' track, turbulence, sensor noise), against the pair
 # report's draw 0: what "more loss than the passive pair" resolves (reports/realistic/pair_draw/draw.md).
 realistic-pair-draw: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair_draw $(ARGS)
