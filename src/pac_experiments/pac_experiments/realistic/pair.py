@@ -205,6 +205,20 @@ def replaced(
     return [r for r in rows if not (r["config"] in configs and (r["line_seed"], r["speed_kmh"]) in runs)]
 
 
+def passive_pairs(rows: list[dict[str, Any]]) -> dict[tuple[int, float], dict[str, Any]]:
+    """The passive pair's row of each (line seed, speed) of ``rows``."""
+    return {(r["line_seed"], r["speed_kmh"]): r for r in rows if r["config"] == "passive pair"}
+
+
+def change(row: dict[str, Any], passive: dict[str, Any], pantograph: str) -> tuple[float, float]:
+    """Pantograph ``pantograph``'s sigma change [%] and contact loss change [points] in ``row``
+    against ``passive`` (rows of results.csv)."""
+    return (
+        100.0 * (row[f"{pantograph}_sigma"] / passive[f"{pantograph}_sigma"] - 1.0),
+        row[f"{pantograph}_loss_percent"] - passive[f"{pantograph}_loss_percent"],
+    )
+
+
 def write_report(
     rows: list[dict[str, Any]],
     out: Path,
@@ -217,7 +231,7 @@ def write_report(
     change of each pantograph's sigma against the passive pair on the same line at the same speed
     (``settings``: the law's settings the runs were given, named in the header)."""
     write_results(rows, out)
-    passive = {(r["line_seed"], r["speed_kmh"]): r for r in rows if r["config"] == "passive pair"}
+    passive = passive_pairs(rows)
     table = []
     groups = dict.fromkeys((r["speed_kmh"], r["config"]) for r in rows)  # in the order of the runs
     for speed, config in sorted(groups, key=lambda g: g[0]):  # stable: each speed's runs in order
@@ -227,8 +241,9 @@ def write_report(
             paired = [
                 (r, passive[r["line_seed"], speed]) for r in members if (r["line_seed"], speed) in passive
             ]
-            change = Interval.of([100.0 * (r[f"{name}_sigma"] / p[f"{name}_sigma"] - 1.0) for r, p in paired])
-            more = sum(r[f"{name}_loss_percent"] > p[f"{name}_loss_percent"] for r, p in paired)
+            changes = [change(r, p, name) for r, p in paired]
+            sigma_change = Interval.of([c[0] for c in changes])
+            more = sum(c[1] > 0.0 for c in changes)
             loss = stats_lib.fmean(r[f"{name}_loss_percent"] for r in members)
             active = members[0]["active"] == name
             table.append(
@@ -240,8 +255,8 @@ def write_report(
                     sigma.text(),
                     ""
                     if config == "passive pair"
-                    else f"{change.mean:+.1f} [{change.low:+.1f}, {change.high:+.1f}] "
-                    f"(worst {change.largest:+.1f})",
+                    else f"{sigma_change.mean:+.1f} [{sigma_change.low:+.1f}, {sigma_change.high:+.1f}] "
+                    f"(worst {sigma_change.largest:+.1f})",
                     f"{loss:.3f}",
                     "" if config == "passive pair" else str(more),
                 ]

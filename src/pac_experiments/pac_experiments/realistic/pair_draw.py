@@ -36,7 +36,9 @@ from pac_experiments.realistic.pair import (
     SEEDS,
     SPEEDS,
     Config,
+    change,
     configurations,
+    passive_pairs,
     picked,
     read_results,
     run_one,
@@ -62,24 +64,20 @@ class DrawSpread:
         return max(self.loss_change[1], 0.0)
 
 
-def _passive(rows: list[dict[str, Any]]) -> dict[tuple[float, int], dict[str, Any]]:
-    return {(r["speed_kmh"], r["line_seed"]): r for r in rows if r["config"] == PASSIVE}
-
-
 def spread(first: list[dict[str, Any]], second: list[dict[str, Any]]) -> dict[tuple[float, str], DrawSpread]:
     """Per (speed, pantograph): the passive pair of ``second`` against that of ``first`` on the lines
     both ran (rows as :func:`pair.read_results` gives them)."""
-    a, b = _passive(first), _passive(second)
-    both = sorted(a.keys() & b.keys())
+    a, b = passive_pairs(first), passive_pairs(second)
+    both = a.keys() & b.keys()
     result = {}
-    for speed in sorted({v for v, _ in both}):
-        keys = [key for key in both if key[0] == speed]
+    for speed in sorted({v for _, v in both}):
+        keys = sorted(key for key in both if key[1] == speed)
         for name in PANTOGRAPHS:
-            loss = [b[k][f"{name}_loss_percent"] - a[k][f"{name}_loss_percent"] for k in keys]
-            sigma = [100.0 * (b[k][f"{name}_sigma"] / a[k][f"{name}_sigma"] - 1.0) for k in keys]
+            changes = [change(b[k], a[k], name) for k in keys]
+            sigma, loss = [c[0] for c in changes], [c[1] for c in changes]
             result[speed, name] = DrawSpread(
                 len(keys),
-                sum(change > 0.0 for change in loss),
+                sum(c > 0.0 for c in loss),
                 (min(loss), max(loss)),
                 (min(sigma), max(sigma)),
             )
@@ -91,16 +89,12 @@ def _changes(
 ) -> dict[int, tuple[float, float]]:
     """Per line of ``rows`` (one draw): ``config``'s change of pantograph ``name``'s sigma [%] and loss
     [points] against the passive pair of the same draw, line and speed."""
-    passive = _passive(rows)
-    out = {}
-    for r in rows:
-        if r["config"] == config and r["speed_kmh"] == speed and (speed, r["line_seed"]) in passive:
-            p = passive[speed, r["line_seed"]]
-            out[r["line_seed"]] = (
-                100.0 * (r[f"{name}_sigma"] / p[f"{name}_sigma"] - 1.0),
-                r[f"{name}_loss_percent"] - p[f"{name}_loss_percent"],
-            )
-    return out
+    passive = passive_pairs(rows)
+    return {
+        r["line_seed"]: change(r, passive[r["line_seed"], speed], name)
+        for r in rows
+        if r["config"] == config and r["speed_kmh"] == speed and (r["line_seed"], speed) in passive
+    }
 
 
 @dataclass(frozen=True)
@@ -246,8 +240,8 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, KeyError, ValueError) as error:
         print(f"realistic_pair_draw: cannot read results: {error}", file=sys.stderr)
         return 2
-    passive = _passive(against)
-    missing = [(v, s) for v in args.speeds for s in args.seeds if (v, s) not in passive]
+    passive = passive_pairs(against)
+    missing = [(v, s) for v in args.speeds for s in args.seeds if (s, v) not in passive]
     if rows is None and missing:
         speed, seed = missing[0]
         print(
@@ -271,7 +265,7 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    if not _passive(rows).keys() & passive.keys():
+    if not passive_pairs(rows).keys() & passive.keys():
         print("realistic_pair_draw: no line and speed in both results", file=sys.stderr)
         return 2
     print(write_report(rows, against, args.draw, args.out))
