@@ -52,6 +52,11 @@ MEASURES = {
 NOT_AXES = {"force_amplitude"}
 
 
+def percent_change(value: float, reference: float) -> float:
+    """How much ``value`` differs from ``reference`` [%]: a sigma against passive's, in every report."""
+    return 100.0 * (value / reference - 1.0)
+
+
 @dataclass(frozen=True)
 class Interval:
     """The mean of ``n`` values with its 95 % confidence interval, and their extremes."""
@@ -176,7 +181,7 @@ def compare(
         pairs = [(run, ref) for run, ref in members if ref is not None]
         if not pairs:
             continue
-        changes = [100.0 * (float(run[sigma]) / float(ref[sigma]) - 1.0) for run, ref in pairs]
+        changes = [percent_change(float(run[sigma]), float(ref[sigma])) for run, ref in pairs]
         lines = [run[over] for run, _ in pairs]
         more = sum(float(run[loss]) > float(ref[loss]) for run, ref in pairs)
         measures = {}

@@ -40,6 +40,7 @@ from pac_controller.line_adaptive import LineAdaptiveLaw
 from pac_controller.line_adaptive_kernels import U_FF
 from pac_experiments.campaign.run import en50318_measures
 from pac_experiments.campaign.spec import expand, load_spec
+from pac_experiments.campaign.summary import percent_change
 from pac_experiments.catenary.experiment import SPEC
 from pac_rig.batch import prepare
 from pac_rig.closed_loop import build_cores
@@ -209,7 +210,7 @@ def report(results: list[dict], mu: float, step: float) -> str:
                     [
                         name,
                         f"{c.sigma:.2f}",
-                        f"{100 * (c.sigma / base.sigma - 1):+.1f} %",
+                        f"{percent_change(c.sigma, base.sigma):+.1f} %",
                         f"{100 * c.loss:.2f} %",
                         f"{c.u_max:.0f}",
                     ]

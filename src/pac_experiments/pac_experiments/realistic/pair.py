@@ -38,7 +38,7 @@ import numpy as np
 
 from pac_common import markdown
 from pac_common.contact_statistics import ContactStatistics, contact_statistics, target_mean_force
-from pac_experiments.campaign.summary import Interval
+from pac_experiments.campaign.summary import Interval, percent_change
 from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text, write_results
 
 SEEDS = tuple(range(100, 120))
@@ -214,7 +214,7 @@ def change(row: dict[str, Any], passive: dict[str, Any], pantograph: str) -> tup
     """Pantograph ``pantograph``'s sigma change [%] and contact loss change [points] in ``row``
     against ``passive`` (rows of results.csv)."""
     return (
-        100.0 * (row[f"{pantograph}_sigma"] / passive[f"{pantograph}_sigma"] - 1.0),
+        percent_change(row[f"{pantograph}_sigma"], passive[f"{pantograph}_sigma"]),
         row[f"{pantograph}_loss_percent"] - passive[f"{pantograph}_loss_percent"],
     )
 

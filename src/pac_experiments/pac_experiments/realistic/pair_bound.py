@@ -44,7 +44,7 @@ import numpy as np
 
 from pac_common import markdown
 from pac_common.contact_statistics import lowpass, position_window
-from pac_experiments.campaign.summary import Interval
+from pac_experiments.campaign.summary import Interval, percent_change
 from pac_experiments.realistic import feedforward_law, write_results
 from pac_experiments.realistic.pair import PANTOGRAPHS, SPEED, Config, pantograph_statistics, simulate
 
@@ -200,10 +200,6 @@ def run_line(seed: int, speed: float = SPEED, segments: int = SEGMENTS) -> dict[
     return row
 
 
-def _change(value: float, reference: float) -> float:
-    return 100.0 * (value / reference - 1.0)
-
-
 def write_report(rows: list[dict[str, Any]], out: Path) -> str:
     """bound.md: per line and over the lines, the leader's and follower's sigma change against the
     passive pair (line_adaptive leading; the bound, predicted and measured) and the follower's loss."""
@@ -216,7 +212,9 @@ def write_report(rows: list[dict[str, Any]], out: Path) -> str:
         for kind in ("adaptive", "predicted", "bound"):
             group = members if kind == "adaptive" else found
             changes = [
-                Interval.of([_change(r[f"{kind}_{name}_sigma"], r[f"passive_{name}_sigma"]) for r in group])
+                Interval.of(
+                    [percent_change(r[f"{kind}_{name}_sigma"], r[f"passive_{name}_sigma"]) for r in group]
+                )
                 for name in PANTOGRAPHS
             ]
             cells += [
@@ -248,12 +246,12 @@ def write_report(rows: list[dict[str, Any]], out: Path) -> str:
             str(r["line_seed"]),
             f"{r['speed_kmh']:g}",
             f"{r['lambda']:g}",
-            f"{_change(r['adaptive_leading_sigma'], r['passive_leading_sigma']):+.1f} / "
-            f"{_change(r['adaptive_trailing_sigma'], r['passive_trailing_sigma']):+.1f}",
-            f"{_change(r['predicted_leading_sigma'], r['passive_leading_sigma']):+.1f} / "
-            f"{_change(r['predicted_trailing_sigma'], r['passive_trailing_sigma']):+.1f}",
-            f"{_change(r['bound_leading_sigma'], r['passive_leading_sigma']):+.1f} / "
-            f"{_change(r['bound_trailing_sigma'], r['passive_trailing_sigma']):+.1f}",
+            f"{percent_change(r['adaptive_leading_sigma'], r['passive_leading_sigma']):+.1f} / "
+            f"{percent_change(r['adaptive_trailing_sigma'], r['passive_trailing_sigma']):+.1f}",
+            f"{percent_change(r['predicted_leading_sigma'], r['passive_leading_sigma']):+.1f} / "
+            f"{percent_change(r['predicted_trailing_sigma'], r['passive_trailing_sigma']):+.1f}",
+            f"{percent_change(r['bound_leading_sigma'], r['passive_leading_sigma']):+.1f} / "
+            f"{percent_change(r['bound_trailing_sigma'], r['passive_trailing_sigma']):+.1f}",
             f"{r['passive_trailing_loss_percent']:.2f} / {r['adaptive_trailing_loss_percent']:.2f} / "
             f"{r['bound_trailing_loss_percent']:.2f}",
         ]

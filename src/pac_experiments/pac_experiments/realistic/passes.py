@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from pac_common import markdown
-from pac_experiments.campaign.summary import Interval
+from pac_experiments.campaign.summary import Interval, percent_change
 from pac_experiments.realistic import (
     add_settings_option,
     draw,
@@ -129,7 +129,7 @@ def _changes(rows: list[dict[str, Any]], run: str, passive: str) -> dict[int, fl
     """sigma change [%] of ``run`` against ``passive`` on each line (by seed)."""
     base = {r["line_seed"]: r for r in rows if r["run"] == passive}
     return {
-        r["line_seed"]: 100.0 * (r["sigma"] / base[r["line_seed"]]["sigma"] - 1.0)
+        r["line_seed"]: percent_change(r["sigma"], base[r["line_seed"]]["sigma"])
         for r in rows
         if r["run"] == run and r["line_seed"] in base
     }
@@ -178,7 +178,7 @@ def write_report(
                 if run.startswith("map"):
                     d = Interval.of(
                         [
-                            100.0 * (members[k]["sigma"] / first_b[k]["sigma"] - 1.0)
+                            percent_change(members[k]["sigma"], first_b[k]["sigma"])
                             for k in members
                             if k in first_b
                         ]
