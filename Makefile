@@ -21,7 +21,7 @@ FAST_TESTS := (unit or offline) and not live and not slow
 TEST_WORKERS ?= 2
 PARALLEL = --numprocesses=$(TEST_WORKERS) --dist=loadfile
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-pair-draw realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-held-out realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-pair-draw realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -137,6 +137,14 @@ realistic-experiment: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_laws.yaml --out reports/realistic/laws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/laws --against passive
 	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/laws
+
+# line_adaptive against passive on lines held out of design and report (seeds 120-159; 120-139 with
+# the pneumatic actuator), the laws campaign's speeds and window (config/campaigns/realistic_held_out.yaml
+# -> reports/realistic/held_out/; docs/realistic_scenario.md). 480 runs, about 35 min on 2 workers.
+realistic-held-out: setup
+	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_held_out.yaml --out reports/realistic/held_out $(ARGS)
+	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/held_out --against passive
+	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/held_out --sigma-only
 
 # line_adaptive with the guard's bar estimated span by span against passive on the same report lines,
 # speeds and window (config/campaigns/realistic_guard_estimate.yaml -> reports/realistic/guard_estimate/;
