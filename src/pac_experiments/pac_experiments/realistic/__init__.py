@@ -10,6 +10,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
+#: The line seeds the law's design was chosen on (the design studies used 0-9 to 0-59; docs/laws.md).
+DESIGN_LINES = tuple(range(60))
+#: The line seeds the realistic reports are given on (every report campaign and experiment).
+REPORT_LINES = tuple(range(100, 120))
+#: Lines neither the design nor the reports used (``make realistic-held-out``, from 120 on).
+HELD_OUT_FROM = 120
+
 #: What differs between two runs of the same train over the same line: the track under the car
 #: body, the turbulent uplift and the sensors' noise, each drawn from its seed. Draw 0 is the
 #: scenario's; :func:`draw` gives another.

@@ -39,9 +39,15 @@ import numpy as np
 from pac_common import markdown
 from pac_common.contact_statistics import ContactStatistics, contact_statistics, target_mean_force
 from pac_experiments.campaign.summary import Interval, percent_change
-from pac_experiments.realistic import add_settings_option, settings_or_none, settings_text, write_results
+from pac_experiments.realistic import (
+    REPORT_LINES,
+    add_settings_option,
+    settings_or_none,
+    settings_text,
+    write_results,
+)
 
-SEEDS = tuple(range(100, 120))
+SEEDS = REPORT_LINES
 SPEED = 300.0
 #: The speeds of ``make realistic-pair``: the realistic experiment's.
 SPEEDS = (250.0, 300.0, 320.0, 350.0)

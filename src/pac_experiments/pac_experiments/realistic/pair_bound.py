@@ -45,10 +45,10 @@ import numpy as np
 from pac_common import markdown
 from pac_common.contact_statistics import lowpass, position_window
 from pac_experiments.campaign.summary import Interval, percent_change
-from pac_experiments.realistic import feedforward_law, write_results
+from pac_experiments.realistic import REPORT_LINES, feedforward_law, write_results
 from pac_experiments.realistic.pair import PANTOGRAPHS, SPEED, Config, pantograph_statistics, simulate
 
-SEEDS = tuple(range(100, 120))
+SEEDS = REPORT_LINES
 #: lambda, the follower's weight against the leader's, tried in this order (the smallest that keeps
 #: the follower's predicted sigma within the margin wins).
 LAMBDAS = (0.0, 0.1, 0.3, 0.5, 1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 30.0, 100.0)

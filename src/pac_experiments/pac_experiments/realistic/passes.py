@@ -36,6 +36,7 @@ import numpy as np
 from pac_common import markdown
 from pac_experiments.campaign.summary import Interval, percent_change
 from pac_experiments.realistic import (
+    REPORT_LINES,
     add_settings_option,
     draw,
     settings_or_none,
@@ -45,7 +46,7 @@ from pac_experiments.realistic import (
 
 SCENARIOS = ("realistic_electromechanical", "realistic_pneumatic")
 SPEEDS = (250.0, 300.0, 320.0, 350.0)
-SEEDS = tuple(range(100, 120))
+SEEDS = REPORT_LINES
 SPEC = Path("config/campaigns/realistic_laws.yaml")
 OUT = Path("reports/realistic/passes")
 #: Pass A's line map error (the scenario files') and pass B's draws of what changes between passes.
