@@ -3,16 +3,15 @@ reported number never comes from a line the law was chosen on (docs/realistic_sc
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from conftest import ROOT
 
 from pac_experiments.campaign.spec import load_spec
 from pac_experiments.realistic import DESIGN_LINES, HELD_OUT_FROM, REPORT_LINES, pair, pair_bound, passes
 
 pytestmark = pytest.mark.unit
 
-CAMPAIGNS = Path(__file__).resolve().parents[1] / "config" / "campaigns"
+CAMPAIGNS = ROOT / "config" / "campaigns"
 
 
 def lines_of(name: str) -> set[int]:
