@@ -294,8 +294,39 @@ def _observer_update(k, t, oc, os, bank, y1, y2, u_applied, out) -> int:
 def closed_loop_for(step):
     """The compiled tick and tick loop around controller ``step`` (``kernels.controller_step`` for
     pac's laws: :func:`loop_tick`, :func:`run_ticks`; a user's compiled law file: its own, through
-    :func:`block_for`). Closures, so numba calls ``step`` statically and the cached functions that
-    call them (:func:`run_block`, the batch's) stay cached (``kernels.safety_chain``)."""
+    :func:`block_for`), and the unit's chain they run (:func:`unit_chain`). Closures, so numba calls
+    ``step`` statically and the cached functions that call them (:func:`run_block`, the batch's)
+    stay cached (``kernels.safety_chain``)."""
+
+    @njit(error_model="numpy")
+    def unit_chain(k, pp, ps, oc, os, bank, cp, cs, table, memory, y1, y2, out) -> tuple[int, float, float]:
+        """One unit from its measurement y_k to the force its actuator holds over [t_k, t_k+1]: the
+        observer, the law and its safety chain, the command delay, the actuator; the estimate and
+        the command into ``out``. Returns (0, 0, that force) or a divergence (code, value, 0):
+        DISPLACEMENT (value y1), the observer's (the state is that of tick k - 1), FORCE (value: u
+        demanded by the law)."""
+        if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
+            return DISPLACEMENT, y1, 0.0
+        status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
+        if status:
+            return status, np.nan, 0.0
+        # Controller: law and safety chain.
+        u, u_law, f_r, e1, e2, e3, mode = step(
+            cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat, out.actuator_force
+        )
+        if not abs(u_law) < DIVERGENCE_FORCE:
+            return FORCE, u_law, 0.0
+        out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
+        out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
+        out.saturated, out.mode = u != u_law, mode
+        # Command delay, then the actuator's dynamics (Plant._actuate): its mean force over the tick.
+        if pp.delay == 0:
+            applied = u
+        else:
+            applied = ps.pending[ps.head]
+            ps.pending[ps.head] = u
+            ps.head = (ps.head + 1) % pp.delay
+        return 0, 0.0, actuator_apply(pp.actuator, ps.actuator, applied)
 
     @njit(error_model="numpy")
     def loop_tick(k, pp, ps, fe_args, oc, os, bank, cp, cs, table, memory, noise, out) -> tuple[int, float]:
@@ -311,29 +342,10 @@ def closed_loop_for(step):
         operations is that of ``closed_loop.run_cores`` and of the nodes.
         """
         y1, y2 = _plant_output(k, pp, ps, fe_args, noise, out)
-        if not (abs(y1) < DIVERGENCE_DISPLACEMENT and abs(y2) < DIVERGENCE_DISPLACEMENT):
-            return DISPLACEMENT, y1
-        status = _observer_update(k, out.time, oc, os, bank, y1, y2, ps.u_applied, out)
-        if status:
-            return status, np.nan
-        # Controller: law and safety chain.
-        u, u_law, f_r, e1, e2, e3, mode = step(
-            cp, cs, table, memory, k, os.z_hat, os.theta_hat, out.contact_force_hat, out.actuator_force
-        )
-        if not abs(u_law) < DIVERGENCE_FORCE:
-            return FORCE, u_law
-        out.u, out.u_unsaturated, out.force_reference = u, u_law, f_r
-        out.tracking_error[0], out.tracking_error[1], out.tracking_error[2] = e1, e2, e3
-        out.saturated, out.mode = u != u_law, mode
-        # Command delay, the actuator, then the plant over [t_k, t_k+1] (zero-order hold).
-        if pp.delay == 0:
-            applied = u
-        else:
-            applied = ps.pending[ps.head]
-            ps.pending[ps.head] = u
-            ps.head = (ps.head + 1) % pp.delay
-        # The actuator's dynamics (Plant._actuate): its mean force over the tick.
-        applied = actuator_apply(pp.actuator, ps.actuator, applied)
+        code, value, applied = unit_chain(k, pp, ps, oc, os, bank, cp, cs, table, memory, y1, y2, out)
+        if code:
+            return code, value
+        # The plant over [t_k, t_k+1] (zero-order hold).
         status = _plant_advance(k, pp, ps, fe_args, applied)
         if status:
             return status, out.contact_position
@@ -357,11 +369,11 @@ def closed_loop_for(step):
                 return k, code, value
         return k1, 0, 0.0
 
-    return loop_tick, run_ticks
+    return loop_tick, run_ticks, unit_chain
 
 
 #: The closed loop of pac's laws (:func:`closed_loop_for` ``kernels.controller_step``).
-loop_tick, run_ticks = closed_loop_for(controller_step)
+loop_tick, run_ticks, unit_chain = closed_loop_for(controller_step)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
