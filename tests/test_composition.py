@@ -8,6 +8,7 @@ from __future__ import annotations
 import pytest
 from conftest import simulate_refusal
 
+from pac_controller import line_adaptive
 from pac_controller.laws import LAWS
 from pac_controller.parameters import LAW_NAMES
 from pac_observer.parameters import OBSERVER_GIVES
@@ -227,6 +228,34 @@ def test_a_pantograph_behind_another_runs_passive_until_the_wave_of_the_one_ahea
         }
     )
     assert named["line_runin_spans"] == 4 and named["line_guard_reference"] == "runin"
+    # Behind an active one (both of a pair active): also its learning's transient, the spans its
+    # guard waits out (LawEntry.settle_spans), so that its changing wave is not taken for this law's
+    # own doing; as the user names that wait, and nothing for the leading one.
+    pair = {**run, "pantographs": (0.0, 200.0), "all_pantographs_active": True}
+    behind, notes = composition.derive({**pair, "controlled_pantograph": 1, "speed_kmh": 300.0})
+    settle = LawParameters().line_guard_spans
+    assert behind["line_runin_spans"] == default + settle + 2
+    assert any(n.startswith("line_runin_spans:=") and f"{settle} spans of its learning" in n for n in notes)
+    waits, _ = composition.derive(
+        {**pair, "controlled_pantograph": 1, "speed_kmh": 300.0, "line_guard_spans": 4}
+    )
+    assert waits["line_runin_spans"] == default + 4 + 2
+    assert "line_runin_spans" not in composition.derive({**pair, "controlled_pantograph": 0})[0]
+    # Ahead of an active one: its design for that place (LawEntry.ahead_of_active), over the
+    # actuator's design, each noted once; nothing behind, where the user names it, or with the other
+    # one passive.
+    leading, notes = composition.derive({**pair, "controlled_pantograph": 0})
+    (mu,) = dict(line_adaptive.DESIGN_AHEAD_OF_ACTIVE).values()
+    assert leading["line_effort_weight"] == mu
+    assert [n for n in notes if n.startswith("line_effort_weight:=")] == [
+        f"line_effort_weight:={mu:g} (law line_adaptive's design for a pantograph with another active "
+        "one behind it)"
+    ]
+    assert behind["line_effort_weight"] != mu
+    named, _ = composition.derive({**pair, "controlled_pantograph": 0, "line_effort_weight": 0.2})
+    assert named["line_effort_weight"] == 0.2
+    passive_behind, _ = composition.derive({**run, "pantographs": (0.0, 200.0), "controlled_pantograph": 0})
+    assert passive_behind["line_effort_weight"] != mu
     monkeypatch.setitem(
         LAWS, "names_its_runin", dataclasses.replace(LAWS["passive"], runin_spans="line_runin_spans")
     )

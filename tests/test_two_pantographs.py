@@ -202,6 +202,12 @@ def test_the_compiled_closed_loop_with_two_pantographs_equals_the_core_objects()
         ({"pantographs": (0.0, 200.0, 100.0)}, "pantographs", "0 first, then increasing"),
         ({"pantographs": (50.0,)}, "pantographs", "0 first, then increasing"),
         ({"pantographs": (0.0, 200.0), "controlled_pantograph": 2}, "controlled_pantograph", "[0, 1]"),
+        ({"all_pantographs_active": True}, "all_pantographs_active", "true with two pantographs"),
+        (
+            {"pantographs": (0.0, 100.0, 200.0), "all_pantographs_active": True},
+            "all_pantographs_active",
+            "true with two pantographs",
+        ),
     ],
 )
 def test_bad_pantograph_layouts_are_refused_by_name(options, name, allowed):

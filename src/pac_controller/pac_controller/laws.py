@@ -28,7 +28,7 @@ from pac_model.parameters import CatenaryParameters, PantographParameters, Track
 
 from .backstepping import BacksteppingController, KnownThetaBackstepping
 from .controller import Controller, Law
-from .line_adaptive import DESIGN_BEHIND_ANOTHER, LineAdaptiveLaw, design_for_actuator
+from .line_adaptive import DESIGN_AHEAD_OF_ACTIVE, DESIGN_BEHIND_ANOTHER, LineAdaptiveLaw, design_for_actuator
 from .lqr import LqrLaw, design_lqr
 from .parameters import FORCE_ESTIMATES, ControllerParameters, LawParameters, ReferenceParameters
 from .passive import PassiveLaw
@@ -113,10 +113,17 @@ class LawEntry:
     #: passive reference), if it has one: on a train, a pantograph with another ahead of it runs
     #: passive until that one's wave has reached it (derived by pac_rig.composition).
     runin_spans: str | None = None
+    #: The law's parameter that holds how many learning spans its transient lasts (its guard waits
+    #: them out), if it has one: behind another active pantograph, the run-in also waits until that
+    #: one's learning has settled and its wave has come (pac_rig.composition).
+    settle_spans: str | None = None
     #: The law's design values, (parameter, value) pairs, on a pantograph with others ahead of it on
     #: the train, where the wave it meets from them makes its spans differ; each derived where the
     #: user names it not (pac_rig.composition). Empty: the law's defaults serve either position.
     behind_another: tuple[tuple[str, object], ...] = ()
+    #: The law's design values on a pantograph with another active one behind it (both of a pair
+    #: active, ``all_pantographs_active``), each derived where the user names it not.
+    ahead_of_active: tuple[tuple[str, object], ...] = ()
 
     def needs_of(self, force_estimate: str) -> frozenset[str]:
         """What the law needs of the estimate besides z_hat when F_hat is fed back in the form
@@ -200,7 +207,9 @@ LAWS: dict[str, LawEntry] = {
         line_layout=True,
         actuator_design=design_for_actuator,
         runin_spans="line_runin_spans",
+        settle_spans="line_guard_spans",
         behind_another=DESIGN_BEHIND_ANOTHER,
+        ahead_of_active=DESIGN_AHEAD_OF_ACTIVE,
     ),
     "skyhook": law_module("pac_controller.skyhook"),
 }

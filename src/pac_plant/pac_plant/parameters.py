@@ -185,6 +185,12 @@ class PlantOptions(ParameterSet):
         low=0,
         high=MAX_PANTOGRAPHS - 1,
     )
+    all_pantographs_active: bool = parameter(
+        False,
+        "fe: every one of 'pantographs' has its own actuator, sensors, observer and law (run offline "
+        "by pac_rig.pair_loop; this rig is the one of controlled_pantograph): a law behind an "
+        "active one runs passive until that one's learning has settled (docs/laws.md)",
+    )
     passive_pantograph: str = parameter(
         "three_mass",
         "fe: the passive pantographs, a pantograph file (a path) or a shipped preset's name "
@@ -226,6 +232,10 @@ class PlantOptions(ParameterSet):
                 "controlled_pantograph",
                 self.controlled_pantograph,
                 f"an index into pantographs, an integer in [0, {len(spacings) - 1}]",
+            )
+        if self.all_pantographs_active and len(spacings) != 2:
+            raise ParameterError(
+                "all_pantographs_active", True, "false, or true with two pantographs (a pair loop)"
             )
         if len(spacings) > 1:
             load_pantograph_file(self.passive_pantograph, "passive_pantograph")

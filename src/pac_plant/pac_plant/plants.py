@@ -14,6 +14,8 @@ import importlib
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from pac_common.parameters import ParameterError
+
 if TYPE_CHECKING:
     from pac_model.parameters import CatenaryParameters, PantographParameters, TrackParameters
 
@@ -95,9 +97,18 @@ def make_plant(
     catenary: CatenaryParameters | None,
     options: Any,
     sample_period: float,
+    pair_unit: bool = False,
 ) -> Any:
     """The plant (a ``pac_plant.plant.Plant``) that ``options.catenary_model`` (``PlantOptions``)
-    names, its module imported now."""
+    names, its module imported now. ``all_pantographs_active`` is refused (one line) unless the plant
+    is a unit of a pair loop (``pair_unit``): a rig of one unit would run the others passive."""
+    if getattr(options, "all_pantographs_active", False) and not pair_unit:
+        raise ParameterError(
+            "all_pantographs_active",
+            True,
+            "false in a rig of one unit (its other pantographs are passive; both of a pair active run "
+            "offline: pac_rig.pair_loop, make realistic-pair)",
+        )
     cls = plant_kind(options.catenary_model).plant_class()
     return cls(pantograph, track, catenary, options, sample_period)
 

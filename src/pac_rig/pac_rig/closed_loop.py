@@ -59,9 +59,10 @@ class DivergenceError(RuntimeError):
 Cores = tuple[Plant, AdaptiveObserver | ContactForceObserver, Controller]
 
 
-def build_cores(s: Scenario) -> Cores:
+def build_cores(s: Scenario, pair_unit: bool = False) -> Cores:
     """The plant, observer and controller of ``s``; ParameterError (one line) for parts that do not
-    fit together (pac_rig.composition) or a design the parameters do not allow."""
+    fit together (pac_rig.composition) or a design the parameters do not allow (``pair_unit``: the
+    cores of one unit of a pair loop, ``pac_rig.pair_loop``, where ``all_pantographs_active`` holds)."""
     composition.check_pair(
         s.controller.effective_law, s.observer.observer, s.laws.force_estimate, s.plant.sensors
     )
@@ -73,7 +74,7 @@ def build_cores(s: Scenario) -> Cores:
             "1 when a pantograph file is given (scale the masses in a copy of the file instead)",
         )
     plant = make_plant(
-        s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt
+        s.mismatch.plant_pantograph(s.pantograph), s.track, s.catenary, s.plant, dt, pair_unit
     )  # lumped | fe
     speed = s.track.speed_kmh / 3.6
     if s.loop.duration * speed > plant.run_length:

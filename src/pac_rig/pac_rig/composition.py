@@ -12,8 +12,10 @@ observer states what it gives (``pac_observer.observers.OBSERVERS``: ``gives``).
   accelerometer); a law that takes a line layout (``LawEntry.line_layout``) is told the design
   layout of the whole line the plant runs; a law that names its passive run-in
   (``LawEntry.runin_spans``), on a pantograph with others ahead of it, runs passive until the wave
-  of the farthest one ahead has reached it, and takes its design for that position
-  (``LawEntry.behind_another``); a law's design for an actuator as hardware
+  of the farthest one ahead has reached it (where they are active too, ``all_pantographs_active``,
+  until their learning has settled: ``LawEntry.settle_spans``), and takes its design for that
+  position (``LawEntry.behind_another``), and on one with another active one behind it its design
+  for that (``LawEntry.ahead_of_active``); a law's design for an actuator as hardware
   (``LawEntry.actuator_design``: from the actuator's lag and a span's passing time) where the
   actuator is one; a fixed-gain law feeds back F_hat in the first form its observer gives
   (``force_estimate``: k_hat z1 on the paper's observer, the filter's own F_hat on
@@ -131,9 +133,29 @@ def derive(
     actuator = str(given.get("actuator", "ideal"))
     if actuator != "ideal" and "u_min" not in given and "u_max" not in given:
         notes.extend(_actuator_limits(actuator, {**given, **out}, out))
+    ahead: dict[str, Any] = {}  # the design ahead of an active one wins over the actuator's
+    if fe_line and entry is not None and entry.ahead_of_active:
+        notes += _ahead_of_active(entry, law, given, ahead)
+        out.update(ahead)
     if entry is not None and entry.actuator_design is not None and actuator != "ideal":
-        notes += _actuator_design(entry.actuator_design, law, actuator, given, out)
+        notes += _actuator_design(entry.actuator_design, law, actuator, {**given, **ahead}, out)
     return out, notes
+
+
+def _ahead_of_active(entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
+    """On a pantograph with another active one behind it (``all_pantographs_active``), into ``out``
+    where the user names them not: the law's design for that place (``LawEntry.ahead_of_active``)."""
+    from pac_plant.parameters import PlantOptions
+
+    defaults = PlantOptions()
+    if not bool(given.get("all_pantographs_active", defaults.all_pantographs_active)):
+        return []
+    spacings = [float(s) for s in given.get("pantographs", defaults.pantographs)]
+    controlled = int(given.get("controlled_pantograph", defaults.controlled_pantograph))
+    if not 0 <= controlled < len(spacings) - 1:
+        return []  # none behind it (or refused by name where the plant is built)
+    why = f"law {law}'s design for a pantograph with another active one behind it"
+    return _design_values(entry.ahead_of_active, given, out, why)
 
 
 def _actuator_design(
@@ -258,7 +280,10 @@ def _behind_another(
     set down at once; the wave of one d ahead runs back along the contact wire at c = sqrt(T / rho)
     over ground while this one runs forward at v, so it arrives after d / (c + v). Nothing for a
     pantograph with none ahead: what one behind it sends forward closes in at c - v only
-    (docs/realistic_scenario.md, "Two pantographs")."""
+    (docs/realistic_scenario.md, "Two pantographs"). Where the ones ahead are active too
+    (``all_pantographs_active``), their wave changes while their laws learn: the run-in waits also
+    for the spans of that learning's transient (``LawEntry.settle_spans``), which the identification
+    of this law's own responses would otherwise take for its own doing (docs/laws.md)."""
     import math
 
     from pac_controller.parameters import LawParameters
@@ -281,10 +306,13 @@ def _behind_another(
         v = float(given.get("speed_kmh", TrackParameters().speed_kmh)) / 3.6
         arrival = ahead / (line.contact.wave_speed + v)
         spans = math.ceil(v * arrival / line.span)
-        out[name] = int(getattr(LawParameters(), name)) + spans
+        settle = entry.settle_spans if bool(given.get("all_pantographs_active", False)) else None
+        learning = int(given.get(settle, getattr(LawParameters(), settle))) if settle else 0
+        out[name] = int(getattr(LawParameters(), name)) + learning + spans
+        why = f"{learning} spans of its learning and " if learning else ""
         notes.append(
-            f"{name}:={out[name]} (law {law}'s run-in and {spans} spans more: the wave of the pantograph "
-            f"{ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
+            f"{name}:={out[name]} (law {law}'s run-in and {learning + spans} spans more: {why}the wave "
+            f"of the pantograph {ahead:g} m ahead reaches this one {arrival:.2f} s after the start)"
         )
     why = f"law {law}'s design for a pantograph {ahead:g} m behind another"
     return notes + _design_values(entry.behind_another, given, out, why)
