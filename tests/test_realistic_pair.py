@@ -59,6 +59,17 @@ def test_each_pantograph_is_compared_with_the_passive_pair_on_its_own_line(tmp_p
                 "trailing_loss_percent": 6.0,
             }
         )
+        rows.append(
+            {
+                **base,
+                "config": "both active",
+                "active": "both",
+                "leading_sigma": 35.0 + seed,
+                "trailing_sigma": 70.0,
+                "leading_loss_percent": 0.0,
+                "trailing_loss_percent": 6.0,
+            }
+        )
     text = write_report(rows, tmp_path)
     expected = np.mean([100.0 * ((30.0 + s) / (50.0 + s) - 1.0) for s in range(4)])
     line = next(
@@ -76,7 +87,9 @@ def test_each_pantograph_is_compared_with_the_passive_pair_on_its_own_line(tmp_p
     assert " | +0.0 [" in spared[1] and spared[1].rstrip(" |").endswith("0")
     active = [row.split(" | ")[2] for row in text.splitlines() if row.startswith("| 300 | active trailing |")]
     assert active == ["leading", "trailing (active)"]
-    assert (tmp_path / "results.csv").read_text().count("\n") == 17
+    both = [row.split(" | ")[2] for row in text.splitlines() if row.startswith("| 300 | both active |")]
+    assert both == ["leading (active)", "trailing (active)"]
+    assert (tmp_path / "results.csv").read_text().count("\n") == 21
 
 
 def _pair_rows(speed: float, passive_sigma: float, active_sigma: float) -> list[dict]:
@@ -171,6 +184,7 @@ def test_settings_given_reach_every_active_run_and_the_report_and_a_wrong_name_i
     configs = configurations((1.5,), settings)
     assert configs["passive pair"][2] == {}
     assert configs["active leading"][2] == configs["active trailing"][2] == settings
+    assert configs["both active"][2] == settings
     assert configs["active leading, mu 1.5"][2] == {"line_support_before": 0, "line_effort_weight": 1.5}
     text = write_report(_pair_rows(300.0, 50.0, 35.0), tmp_path, settings={"line_support_before": 0})
     assert "line_adaptive with line_support_before:=0." in text

@@ -122,7 +122,7 @@ def test_refusals_exit_2_with_one_line_before_any_run(tmp_path, capsys):
         (["--against", str(tmp_path / "missing.csv")], "cannot read"),
         (["--against", str(against), "--seeds", "7"], "no passive pair on line 7"),
         (["--against", str(against), "--results", str(results), "--draw", "2"], "not 2"),
-        (["--configs", "both active"], "'both active' is no configuration"),
+        (["--configs", "active middle"], "'active middle' is no configuration"),
     ]
     for argv, words in cases:
         assert main([*argv, "--out", str(tmp_path / "out")]) == 2

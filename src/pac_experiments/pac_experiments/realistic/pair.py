@@ -5,13 +5,15 @@ Every run: ``realistic_electromechanical`` with two benchmark-like 3-mass pantog
 (``pantographs: [0, 200]``), each on the roof of its own car: the scenario's track under the
 leading car, the same track 200 m later under the trailing one (``--fixed-roof``: both roofs fixed,
 ``roof_motion: ''``), F_r the EN 50367 target at each pantograph, at each speed of ``SPEEDS``
-(``--speeds``). Four runs per line and speed: both
+(``--speeds``). Five runs per line and speed: both
 passive (law ``passive`` on the leading one), the
 leading one active (law ``line_adaptive``, ``controlled_pantograph: 0``), the leading one active
 with the effort weight that spares its follower (``PAIR_EFFORT_WEIGHT``), the trailing one active
 (``controlled_pantograph: 1``; the run derives its run-in to last until the leading one's wave has
-reached it, and the law's design for a pantograph behind another, pac_rig.composition); the passive
-ones press with their file's uplift, the same target. Each pantograph's EN 50318 statistics (20 Hz
+reached it, and the law's design for a pantograph behind another, pac_rig.composition), and both
+active (``all_pantographs_active``: each the rig that would control it, run on one line by
+``pac_rig.pair_loop``; the trailing one's run-in waits also for the leading one's learning); the
+passive ones press with their file's uplift, the same target. Each pantograph's EN 50318 statistics (20 Hz
 low-pass, contact loss
 on the raw force) over the same stretch of line: from the support ``FIRST_SPAN`` to ``LAST_SPAN``
 of the design layout counted from the start of the leading pantograph, which both pass
@@ -60,13 +62,16 @@ PAIR_EFFORT_WEIGHT = 1.5
 #: A configuration: the law of the controlled pantograph, which one is controlled, law overrides.
 Config = tuple[str, int, dict[str, Any]]
 PANTOGRAPHS = ("leading", "trailing")
+#: A configuration's ``controlled`` for both pantographs active (``pac_rig.pair_loop``).
+BOTH = len(PANTOGRAPHS)
 
 
 def configurations(
     effort_weights: tuple[float, ...] = (PAIR_EFFORT_WEIGHT,), settings: dict[str, Any] | None = None
 ) -> dict[str, Config]:
     """The runs per line: the passive pair, each pantograph active with the law's defaults (and
-    ``settings`` on them), and the leading one with each effort weight of ``effort_weights``."""
+    ``settings`` on them), the leading one with each effort weight of ``effort_weights``, and both
+    active (``BOTH``)."""
     given = dict(settings or {})
     spared: dict[str, Config] = {
         f"active leading, mu {mu:g}": ("line_adaptive", 0, {**given, "line_effort_weight": mu})
@@ -77,6 +82,7 @@ def configurations(
         "active leading": ("line_adaptive", 0, given),
         **spared,
         "active trailing": ("line_adaptive", 1, given),
+        "both active": ("line_adaptive", BOTH, given),
     }
 
 
@@ -107,14 +113,60 @@ def simulate(
     """One run of ``config``: its record (the compiled loop's ticks), the stretch judged (from
     support ``spans[0]`` to ``spans[1]`` of the leading one's start, [m]) and the sample period
     (``fixed_roof``: both roofs fixed, else the scenario's moving roof under each; ``catenary``: the
-    line, default the scenario's). The run lasts until the trailing one has left the stretch."""
+    line, default the scenario's). The run lasts until the trailing one has left the stretch.
+    Both active (``BOTH``): the pair loop (``pac_rig.pair_loop``) of the rigs that would control
+    each (``all_pantographs_active``: the law's design for its place; each its own roof; the
+    trailing unit's sensor noise drawn from the next ``noise_seed``, so that the two suites do not
+    read the same noise); the record is the leading unit's, with both pantographs' contact."""
+    from pac_rig.closed_loop import run_blocks
+    from pac_rig.pair_loop import pair_loop, run_pair_blocks
+
+    law, controlled, overrides = config
+    both = controlled == BOTH
+    if both:
+        overrides = {**overrides, "all_pantographs_active": True}
+    values = run_values(seed, law, 0 if both else controlled, speed, fixed_roof, catenary, overrides)
+    duration, first, last = stretch(values, speed, spans)
+    s, plant, loop = compiled(values, duration)
+    if both:
+        trail = run_values(seed, law, 1, speed, fixed_roof, catenary, overrides)
+        trail["noise_seed"] = int(trail.get("noise_seed", 0)) + 1
+        _, plant2, loop2 = compiled(trail, duration)
+        pair = pair_loop(plant, loop, plant2, loop2)
+        out = np.concatenate([b[0] for b in run_pair_blocks(s.loop.ticks, plant, plant2, pair)])
+    else:
+        out = np.concatenate(list(run_blocks(s, plant, loop)))
+    return out, first, last, s.loop.sample_period
+
+
+def compiled(values: dict[str, Any], duration: float) -> tuple[Any, Any, Any]:
+    """The scenario of ``values`` lasting ``duration``, its FE plant and its compiled loop (a pair
+    loop's unit where ``all_pantographs_active``)."""
     from pac_plant.fe_plant import FEPlant
-    from pac_rig import composition
-    from pac_rig.closed_loop import build_cores, run_blocks
+    from pac_rig.closed_loop import build_cores
     from pac_rig.loop import compile_loop
     from pac_rig.simulate import scenario_from_flat
 
-    law, controlled, overrides = config
+    s = scenario_from_flat({**values, "duration": duration})
+    plant, observer, controller = build_cores(s, bool(values.get("all_pantographs_active", False)))
+    loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
+    assert isinstance(plant, FEPlant) and loop is not None
+    return s, plant, loop
+
+
+def run_values(
+    seed: int,
+    law: str,
+    controlled: int,
+    speed: float,
+    fixed_roof: bool,
+    catenary: str | None,
+    overrides: dict[str, Any],
+) -> dict[str, Any]:
+    """The flat parameters of the rig controlling pantograph ``controlled`` of the pair, derived
+    (``composition.derive``)."""
+    from pac_rig import composition
+
     values: dict[str, Any] = {
         "scenario": "realistic_electromechanical",
         **({"roof_motion": ""} if fixed_roof else {}),
@@ -127,21 +179,26 @@ def simulate(
         "force_amplitude": round(target_mean_force(speed), 3),
         **overrides,
     }
-    values, _ = composition.derive(values)
-    s = scenario_from_flat({**values, "duration": 0.01})
-    plant, _, _ = build_cores(s)
+    return composition.derive(values)[0]
+
+
+def stretch(values: dict[str, Any], speed: float, spans: tuple[int, int]) -> tuple[float, float, float]:
+    """(the run's duration [s], the stretch judged [m]) of a pair's run on ``values``: from support
+    ``spans[0]`` to ``spans[1]`` of the leading one's start, the run lasting until the trailing one
+    has left it."""
+    from pac_plant.fe_plant import FEPlant
+    from pac_rig.closed_loop import build_cores
+    from pac_rig.simulate import scenario_from_flat
+
+    pair_unit = bool(values.get("all_pantographs_active", False))
+    plant, _, _ = build_cores(scenario_from_flat({**values, "duration": 0.01}), pair_unit)
     assert isinstance(plant, FEPlant)
     supports = plant.line.layout.support_x
     lead_start = float(plant.sim.x)  # the leading pantograph's contact point at the start
     first = supports[np.searchsorted(supports, lead_start) + spans[0]]
     last = supports[np.searchsorted(supports, lead_start) + spans[1]]
     duration = (last + SPACING + 0.5 * (supports[1] - supports[0]) - lead_start) / (speed / 3.6)
-    s = scenario_from_flat({**values, "duration": round(duration, 3)})
-    plant, observer, controller = build_cores(s)
-    loop = compile_loop(plant, observer, controller, s.loop.command_delay_ticks)
-    assert loop is not None
-    out = np.concatenate(list(run_blocks(s, plant, loop)))
-    return out, float(first), float(last), s.loop.sample_period
+    return round(duration, 3), float(first), float(last)
 
 
 def run_one(
@@ -160,7 +217,7 @@ def run_one(
     row: dict[str, Any] = {
         "line_seed": seed,
         "config": name,
-        "active": "" if law == "passive" else PANTOGRAPHS[controlled],
+        "active": "" if law == "passive" else "both" if controlled == BOTH else PANTOGRAPHS[controlled],
         "speed_kmh": speed,
     }
     for pantograph, st in zip(PANTOGRAPHS, pantograph_statistics(out, first, last, dt), strict=True):
@@ -251,7 +308,7 @@ def write_report(
             sigma_change = Interval.of([c[0] for c in changes])
             more = sum(c[1] > 0.0 for c in changes)
             loss = stats_lib.fmean(r[f"{name}_loss_percent"] for r in members)
-            active = members[0]["active"] == name
+            active = members[0]["active"] in (name, "both")
             table.append(
                 [
                     f"{speed:g}",
