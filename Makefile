@@ -187,8 +187,8 @@ realistic-sections: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/sections_laws \
 		--also reports/realistic/sections_baselines --sigma-only
 
-# Two pantographs 200 m apart on the realistic line: active leading, active trailing, passive pair, at
-# 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;
+# Two pantographs 200 m apart on the realistic line: active leading, active trailing, both active,
+# passive pair, at 250/300/320/350 km/h (reports/realistic/pair/pair.md; src/pac_experiments/pac_experiments/realistic/pair.py;
 # ARGS="--speeds 300" for one speed, "--add-to CSV" to add speeds to an earlier run's results).
 realistic-pair: setup
 	scripts/with_env.sh ros2 run pac_experiments realistic_pair $(ARGS)
