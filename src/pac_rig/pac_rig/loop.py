@@ -228,6 +228,25 @@ def _with_roof(k, pp, ps, force: float) -> float:
 
 
 @njit(cache=True, error_model="numpy")
+def measure(pp, ps, z, a1, a2, force, noise, out) -> tuple[float, float]:
+    """The measurement y_k of the truth ``z`` (eq. (10), plus noise and quantisation; or a train
+    suite's readings of z, the accelerations a1, a2, the contact force and ``out.roof_height``:
+    ``Plant.measurement``), the suite's other channels into ``out``."""
+    if pp.suite:  # Plant._sense: the suite's readings of the truth, once a tick
+        r = ps.sensed
+        sensor_step(pp.sensors, ps.sensors, z[0], z[1], a1, a2, out.roof_height, force, noise, r)
+        out.head_acceleration, out.frame_acceleration, out.head_force = r[2], r[3], r[4]
+        out.from_roof = pp.sensors.roof_datum
+        return r[0], r[1]
+    y1, y2 = z[0], z[1]
+    if pp.noisy:
+        y1, y2 = y1 + noise[0], y2 + noise[1]
+    out.head_acceleration, out.frame_acceleration, out.head_force = np.nan, np.nan, np.nan
+    out.from_roof = False
+    return quantise(y1, pp.quantisation), quantise(y2, pp.quantisation)
+
+
+@njit(cache=True, error_model="numpy")
 def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
     """The plant at tick k: truth into ``out`` and ``ps.z``, and the measurement y_k (eq. (10),
     plus noise and quantisation; or a train suite's readings, ``Plant.measurement``)."""
@@ -240,19 +259,7 @@ def _plant_output(k, pp, ps, fe_args, noise, out) -> tuple[float, float]:
     # The plant's own truth (plant_dispatch, generated from the plant registry).
     stiff, force, a1, a2 = plant_output(k, t, pp, ps, fe_args, out)
     z = ps.z
-    if pp.suite:  # Plant._sense: the suite's readings of the truth, once a tick
-        r = ps.sensed
-        sensor_step(pp.sensors, ps.sensors, z[0], z[1], a1, a2, out.roof_height, force, noise, r)
-        y1, y2 = r[0], r[1]
-        out.head_acceleration, out.frame_acceleration, out.head_force = r[2], r[3], r[4]
-        out.from_roof = pp.sensors.roof_datum
-    else:
-        y1, y2 = z[0], z[1]
-        if pp.noisy:
-            y1, y2 = y1 + noise[0], y2 + noise[1]
-        y1, y2 = quantise(y1, pp.quantisation), quantise(y2, pp.quantisation)
-        out.head_acceleration, out.frame_acceleration, out.head_force = np.nan, np.nan, np.nan
-        out.from_roof = False
+    y1, y2 = measure(pp, ps, z, a1, a2, force, noise, out)
     out.tick, out.time = k, t
     out.y[0], out.y[1] = y1, y2
     out.actuator_force = ps.u_applied

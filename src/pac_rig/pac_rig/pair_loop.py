@@ -35,10 +35,9 @@ from pac_plant.catenary import step as fe_step
 from pac_plant.catenary.packing import unpack
 from pac_plant.fe_plant import FEPlant
 from pac_plant.hardware.car_body import roof_from
-from pac_plant.hardware.sensors import sensor_step
 
 from .closed_loop import BLOCK, DivergenceError
-from .loop import TICK, CompiledLoop, _angles_at, _with_roof, loop_tick, unit_chain
+from .loop import TICK, CompiledLoop, _angles_at, _with_roof, loop_tick, measure, unit_chain
 
 #: The second unit's pantograph in the shared simulation (``FEPlant.contact_of`` of the first
 #: unit's plant: the controlled one is contact 0, the other one of a pair contact 1).
@@ -67,12 +66,7 @@ def second_unit_tick(
         _angles_at(k, pp, ps)
         roof_from(pp.roof_amplitude, pp.roof_frequency, ps.roof_cos, ps.roof_sin, ps.roof)
         out.roof_height = ps.roof[0]
-    r = ps.sensed  # the train's suite (the composition gives the second unit the first one's)
-    sensor_step(
-        pp.sensors, ps.sensors, z[0], z[1], st.ap[head], st.ap[frame], out.roof_height, force, noise, r
-    )
-    y1, y2 = r[0], r[1]
-    out.head_acceleration, out.frame_acceleration, out.head_force, out.from_roof = r[2], r[3], r[4], True
+    y1, y2 = measure(pp, ps, z, st.ap[head], st.ap[frame], force, noise, out)  # its own sensors
     out.tick, out.time = k, k * pp.dt
     out.y[0], out.y[1] = y1, y2
     out.actuator_force = ps.u_applied
