@@ -83,6 +83,7 @@ KEY_NEUTRAL_DEFAULTS = {
     "controlled_pantograph": 0,
     "passive_pantograph": "three_mass",
     "passive_pantograph_uplift": 0.0,
+    "all_pantographs_active": False,
     "force_estimate": "k_hat_z1",
     # line_adaptive's guard on what F_hat cannot bend, and its line map (its runs change with the
     # law's code: make campaigns and make fe-experiment run afresh, not resumed)
