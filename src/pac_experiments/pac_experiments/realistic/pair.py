@@ -253,7 +253,7 @@ def read_results(path: Path) -> list[dict[str, Any]]:
         rows: list[dict[str, Any]] = list(csv.DictReader(f))
     for row in rows:
         for key, value in row.items():
-            if key == "line_seed":
+            if key in ("line_seed", "draw"):  # integers, written back as read (a rebuilt report)
                 row[key] = int(value)
             elif key not in ("config", "active"):
                 row[key] = float(value)
