@@ -218,8 +218,9 @@ DESIGN_BEHIND_ANOTHER = (("line_guard_reference", "estimate"),)
 #: The design values on a pantograph with another active one behind it (both of a pair active,
 #: ``all_pantographs_active``): the effort weight mu that spares the one behind. A leader that lowers
 #: its own force's sigma sends a stronger wave back to its follower (+8.6 % of the follower's sigma at
-#: 300 km/h with mu = 0.05, the follower passive); the follower's own law takes back only part of it,
-#: since most of the wave's force lies above the learned 4 Hz band. Chosen on design lines 0-9 at
+#: 300 km/h with mu = 0.05, the follower passive); the follower's own law takes back only part of it
+#: (half of what a passive follower's spans do not share lies in 8-20 Hz, above the learned 4 Hz
+#: band: docs/laws.md, "Both of a pair active"). Chosen on design lines 0-9 at
 #: 300 km/h among 0.05 (the design for an actuator as hardware), 0.5 and 1.5 as the smallest whose
 #: follower stayed within +5 % of its passive pair's sigma on every line (docs/realistic_scenario.md,
 #: "Both active"); a judgement between the two pantographs' gains, not a fit.

@@ -122,7 +122,7 @@ def derive(
     if fe_line and entry is not None and entry.line_layout and "line_supports" not in given:
         notes += _line_layout(given, out, catenary)
     if fe_line and entry is not None and (entry.runin_spans is not None or entry.behind_another):
-        notes += _behind_another(entry, law, given, out, catenary)
+        notes += _behind_another(entry, law, given, out, catenary, _train(given, plant_defaults))
     static_force = actuator_static_force(given)
     if static_force is not None:
         out["actuator_static_force"] = static_force
@@ -135,23 +135,35 @@ def derive(
         notes.extend(_actuator_limits(actuator, {**given, **out}, out))
     ahead: dict[str, Any] = {}  # the design ahead of an active one wins over the actuator's
     if fe_line and entry is not None and entry.ahead_of_active:
-        notes += _ahead_of_active(entry, law, given, ahead)
+        notes += _ahead_of_active(entry, law, given, ahead, _train(given, plant_defaults))
         out.update(ahead)
     if entry is not None and entry.actuator_design is not None and actuator != "ideal":
         notes += _actuator_design(entry.actuator_design, law, actuator, {**given, **ahead}, out)
     return out, notes
 
 
-def _ahead_of_active(entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any]) -> list[str]:
+#: A run's train (``_train``): each pantograph's distance behind the first, the controlled one's
+#: index, and whether every pantograph is active.
+Train = tuple[list[float], int, bool]
+
+
+def _train(given: Mapping[str, Any], defaults: Any) -> Train:
+    """The train ``given`` names, the plant's ``defaults`` (a ``PlantOptions``) for what it does not."""
+    return (
+        [float(s) for s in given.get("pantographs", defaults.pantographs)],
+        int(given.get("controlled_pantograph", defaults.controlled_pantograph)),
+        bool(given.get("all_pantographs_active", defaults.all_pantographs_active)),
+    )
+
+
+def _ahead_of_active(
+    entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any], train: Train
+) -> list[str]:
     """On a pantograph with another active one behind it (``all_pantographs_active``), into ``out``
     where the user names them not: the law's design for that place (``LawEntry.ahead_of_active``)."""
-    from pac_plant.parameters import PlantOptions
-
-    defaults = PlantOptions()
-    if not bool(given.get("all_pantographs_active", defaults.all_pantographs_active)):
+    spacings, controlled, all_active = train
+    if not all_active:
         return []
-    spacings = [float(s) for s in given.get("pantographs", defaults.pantographs)]
-    controlled = int(given.get("controlled_pantograph", defaults.controlled_pantograph))
     if not 0 <= controlled < len(spacings) - 1:
         return []  # none behind it (or refused by name where the plant is built)
     why = f"law {law}'s design for a pantograph with another active one behind it"
@@ -270,7 +282,7 @@ def _line_layout(given: Mapping[str, Any], out: dict[str, Any], catenary: str) -
 
 
 def _behind_another(
-    entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any], catenary: str
+    entry: LawEntry, law: str, given: Mapping[str, Any], out: dict[str, Any], catenary: str, train: Train
 ) -> list[str]:
     """On a pantograph with others ahead of it on the train, into ``out`` where the user names
     them not: the law's passive run-in (``LawEntry.runin_spans``) lengthened by the spans it runs
@@ -289,11 +301,8 @@ def _behind_another(
     from pac_controller.parameters import LawParameters
     from pac_model.parameters import TrackParameters
     from pac_plant.catenary.catenary_file import load_catenary
-    from pac_plant.parameters import PlantOptions
 
-    defaults = PlantOptions()
-    spacings = [float(s) for s in given.get("pantographs", defaults.pantographs)]
-    controlled = int(given.get("controlled_pantograph", defaults.controlled_pantograph))
+    spacings, controlled, all_active = train
     if not 0 <= controlled < len(spacings):
         return []  # refused by name where the plant is built
     ahead = max((spacings[controlled] - s for s in spacings if s < spacings[controlled]), default=0.0)
@@ -306,7 +315,7 @@ def _behind_another(
         v = float(given.get("speed_kmh", TrackParameters().speed_kmh)) / 3.6
         arrival = ahead / (line.contact.wave_speed + v)
         spans = math.ceil(v * arrival / line.span)
-        settle = entry.settle_spans if bool(given.get("all_pantographs_active", False)) else None
+        settle = entry.settle_spans if all_active else None
         learning = int(given.get(settle, getattr(LawParameters(), settle))) if settle else 0
         out[name] = int(getattr(LawParameters(), name)) + learning + spans
         why = f"{learning} spans of its learning and " if learning else ""
