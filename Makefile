@@ -21,7 +21,7 @@ FAST_TESTS := (unit or offline) and not live and not slow
 TEST_WORKERS ?= 2
 PARALLEL = --numprocesses=$(TEST_WORKERS) --dist=loadfile
 
-.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-held-out realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-pair-draw realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
+.PHONY: setup test test-fast test-portable mutation lint typecheck clean demo reproduce catenary two-pantographs fe-experiment realistic-passive realistic-experiment realistic-goals realistic-held-out realistic-guard-estimate realistic-support-zone realistic-draws realistic-pair realistic-pair-sections realistic-pair-bound realistic-pair-draw realistic-deviation realistic-sections realistic-passes realistic-passes-sections line-response fe-live bench soak report info replay re-estimate recover sweep campaigns
 
 setup:
 	bash scripts/setup.sh
@@ -137,6 +137,11 @@ realistic-experiment: setup
 	scripts/with_env.sh ros2 run pac_experiments campaign config/campaigns/realistic_laws.yaml --out reports/realistic/laws $(ARGS)
 	scripts/with_env.sh ros2 run pac_experiments campaign_summary reports/realistic/laws --against passive
 	scripts/with_env.sh ros2 run pac_experiments realistic_laws_figures reports/realistic/laws
+
+# The realistic scenario's goals, each met or not met with its numbers, read from the committed reports
+# (realistic/laws, held_out, pair; catenary/laws) into reports/realistic/goals.md: no run, seconds.
+realistic-goals: setup
+	scripts/with_env.sh ros2 run pac_experiments realistic_goals $(ARGS)
 
 # line_adaptive against passive on lines held out of design and report (seeds 120-159; 120-139 with
 # the pneumatic actuator), the laws campaign's speeds and window (config/campaigns/realistic_held_out.yaml

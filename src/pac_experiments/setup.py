@@ -35,6 +35,7 @@ setup(
             "realistic_figure = pac_experiments.realistic.figure:main",
             "fe_live = pac_experiments.catenary.live:main",
             "two_pantographs = pac_experiments.catenary.two_pantographs:main",
+            "realistic_goals = pac_experiments.realistic.goals:main",
             "realistic_pair = pac_experiments.realistic.pair:main",
             "realistic_pair_bound = pac_experiments.realistic.pair_bound:main",
             "realistic_pair_draw = pac_experiments.realistic.pair_draw:main",
