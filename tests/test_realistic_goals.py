@@ -78,6 +78,18 @@ def test_the_pairs_other_pantograph_within_five_percent_and_no_more_loss(sigma, 
 
 
 @unit
+@pytest.mark.parametrize(("second_draw_loss", "beyond"), [(5.2, 0), (5.0, 1)])
+def test_the_pairs_extra_loss_read_against_a_second_draw(second_draw_loss, beyond):
+    """The follower loses 0.1 points more than the passive pair; the passive pair's second draw
+    rises by 0.2 points (within it) or not at (beyond it). Judged as stated either way: not met."""
+    first = [_pair_row("passive pair", 100.0, 5.0), _pair_row("active leading", 100.0, 5.1)]
+    second = [_pair_row("passive pair", 100.0, second_draw_loss), _pair_row("active leading", 100.0, 5.0)]
+    (goal,) = pair_goals(first, second)
+    assert not goal.met
+    assert f"more loss on 1 of 1 ({beyond} beyond the passive pair's rise between two draws)" in goal.numbers
+
+
+@unit
 def test_fm_band_on_every_run(tmp_path: Path):
     header = "scenario,law,status,force_amplitude,en50318_contact_force_mean\n"
     (tmp_path / "in.csv").write_text(header + "s,passive,ok,100,95.0\ns,line_adaptive,ok,100,104.9\n")
