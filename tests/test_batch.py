@@ -73,6 +73,9 @@ def traces_of(records):
                     rec.truth.z[0],
                     rec.estimate.contact_force_hat,
                     rec.truth.contact_uplift,
+                    rec.truth.contact_position,
+                    rec.truth.u_applied,
+                    rec.command.saturated,
                 )
             )
     except DivergenceError as exc:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import json
+import math
 import os
 import signal
 import socket
@@ -589,3 +590,31 @@ def test_every_committed_campaign_spec_expands(spec):
     """A committed SPEC that no longer passes validation is found here, not when a user runs it."""
     path = CAMPAIGN_SPECS / spec
     assert campaign_spec.expand(campaign_spec.load_spec(path))
+
+
+@pytest.mark.unit
+def test_the_saturation_share_counts_the_chains_limits_and_the_actuators_rate():
+    """Of 100 ticks: 5 the safety chain changed, 10 more on which the actuator's mean force moved by
+    its rate limit r h (5 kN/s x 1 ms = 5 N), 10 that moved by 0.999 r h (not at the limit): 15 %.
+    On the lumped line (no contact position) the spans are v t from a support."""
+    from pac_rig.simulate import scenario_from_flat
+
+    s = scenario_from_flat({"actuator": "electromechanical", "speed_kmh": 234.0})  # a 65 m span in 1 s
+    n, dt = 3000, s.loop.sample_period
+    applied = np.full(n, 100.0)
+    applied[1010:1020] = 100.0 + 5.0 * np.arange(1, 11)  # ramps at r h
+    applied[1020:1030] = applied[1019] + 0.999 * 5.0 * np.arange(1, 11)
+    applied[1030:] = applied[1029]
+    saturated = np.zeros(n, bool)
+    saturated[1050:1055] = True
+    force = np.full(n, 120.0)
+    force[2500:2510] = 0.0  # 10 of span 2's 1000 ticks, in the window
+    traces = {"contact_force": force, "contact_position": np.full(n, np.nan), "u_applied": applied,
+              "saturated": saturated}  # fmt: skip
+    win = np.zeros(n, bool)
+    win[1000:1100] = True
+    got = campaign_run.limit_measures(s, traces, win, dt)
+    assert got["saturation_percent"] == pytest.approx(15.0)
+    assert math.isnan(got["worst_span_loss_percent"])  # no whole span in 100 ticks
+    win[1000:] = True  # spans 1 and 2 whole
+    assert campaign_run.limit_measures(s, traces, win, dt)["worst_span_loss_percent"] == pytest.approx(1.0)

@@ -119,3 +119,26 @@ def test_whole_spans_inside_an_interval():
         cs.whole_spans(60.0, 150.0, 55.0)
     with pytest.raises(ValueError, match="span_length"):
         cs.whole_spans(0.0, 100.0, 0.0)
+
+
+def test_the_worst_span_is_the_whole_span_that_lost_most_counted_by_hand():
+    # Supports of unequal spans; the record starts inside span 0 and ends inside span 3.
+    supports = np.array([0.0, 50.0, 110.0, 160.0, 220.0])
+    x = np.arange(20.0, 200.0, 1.0)  # 1 m per sample
+    force = np.full(x.size, 100.0)
+    force[(x >= 60.0) & (x < 66.0)] = 0.0  # 6 of span 1's 60 samples: 10 %
+    force[(x >= 120.0) & (x < 125.0)] = -1.0  # 5 of span 2's 50 samples: 10 %,
+    force[x == 150.0] = 0.0  # and one more: 6 of 50, 12 %
+    force[(x >= 20.0) & (x < 40.0)] = 0.0  # span 0 is cut by the record: not a span's share
+    assert cs.worst_span_loss_percent(force, x, supports) == pytest.approx(12.0)
+    assert cs.statistics(force).contact_loss_percent == pytest.approx(100.0 * 32 / x.size)
+
+
+def test_a_span_reached_within_one_sample_counts_and_none_whole_is_nan():
+    supports = np.array([0.0, 50.0, 100.0])
+    x = np.arange(0.5, 100.0, 1.0)  # from half a sample after the support to half one before the next
+    force = np.where(x < 50.0, 0.0, 100.0)
+    assert cs.worst_span_loss_percent(force, x, supports) == 100.0
+    inside = np.arange(10.0, 40.0, 1.0)
+    assert math.isnan(cs.worst_span_loss_percent(np.zeros(inside.size), inside, supports))
+    assert math.isnan(cs.worst_span_loss_percent(force, np.full(x.size, np.nan), supports))

@@ -101,9 +101,38 @@ def statistics(force: np.ndarray, loss_force: np.ndarray | None = None) -> Conta
         contact_force_max=float(np.max(f)),
         statistical_min=mean - 3.0 * std,
         statistical_max=mean + 3.0 * std,
-        # A NaN force is neither in contact nor lost: one makes the share unknown, not 0 %.
-        contact_loss_percent=100.0 * float(np.mean(lost <= 0.0)) if np.all(np.isfinite(lost)) else math.nan,
+        contact_loss_percent=loss_percent(lost),
     )
+
+
+def loss_percent(force: np.ndarray) -> float:
+    """The share of samples with F <= 0 [%]; NaN for none, or for a NaN among them (a NaN force is
+    neither in contact nor lost: one makes the share unknown, not 0 %)."""
+    f = np.asarray(force, dtype=float)
+    return 100.0 * float(np.mean(f <= 0.0)) if f.size and np.all(np.isfinite(f)) else math.nan
+
+
+def worst_span_loss_percent(force: np.ndarray, position: np.ndarray, supports: np.ndarray) -> float:
+    """The largest :func:`loss_percent` over the spans the record covers whole: its samples grouped
+    by the span (between two of the ascending ``supports`` [m]) their ``position`` [m] lies in, a
+    span counted when the record reaches both its supports to within one sample's travel (part of a
+    span is not its share). ``position`` rises through the record, as a train's does. NaN when no
+    span is covered whole. Per span because contact loss gathers where the line is hard (after a
+    support, at an overlap): a window's share spreads one span's losses over all of them."""
+    f, x = np.asarray(force, dtype=float), np.asarray(position, dtype=float)
+    edges = np.asarray(supports, dtype=float)
+    if f.shape != x.shape:
+        raise ValueError(f"position has {x.shape} samples, force {f.shape}")
+    if f.size < 2 or not np.all(np.isfinite(x)):
+        return math.nan
+    step = float(np.max(np.diff(x)))
+    span = np.searchsorted(edges, x, side="right") - 1
+    shares = [
+        loss_percent(f[span == k])
+        for k in range(edges.size - 1)
+        if x[0] <= edges[k] + step and x[-1] >= edges[k + 1] - step
+    ]
+    return max(shares) if shares else math.nan
 
 
 def lowpass(force: np.ndarray, dt: float, cutoff: float = CUTOFF_HZ) -> np.ndarray:

@@ -31,7 +31,7 @@ from .loop import MAX_DELAY, TICK, CompiledLoop, compile_loop, loop_tick
 #: Per-tick traces, rows of ``BatchResult.traces[name]`` (NaN after a divergence): fields of loop.TICK.
 TRACES = (
     "contact_force", "force_reference", "u", "stiffness", "stiffness_hat", "z1", "contact_force_hat",
-    "contact_uplift",
+    "contact_uplift", "contact_position", "u_applied", "saturated",
 )  # fmt: skip
 
 
@@ -63,6 +63,7 @@ def _run_one(
         out[0, k], out[1, k], out[2, k] = rec.contact_force, rec.force_reference, rec.u
         out[3, k], out[4, k], out[5, k] = rec.stiffness, rec.stiffness_hat, rec.z[0]
         out[6, k], out[7, k] = rec.contact_force_hat, rec.contact_uplift
+        out[8, k], out[9, k], out[10, k] = rec.contact_position, rec.u_applied, rec.saturated
     return ticks, 0, 0.0
 
 

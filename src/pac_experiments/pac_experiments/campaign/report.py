@@ -291,6 +291,12 @@ def write_report(spec: Spec, rows: list[dict], out: Path, note: str = "") -> Pat
             ("uplift_max_mm", "max uplift [mm]"),
             ("force_hat_error_percent", "F_hat err [% of sigma_F]"),
         ]
+        # Measured since a later version: shown where the runs have them (older reports unchanged).
+        later = (
+            ("worst_span_loss_percent", "worst span's loss [%]"),
+            ("saturation_percent", "saturated [%]"),
+        )
+        measures += [(m, label) for m, label in later if any(r.get(m) not in (None, "") for r in rows)]
     table = []
     for r in rows:
         status = r["status"] if _ok(r) else f"{r['status']}: {r.get('reason', '')}"

@@ -7,6 +7,11 @@ low-passed force over the window (the window half-open, so whole spans hold whol
 periods), max |du/dt|, the largest wire uplift at the contact point and the contact-force
 estimate's error RMS(F_hat - F) as % of sigma_F (raw F, over the window). The EN 50367
 criteria are then taken on the filtered statistics, as the standard defines them.
+With ``statistics: en50318`` a row also gives the worst span's contact loss (the largest share over
+the spans of the line the window covers whole: the design layout's supports on a drawn line, the
+period's on another) and the saturation share: the window's ticks on which the command was limited,
+by the safety chain (the law's command changed: the actuator's range as the controller is told it,
+its slew limit) or by the actuator (its mean force over the tick changed by its rate limit).
 """
 
 from __future__ import annotations
@@ -21,7 +26,13 @@ from typing import Any
 import numpy as np
 
 from pac_analysis.metrics import Metrics, RunSeries, metrics_from_series
-from pac_common.contact_statistics import ContactStatistics, en50367_criteria, lowpass, statistics
+from pac_common.contact_statistics import (
+    ContactStatistics,
+    en50367_criteria,
+    lowpass,
+    statistics,
+    worst_span_loss_percent,
+)
 from pac_experiments.campaign.spec import Point, law_file_sha256, observer_file_sha256
 from pac_rig.batch import batchable, run_batch
 from pac_rig.closed_loop import DivergenceError, Scenario, TickRecord, build_cores, run_blocks, run_cores
@@ -40,6 +51,8 @@ EN50318_COLUMNS = (
     "du_dt_max_abs",
     "uplift_max_mm",
     "force_hat_error_percent",
+    "worst_span_loss_percent",
+    "saturation_percent",
 )
 STATUS_OK, STATUS_DIVERGED, STATUS_ERROR = "ok", "diverged", "error"
 
@@ -48,7 +61,7 @@ STATUS_OK, STATUS_DIVERGED, STATUS_ERROR = "ok", "diverged", "error"
 #: the batch, ``pac_rig.batch.TRACES``).
 MEASURED = (
     "contact_force", "stiffness", "force_reference", "stiffness_hat", "u", "contact_force_hat",
-    "contact_uplift",
+    "contact_uplift", "contact_position", "u_applied", "saturated",
 )  # fmt: skip
 
 
@@ -63,6 +76,9 @@ def traces_of_records(records: list[TickRecord]) -> dict[str, np.ndarray]:
         "u": np.array([r.command.u for r in records]),
         "contact_force_hat": np.array([r.estimate.contact_force_hat for r in records]),
         "contact_uplift": np.array([r.truth.contact_uplift for r in records]),
+        "contact_position": np.array([r.truth.contact_position for r in records]),
+        "u_applied": np.array([r.truth.u_applied for r in records]),
+        "saturated": np.array([r.command.saturated for r in records]),
     }
 
 
@@ -88,6 +104,13 @@ def run_traces(scenario: Scenario) -> tuple[dict[str, np.ndarray], str | None]:
     return {name: ticks[name] for name in MEASURED}, diverged
 
 
+def half_open(time_: np.ndarray, window: tuple[float, float], sample_period: float) -> np.ndarray:
+    """The ticks of ``time_`` in [from, to) (to within a billionth of a tick): whole spans hold
+    whole periods."""
+    eps = 1e-9 * sample_period
+    return (time_ >= window[0] - eps) & (time_ < window[1] - eps)
+
+
 def en50318_measures(
     time_: np.ndarray,
     force: np.ndarray,
@@ -98,8 +121,7 @@ def en50318_measures(
     sample_period: float,
 ) -> dict[str, float]:
     """The ``statistics: en50318`` columns over the half-open window [from, to) of ``time_``."""
-    eps = 1e-9 * sample_period
-    win = (time_ >= window[0] - eps) & (time_ < window[1] - eps)
+    win = half_open(time_, window, sample_period)
     stats = statistics(lowpass(force, sample_period)[win], loss_force=force[win])
     f, err = force[win], force_hat[win] - force[win]
     du = np.diff(u[win])
@@ -110,6 +132,49 @@ def en50318_measures(
         "force_hat_error_percent": 100.0 * float(np.sqrt(np.mean(err**2)) / np.std(f))
         if np.std(f) > 0
         else math.nan,
+    }
+
+
+def line_supports(scenario: Scenario, position: np.ndarray) -> np.ndarray:
+    """The supports [m] of the line ``position`` [m, rising] runs along: the design layout's on a
+    line drawn from a file with one (what the infrastructure manager publishes), else the period's,
+    a span length apart from the run's first position (every run starts at a support)."""
+    from pac_plant.catenary.catenary_file import load_catenary
+    from pac_plant.plants import plant_kind
+
+    options = scenario.plant
+    if plant_kind(options.catenary_model).line_from_file:
+        seed = options.line_seed
+        supports = load_catenary(options.catenary).design_supports(None if seed < 0 else seed)
+        if supports is not None:
+            return supports
+    span = scenario.track.span_length
+    return position[0] + span * np.arange(math.floor((position[-1] - position[0]) / span) + 2)
+
+
+def limit_measures(
+    scenario: Scenario, traces: dict[str, np.ndarray], win: np.ndarray, sample_period: float
+) -> dict[str, float]:
+    """``worst_span_loss_percent`` and ``saturation_percent`` over the ticks ``win`` (module
+    docstring): the position is the contact point's where the plant reports it, else the distance
+    run (v t from a support); the actuator's rate limit binds on a tick whose mean force moved by
+    r h (to 1 ppm: a ramp held through the tick and the one before)."""
+    from pac_plant.hardware.actuators import actuator_model
+
+    v = scenario.track.speed_kmh / 3.6
+    position = traces["contact_position"]
+    if not np.all(np.isfinite(position)):
+        position = v * sample_period * np.arange(position.size)
+    force, x = traces["contact_force"][win], position[win]
+    worst = worst_span_loss_percent(force, x, line_supports(scenario, x)) if x.size > 1 else math.nan
+    limited = traces["saturated"][win].astype(bool)
+    step = actuator_model(scenario.plant.actuator).rate_limit * sample_period
+    if math.isfinite(step):
+        moved = np.abs(np.diff(traces["u_applied"], prepend=traces["u_applied"][0]))[win]
+        limited = limited | (moved >= step * (1.0 - 1e-6))
+    return {
+        "worst_span_loss_percent": worst,
+        "saturation_percent": 100.0 * float(np.mean(limited)) if limited.size else math.nan,
     }
 
 
@@ -139,6 +204,8 @@ def measures(point: Point, traces: dict[str, np.ndarray], sample_period: float) 
                 traces["contact_uplift"], point.window, sample_period,
             )
         )  # fmt: skip
+        win = half_open(time_, point.window, sample_period)
+        row.update(limit_measures(point.built(), traces, win, sample_period))
         mean, sigma = row["en50318_contact_force_mean"], row["en50318_contact_force_std"]
     verdict = en50367_criteria(mean, sigma)
     row.update(zip(EN50367_COLUMNS, (verdict.sigma_ok, verdict.statistical_min_ok), strict=True))

@@ -47,9 +47,20 @@ MEASURES = {
     "en50318_contact_force_max": "max F [N]",
     "en50318_contact_loss_percent": "loss [%]",
     "uplift_max_mm": "max uplift [mm]",
+    "worst_span_loss_percent": "worst span's loss [%]",
+    "saturation_percent": "saturated [%]",
 }
+#: Of MEASURES and AGAINST_MEASURES, those shown only where the runs have them (measured since a
+#: later version: a report written before keeps its columns).
+WHERE_MEASURED = ("worst_span_loss_percent", "saturation_percent")
 #: Columns before ``status`` in results.csv that are not axes (what a SPEC derives).
 NOT_AXES = {"force_amplitude"}
+
+
+def _shown(measures: dict[str, str], found: list[dict[str, Interval]]) -> list[str]:
+    """The names of ``measures`` a report shows: all, those of WHERE_MEASURED only where some group
+    of ``found`` has them."""
+    return [k for k in measures if k not in WHERE_MEASURED or any(k in m for m in found)]
 
 
 def percent_change(value: float, reference: float) -> float:
@@ -128,6 +139,8 @@ AGAINST_MEASURES = {
     "en50318_contact_loss_percent": "loss [%]",
     "u_max_abs": "max |u| [N]",
     "force_hat_error_percent": "F_hat error [%]",
+    "worst_span_loss_percent": "worst span's loss [%]",
+    "saturation_percent": "saturated [%]",
 }
 #: Axes a run and its reference run may differ on besides the law (the reference reads no estimate).
 PAIR_FREE = ("law", "observer")
@@ -200,7 +213,15 @@ def write_against(
 ) -> str:
     """``against.md`` and ``against.json`` in ``out``; returns the markdown."""
     axes = list(comparisons[0].group)
-    header = [*axes, "pairs", "sigma change [%]", "worst [%]", "more loss", *AGAINST_MEASURES.values()]
+    shown = _shown(AGAINST_MEASURES, [c.measures for c in comparisons])
+    header = [
+        *axes,
+        "pairs",
+        "sigma change [%]",
+        "worst [%]",
+        "more loss",
+        *(AGAINST_MEASURES[k] for k in shown),
+    ]
     if draws:
         header.insert(len(axes) + 1, over)
     table = []
@@ -217,7 +238,7 @@ def write_against(
                 interval,
                 f"{change.largest:+.1f}",
                 str(c.more_loss),
-                *(c.measures[k].text() if k in c.measures else "" for k in AGAINST_MEASURES),
+                *(c.measures[k].text() if k in c.measures else "" for k in shown),
             ]
         )
     text = (
@@ -289,9 +310,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"campaign_summary: no run in {path}", file=sys.stderr)
         return 2
     axes = list(groups[0][0])
-    header = [*axes, args.over if draws else "runs", *MEASURES.values()]
+    shown = _shown(MEASURES, [m for _, m in groups])
+    header = [*axes, args.over if draws else "runs", *(MEASURES[k] for k in shown)]
     table = [
-        [*group.values(), str(next(iter(m.values())).n), *(m[k].text() if k in m else "" for k in MEASURES)]
+        [*group.values(), str(next(iter(m.values())).n), *(m[k].text() if k in m else "" for k in shown)]
         for group, m in groups
     ]
     text = (
