@@ -158,7 +158,7 @@ class FEPlant(Plant):
         self.sample_period = sample_period
         if data is None:
             line_file = load_catenary(options.catenary)
-            data = line_file.line(None if options.line_seed < 0 else options.line_seed)
+            data = line_file.line(options.drawn_line_seed)
             numerics = line_file.numerics
         else:
             numerics = NumericalOptions()

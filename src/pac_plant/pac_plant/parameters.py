@@ -205,6 +205,12 @@ class PlantOptions(ParameterSet):
         high=500.0,
     )
 
+    @property
+    def drawn_line_seed(self) -> int | None:
+        """The seed a catenary file's line is drawn with (``CatenaryFile.line``, ``design_supports``):
+        ``line_seed``, or None for the file's own (-1)."""
+        return None if self.line_seed < 0 else self.line_seed
+
     def check_consistency(self) -> None:
         from pac_model.pantograph_file import load_pantograph_file
 

@@ -144,8 +144,7 @@ def line_supports(scenario: Scenario, position: np.ndarray) -> np.ndarray:
 
     options = scenario.plant
     if plant_kind(options.catenary_model).line_from_file:
-        seed = options.line_seed
-        supports = load_catenary(options.catenary).design_supports(None if seed < 0 else seed)
+        supports = load_catenary(options.catenary).design_supports(options.drawn_line_seed)
         if supports is not None:
             return supports
     span = scenario.track.span_length
