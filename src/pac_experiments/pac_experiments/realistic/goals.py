@@ -24,7 +24,6 @@ import argparse
 import csv
 import json
 import sys
-from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -78,10 +77,6 @@ def against_rows(path: Path, scenario: str, law: str = JUDGED) -> dict[float, di
         raise ReportError(f"{path}: not a campaign summary's against.json ({exc})") from None
 
 
-def _speeds(text: Iterable[str]) -> str:
-    return ", ".join(text)
-
-
 def sigma_goals(groups: dict[float, dict[str, Any]], where: str) -> list[Goal]:
     """The goal and the must on the groups of :func:`against_rows` (``where``: the lines named)."""
     if not groups:
@@ -93,7 +88,7 @@ def sigma_goals(groups: dict[float, dict[str, Any]], where: str) -> list[Goal]:
     worse = sum(1 for v in groups if worst[v] >= 0.0)
     never = all(worst[v] < 0.0 and more[v] == 0 for v in groups)
     at_300 = groups.get(300.0)
-    each = _speeds(f"{v:g}: {mean[v]:+.1f} %" for v in sorted(groups))
+    each = ", ".join(f"{v:g}: {mean[v]:+.1f} %" for v in sorted(groups))
     never_text = (
         f"worst run {max(worst.values()):+.1f} %; speeds with a run worse in σ: {worse}; "
         f"runs with more contact loss: {sum(more.values())} of {runs}"
@@ -131,11 +126,11 @@ def fm_goal(results: Path) -> Goal:
         with results.open(newline="") as f:
             rows = [r for r in csv.DictReader(f) if r.get("status") == "ok"]
         # The largest |Fm - target| / target [%] of each scenario and law.
-        off = {(r["scenario"], r["law"]): 0.0 for r in rows}
+        off: dict[tuple[str, str], float] = {}
         for r in rows:
             target = float(r["force_amplitude"])
             share = 100.0 * abs(float(r["en50318_contact_force_mean"]) - target) / target
-            off[r["scenario"], r["law"]] = max(off[r["scenario"], r["law"]], share)
+            off[r["scenario"], r["law"]] = max(off.get((r["scenario"], r["law"]), 0.0), share)
     except (OSError, KeyError, ValueError) as exc:
         raise ReportError(f"{results}: {exc}") from None
     if not off:
@@ -155,7 +150,7 @@ def loss_goal(groups: dict[float, dict[str, Any]], scenario: str) -> Goal:
     return Goal(
         f"no run with more contact loss than passive ({scenario})",
         bool(groups) and not any(more.values()),
-        f"{sum(more.values())} of {runs} runs (" + _speeds(f"{v:g}: {more[v]}" for v in sorted(more)) + ")",
+        f"{sum(more.values())} of {runs} runs (" + ", ".join(f"{v:g}: {more[v]}" for v in sorted(more)) + ")",
     )
 
 
